@@ -1,0 +1,3 @@
+"""vetica: tapping-mode AFM on viscoelastic (SLS) surfaces, and the VETICA extraction."""
+
+__version__ = "0.1.0"

@@ -1,0 +1,283 @@
+"""Configuration of one simulation point: YAML -> frozen dataclasses.
+
+Every default and every validation lives here.  Defaults are the thesis's
+worked example (thesis tables 2-4, SPEC section 9).  All values are SI.
+
+A config error raises :class:`ConfigError` with one line naming the key, the
+value and what is allowed; the CLI turns it into exit status 2 before any work.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from dataclasses import dataclass, field, fields
+from pathlib import Path
+from typing import Any
+
+import yaml
+
+
+class ConfigError(ValueError):
+    """A configuration problem; the message is one line for the user."""
+
+
+def _positive(v):
+    return v > 0
+
+
+def _nonneg(v):
+    return v >= 0
+
+
+def _open_unit(v):
+    return 0 < v < 1
+
+
+@dataclass(frozen=True)
+class Probe:
+    """Torsional Harmonic Cantilever (thesis 2.4.2, table 1)."""
+
+    f1: float = 50e3  # flexural resonance [Hz]
+    f2: float = 750e3  # torsional (paddle) resonance [Hz]
+    k1: float = 10.0  # flexural stiffness [N/m]
+    k2: float = 700.0  # torsional stiffness [N/m]
+    q1: float = 100.0  # flexural quality factor (air)
+    q2: float = 1000.0  # torsional quality factor (air)
+    tip_radius: float = 10e-9  # [m]
+
+
+@dataclass(frozen=True)
+class Operation:
+    """Amplitude-modulation operation (thesis 3.1.2)."""
+
+    free_amplitude: float = 100e-9  # A0 [m]
+    setpoint: float = 0.7  # A_sp / A0, in (0, 1)
+    base_height: float | None = None  # fixed Zb [m]; null = PI amplitude control
+
+
+@dataclass(frozen=True)
+class Surface:
+    """Zener SLS with van der Waals attraction (thesis 3.2)."""
+
+    k_inf: float = 4.0  # equilibrium spring [N/m]
+    k0: float = 128.0  # Maxwell-arm spring [N/m]
+    cd: float = 3e-5  # dashpot [kg/s]
+    hamaker: float = 0.2e-18  # Hamaker constant H [J]
+    a0: float = 0.2e-9  # intermolecular distance [m]
+    vdw_on_surface: bool = True  # van der Waals also pulls the surface
+
+
+@dataclass(frozen=True)
+class Numerics:
+    """Integration, control, steady-state detection and recording."""
+
+    dt: float = 0.025e-9  # integration step [s] (thesis: 0.025 ns for every run)
+    print_step: float = 0.125e-9  # sampling interval of the records [s]
+    record_cycles: int = 10  # steady drive periods recorded
+    max_time: float = 0.03  # simulated-time budget [s]
+    kp: float = 0.5  # PI proportional gain [m per m of amplitude error]
+    ki: float = 0.3  # PI integral gain [m per m of amplitude error per period]
+    tol_amp: float = 2e-4  # steady: |A - A_sp| <= tol_amp * A_sp
+    tol_z: float = 1e-12  # steady: contact position changes <= tol_z per period [m]
+    settle_cycles: int = 10  # consecutive settled periods before recording
+    warm_start: bool = True  # start oscillating at A_sp just above the surface
+    approach_gap: float = 0.5e-9  # initial clearance of the lowest tip point [m]
+    approach_rate: float = 0.0  # base descent before the first contact [m/s]
+    approach_cycles: float = 1.0  # length of the recorded first-approach window [periods]
+
+
+@dataclass(frozen=True)
+class Config:
+    probe: Probe = field(default_factory=Probe)
+    operation: Operation = field(default_factory=Operation)
+    surface: Surface = field(default_factory=Surface)
+    numerics: Numerics = field(default_factory=Numerics)
+
+    def to_dict(self) -> dict:
+        return dataclasses.asdict(self)
+
+    def with_overrides(self, overrides: dict[str, Any]) -> "Config":
+        """New config with dotted-key overrides applied and validated."""
+        d = self.to_dict()
+        for key, value in overrides.items():
+            _set_dotted(d, key, value)
+        return from_dict(d)
+
+
+SECTIONS = {"probe": Probe, "operation": Operation, "surface": Surface, "numerics": Numerics}
+
+# key -> (predicate, description of what is allowed)
+RULES = {
+    "probe.f1": (_positive, "a frequency > 0 Hz"),
+    "probe.f2": (_positive, "a frequency > 0 Hz"),
+    "probe.k1": (_positive, "a stiffness > 0 N/m"),
+    "probe.k2": (_positive, "a stiffness > 0 N/m"),
+    "probe.q1": (_positive, "a quality factor > 0"),
+    "probe.q2": (_positive, "a quality factor > 0"),
+    "probe.tip_radius": (_positive, "a radius > 0 m"),
+    "operation.free_amplitude": (_positive, "an amplitude > 0 m"),
+    "operation.setpoint": (_open_unit, "a fraction of the free amplitude in (0, 1)"),
+    "operation.base_height": (lambda v: v is None or v > 0, "null (PI control) or a height > 0 m"),
+    "surface.k_inf": (_positive, "a stiffness > 0 N/m"),
+    "surface.k0": (_positive, "a stiffness > 0 N/m"),
+    "surface.cd": (_positive, "a dashpot coefficient > 0 kg/s"),
+    "surface.hamaker": (_positive, "a Hamaker constant > 0 J"),
+    "surface.a0": (_positive, "a distance > 0 m"),
+    "numerics.dt": (_positive, "a time step > 0 s"),
+    "numerics.print_step": (_positive, "a time > 0 s, an integer multiple of numerics.dt"),
+    "numerics.record_cycles": (lambda v: v >= 1, "an integer >= 1"),
+    "numerics.max_time": (_positive, "a time > 0 s"),
+    "numerics.kp": (_nonneg, "a gain >= 0"),
+    "numerics.ki": (_positive, "a gain > 0"),
+    "numerics.tol_amp": (_open_unit, "a relative tolerance in (0, 1)"),
+    "numerics.tol_z": (_positive, "a distance > 0 m"),
+    "numerics.settle_cycles": (lambda v: v >= 1, "an integer >= 1"),
+    "numerics.approach_gap": (_nonneg, "a distance >= 0 m"),
+    "numerics.approach_rate": (_nonneg, "a speed >= 0 m/s"),
+    "numerics.approach_cycles": (lambda v: 0 < v <= 20, "a number of periods in (0, 20]"),
+}
+
+
+def _type_name(tp) -> str:
+    return {"float": "a number", "int": "an integer", "bool": "true or false"}.get(str(tp), str(tp))
+
+
+def _coerce(key: str, value: Any, tp: str) -> Any:
+    """Coerce a YAML value to the declared field type or raise ConfigError."""
+    if tp == "bool":
+        if isinstance(value, bool):
+            return value
+        raise ConfigError(f"{key}: {value!r} is not allowed; expected true or false")
+    if tp == "int":
+        if isinstance(value, bool) or not isinstance(value, (int, float)) or float(value) != int(value):
+            raise ConfigError(f"{key}: {value!r} is not allowed; expected an integer")
+        return int(value)
+    if tp == "float | None":
+        if value is None:
+            return None
+        tp = "float"
+    if tp == "float":
+        if isinstance(value, str):
+            try:
+                value = float(value)
+            except ValueError:
+                raise ConfigError(f"{key}: {value!r} is not allowed; expected a number") from None
+        if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
+            raise ConfigError(f"{key}: {value!r} is not allowed; expected a finite number")
+        return float(value)
+    raise AssertionError(tp)
+
+
+def _set_dotted(d: dict, key: str, value: Any) -> None:
+    parts = key.split(".")
+    if len(parts) != 2 or parts[0] not in SECTIONS:
+        raise ConfigError(f"unknown key {key!r}; keys are section.name with section in {sorted(SECTIONS)}")
+    sec, name = parts
+    allowed = [f.name for f in fields(SECTIONS[sec])]
+    if name not in allowed:
+        raise ConfigError(f"unknown key {key!r}; allowed in {sec}: {', '.join(allowed)}")
+    d.setdefault(sec, {})[name] = value
+
+
+def from_dict(d: dict | None) -> Config:
+    """Build and validate a Config from a nested dict (missing keys -> defaults)."""
+    d = d or {}
+    if not isinstance(d, dict):
+        raise ConfigError(f"config must be a mapping of sections, got {type(d).__name__}")
+    unknown = set(d) - set(SECTIONS)
+    if unknown:
+        raise ConfigError(f"unknown section {sorted(unknown)[0]!r}; allowed: {', '.join(SECTIONS)}")
+    built = {}
+    for sec, cls in SECTIONS.items():
+        raw = d.get(sec) or {}
+        if not isinstance(raw, dict):
+            raise ConfigError(f"section {sec!r} must be a mapping, got {raw!r}")
+        kw = {}
+        names = {f.name: f for f in fields(cls)}
+        for name, value in raw.items():
+            if name not in names:
+                raise ConfigError(f"unknown key '{sec}.{name}'; allowed in {sec}: {', '.join(names)}")
+            key = f"{sec}.{name}"
+            v = _coerce(key, value, str(names[name].type))
+            pred, allowed = RULES.get(key, (lambda _: True, ""))
+            if not pred(v):
+                raise ConfigError(f"{key}: {value!r} is not allowed; expected {allowed}")
+            kw[name] = v
+        built[sec] = cls(**kw)
+    cfg = Config(**built)
+    _check_cross(cfg)
+    return cfg
+
+
+def _check_cross(cfg: Config) -> None:
+    """Checks that involve more than one key."""
+    n = cfg.numerics
+    if n.print_step < n.dt:
+        raise ConfigError(
+            f"numerics.print_step: {n.print_step!r} is not allowed; expected >= numerics.dt ({n.dt!r} s)"
+        )
+    ratio = n.print_step / n.dt
+    if abs(ratio - round(ratio)) > 1e-6 * ratio:
+        raise ConfigError(
+            f"numerics.print_step: {n.print_step!r} is not allowed; expected an integer multiple of numerics.dt ({n.dt!r} s)"
+        )
+    p = cfg.probe
+    period = 1.0 / p.f1
+    if n.dt > period / 200 or n.dt > 1.0 / p.f2 / 50:
+        raise ConfigError(
+            f"numerics.dt: {n.dt!r} is not allowed; expected <= 1/50 of the paddle period ({1 / p.f2 / 50:.3g} s)"
+        )
+    if n.print_step > period / 20:
+        raise ConfigError(
+            f"numerics.print_step: {n.print_step!r} is not allowed; expected <= 1/20 of the drive period ({period / 20:.3g} s)"
+        )
+    if n.max_time < (n.record_cycles + n.settle_cycles + 2) * period:
+        raise ConfigError(
+            f"numerics.max_time: {n.max_time!r} is not allowed; expected >= (record_cycles + settle_cycles + 2) drive periods "
+            f"({(n.record_cycles + n.settle_cycles + 2) * period:.3g} s)"
+        )
+
+
+def parse_set(items: list[str] | None) -> dict[str, Any]:
+    """Parse ``--set section.key=value`` items; values are YAML scalars."""
+    out: dict[str, Any] = {}
+    for item in items or []:
+        if "=" not in item:
+            raise ConfigError(f"--set {item!r} is not allowed; expected section.key=value")
+        key, raw = item.split("=", 1)
+        try:
+            value = yaml.safe_load(raw) if raw.strip() else None
+        except yaml.YAMLError:
+            raise ConfigError(f"--set {item!r}: the value is not a valid YAML scalar") from None
+        out[key.strip()] = value
+    return out
+
+
+def read_yaml(path: str | Path) -> dict:
+    """Read a YAML mapping or raise ConfigError (missing file, bad YAML)."""
+    p = Path(path)
+    if not p.is_file():
+        raise ConfigError(f"config file {str(p)!r} does not exist")
+    try:
+        data = yaml.safe_load(p.read_text())
+    except yaml.YAMLError as exc:
+        line = getattr(getattr(exc, "problem_mark", None), "line", None)
+        where = f" (line {line + 1})" if line is not None else ""
+        raise ConfigError(f"config file {str(p)!r} is not valid YAML{where}") from None
+    if data is None:
+        return {}
+    if not isinstance(data, dict):
+        raise ConfigError(f"config file {str(p)!r} must hold a mapping of sections")
+    return data
+
+
+def load(path: str | Path | None = None, overrides: dict[str, Any] | None = None) -> Config:
+    """Load a single-point config (YAML or defaults) with dotted overrides."""
+    d = read_yaml(path) if path else {}
+    if "sweep" in d:
+        raise ConfigError(f"{path}: has a 'sweep:' block; run it with 'vetica sweep', not 'vetica simulate'")
+    cfg_d = {k: dict(v) if isinstance(v, dict) else v for k, v in d.items()}
+    for key, value in (overrides or {}).items():
+        _set_dotted(cfg_d, key, value)
+    return from_dict(cfg_d)

@@ -1,0 +1,112 @@
+"""Per-run observables (thesis ch. 4, SPEC section 5).
+
+All computed over the recorded steady window, which spans ``record_cycles``
+whole drive periods with the base held fixed.  Energies per drive cycle.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from .core import thc
+
+EV = 1.602176634e-19  # J per eV
+
+OBSERVABLE_UNITS = {
+    "e_diss_ev": "eV per drive cycle: -(closed integral of f_ts dz_tip), energy the sample takes",
+    "peak_force": "N: largest repulsive f_ts",
+    "max_penetration": "m: deepest surface position below the undeformed surface (positive into the sample)",
+    "contact_time": "s per drive cycle in contact",
+    "noncontact_time": "s per drive cycle out of contact",
+    "paddle_amplitude": "m: (max - min)/2 of z_paddle",
+    "ss_zero_depth": "m: Z1 minus the tip position at the last steady contact (depth of the steady-state zero reference)",
+    "amplitude": "m: first-harmonic amplitude of z_tip - z_base",
+    "phase_deg": "deg: lag of the first harmonic of z_tip - z_base behind the drive force (90 = free resonance)",
+    "virial_ev": "eV: mean of f_ts (z_tip - z_base) over the window",
+    "z1": "m: tip position at the first force minimum of the approach (undeformed-surface reference)",
+}
+
+
+def first_force_minimum(t: np.ndarray, z_tip: np.ndarray, f_ts: np.ndarray) -> tuple[float, float, int]:
+    """Tip position and time at the first force minimum of an approach record.
+
+    The minimum of ``f_ts`` over the samples before the first repulsive
+    (``f_ts >= 0``) sample: the attractive well at the first contact
+    (thesis 3.3.1, eq. 84).  Returns ``(z1, t1, index)``; nan, -1 if no
+    repulsive sample is found.
+    """
+    if len(f_ts) == 0:
+        return math.nan, math.nan, -1
+    rep = np.flatnonzero(f_ts >= 0)
+    if len(rep) == 0:
+        return math.nan, math.nan, -1
+    stop = rep[0]
+    if stop == 0:
+        return math.nan, math.nan, -1
+    i = int(np.argmin(f_ts[:stop]))
+    return float(z_tip[i]), float(t[i]), i
+
+
+def harmonic(t: np.ndarray, y: np.ndarray, omega: float) -> tuple[float, float]:
+    """First-harmonic amplitude and lag (deg) of ``y`` behind ``cos(omega t)``.
+
+    ``y ~ A cos(omega t - phi)``; for a resonant free oscillator driven by
+    ``F0 cos(omega t)``, ``phi = 90`` degrees.  The samples must span whole
+    periods.
+    """
+    c = 2.0 * np.mean(y * np.cos(omega * t))
+    s = 2.0 * np.mean(y * np.sin(omega * t))
+    return float(np.hypot(c, s)), float(np.degrees(np.arctan2(s, c)))
+
+
+def compute_observables(run, cfg, d) -> None:
+    """Fill ``run.observables``, ``run.energy`` and ``run.warnings``."""
+    s = run.steady
+    col = {name: s[:, i] for i, name in enumerate(thc.COLUMNS)}
+    info = run.info
+    cycles = cfg.numerics.record_cycles
+    q = col["z_tip"] - col["z_base"]
+    amp, phase = harmonic(col["t"], q, d.omega1)
+    a = run.approach
+    z1, _, _ = first_force_minimum(a[:, 0], a[:, 1], a[:, 5]) if len(a) else (math.nan, math.nan, -1)
+    contact_time = info["contact_steps"] * cfg.numerics.dt / cycles
+    obs = {
+        "e_diss_ev": info["w_ts"] / cycles / EV,
+        "peak_force": float(np.max(col["f_ts"])),
+        "max_penetration": float(-np.min(col["x_surface"])),
+        "contact_time": contact_time,
+        "noncontact_time": d.period - contact_time,
+        "paddle_amplitude": float(0.5 * (np.max(col["z_paddle"]) - np.min(col["z_paddle"]))),
+        "ss_zero_depth": z1 - info["z_contact_last"],
+        "amplitude": amp,
+        "phase_deg": phase,
+        "virial_ev": float(np.mean(col["f_ts"] * q)) / EV,
+        "z1": z1,
+    }
+    run.observables = {k: (None if isinstance(v, float) and math.isnan(v) else float(v)) for k, v in obs.items()}
+    run.energy = {
+        "drive_work": info["w_drive"] / cycles / EV,
+        "cantilever_damping": info["d_cantilever"] / cycles / EV,
+        "paddle_damping": info["d_paddle"] / cycles / EV,
+        "sample_dissipation": info["w_ts"] / cycles / EV,
+        "dashpot_dissipation": info["d_dashpot"] / cycles / EV,
+        "probe_energy_change": (info["e_mech_end"] - info["e_mech_start"]) / cycles / EV,
+    }
+    warnings = []
+    if run.stop_reason != "steady":
+        warnings.append(
+            f"steady state not reached within numerics.max_time = {cfg.numerics.max_time} s; "
+            "the last periods were recorded anyway"
+        )
+    if not len(a) or math.isnan(z1):
+        warnings.append("no first-approach contact recorded: Z1 unknown")
+    if info["max_contacts_per_period"] > 1:
+        warnings.append(
+            f"paddle chatter: up to {int(info['max_contacts_per_period'])} contacts in one drive period "
+            "(VETICA assumes one contact and one separation per tap)"
+        )
+    if info["n_contacts"] == 0:
+        warnings.append("no contact during the recorded steady periods")
+    run.warnings = warnings
