@@ -9,11 +9,12 @@ Force balance of the massless surface::
     F_sls = k_inf X + k0 (X - Xd)              [N]  (force the surface exerts)
     cd Xd' = k0 (X - Xd)                            (dashpot, thesis eq. 51)
 
-Non-contact, ``d = z_tip - X > a0`` (thesis eqs. 59-65, appendix C): the tip
-pulls the surface with ``Fa(d) = H R / (6 d^2)`` (thesis eq. 3) when
+Non-contact, gap ``d = z_tip - X > a0`` (thesis eqs. 59-65, appendix C): the
+tip pulls the surface with ``Fa(d) = H R / (6 d^2)`` (thesis eq. 3) when
 ``vdw_on_surface``; then ``X = (k0 Xd + Fa)/(k0 + k_inf)`` and ``Xd`` creeps
-towards ``Fa/k_inf`` with the retardation time ``tau_c = cd (k0+k_inf)/(k0 k_inf)``.
-``Fts = -Fa(d)``.
+towards ``Fa/k_inf`` with the retardation time
+``tau_c = cd (k0 + k_inf)/(k0 k_inf)``; ``Fts = -Fa(d)``.  Without the surface
+pull, ``X = k0 Xd/(k0 + k_inf)`` and ``Xd`` creeps towards 0.
 
 Contact (thesis eqs. 52-58): ``X = z_tip - a0``; ``Xd`` relaxes towards ``X``
 with the relaxation time ``tau_r = cd/k0``; ``Fts = -F_sls`` (vdW on the
@@ -22,55 +23,79 @@ surface would have to hold the tip with more than the adhesion ``Fa(a0)``
 (resp. when ``F_sls`` changes sign).  ``Fts`` is continuous at both transitions.
 
 The dashpot is advanced with the exact exponential step
-``Xd <- Xt + (Xd - Xt) exp(-dt/tau)``: it never overshoots its target, so the
-thesis's clamp "the dashpot may not pass the surface" holds by construction,
-and it is stable for any ``tau`` vs ``dt``.  ``decay = exp(-dt/tau)`` is passed
-in precomputed.
+``Xd <- Xt + (Xd - Xt) exp(-dt/tau)`` for a target ``Xt`` held over the step:
+it never overshoots, so the thesis's clamp "the dashpot may not pass the
+surface" holds by construction, and it is stable for any ``tau`` against
+``dt``.  Under a constant load or a constant indentation the discrete updates
+below reproduce the closed-form creep and relaxation exactly at ``t = n dt``.
+
+The coefficients are folded so that each update is one or two fused
+multiply-adds (the kernel's critical path):
+
+    non-contact: X_n = alpha Xd_{n-1} + beta Fa_n,   Xd_n = gamma Fa_n + ec Xd_{n-1}
+    contact:     F_sls,n = kc X_n - k0er Xd_{n-1},    Xd_n = (1 - er) X_n + er Xd_{n-1}
 """
+
+import math
 
 from numba import njit
 
 
-@njit(cache=True, inline="always", fastmath={"contract"})
-def noncontact_step(z_tip, x, xd, decay_c, hr6, a0, k0, inv_kg, inv_kinf, vdw_on_surface):
-    """Advance the surface one step out of contact.
+@njit(cache=True)
+def sls_coefficients(k_inf, k0, cd, dt, hr6, a0, vdw_on_surface):
+    """Precomputed constants of the surface updates.
 
-    ``x`` is the surface position of the previous step (the gap is evaluated
-    with it: an explicit one-step lag of at most ~1e-13 m at dt = 0.025 ns).
-    Returns ``(x, fts, xd, contact)``; when ``contact`` is True the caller must
-    redo the step with :func:`contact_step` (``x, fts, xd`` are then unused).
+    Returns ``(ec, er, alpha, beta, gamma, kc, k0er, fa0, sep_thr, fa_sep, fa_c, inv_kg)``:
+    ``ec = exp(-dt/tau_c)``, ``er = exp(-dt/tau_r)``; ``fa0 = Fa(a0)`` [N];
+    ``sep_thr`` the F_sls at which the tip separates [N]; ``fa_sep`` the pull
+    on a released surface [N]; ``fa_c`` the vdW force added to Fts in contact
+    in the tip-only model [N].
     """
-    d = z_tip - x
-    if d <= a0:
-        return x, 0.0, xd, True
+    kg = k0 + k_inf
+    inv_kg = 1.0 / kg
+    tau_c = cd * kg / (k0 * k_inf)  # retardation time [s]
+    tau_r = cd / k0  # relaxation time [s]
+    ec = math.exp(-dt / tau_c)
+    er = math.exp(-dt / tau_r)
+    alpha = k0 * inv_kg * ec
+    gamma = (1.0 - ec) / k_inf if vdw_on_surface else 0.0
+    beta = inv_kg * (1.0 + k0 * gamma) if vdw_on_surface else 0.0
+    kc = kg - k0 * (1.0 - er)
+    k0er = k0 * er
+    fa0 = hr6 / (a0 * a0)
+    sep_thr = fa0 if vdw_on_surface else 0.0
+    fa_sep = fa0 if vdw_on_surface else 0.0
+    fa_c = 0.0 if vdw_on_surface else fa0
+    return ec, er, alpha, beta, gamma, kc, k0er, fa0, sep_thr, fa_sep, fa_c, inv_kg
+
+
+@njit(cache=True, inline="always", fastmath={"contract"})
+def noncontact_update(d, xd, hr6, alpha, beta, gamma, ec):
+    """One step out of contact at gap ``d`` [m] (> a0).
+
+    Returns ``(fa, x, xd)``: the attraction ``Fa(d) = H R/(6 d^2)`` [N]
+    (``Fts = -fa``), the surface position and the dashpot position after the
+    step.
+    """
     fa = hr6 / (d * d)
-    if vdw_on_surface:
-        xt = fa * inv_kinf
-        xd = xt + (xd - xt) * decay_c
-        x = (k0 * xd + fa) * inv_kg
-    else:
-        xd = xd * decay_c
-        x = k0 * xd * inv_kg
-    return x, -fa, xd, False
+    x = alpha * xd + beta * fa
+    xd = gamma * fa + ec * xd
+    return fa, x, xd
 
 
 @njit(cache=True, inline="always", fastmath={"contract"})
-def contact_step(z_tip, xd, decay_r, a0, k0, kg, sep_thr, fa0, inv_kg, vdw_on_surface):
-    """Advance the surface one step in contact.
+def contact_update(x, xd, kc, k0er, er):
+    """One step in contact with the surface at ``x`` [m] (= z_tip - a0).
 
-    Returns ``(x, fts, xd, contact, separated)``.  On separation the surface
-    is released at the same instant and ``Fts = -Fa(a0)`` (continuous).
+    Returns ``(f_sls, xd)``: the force the surface exerts, ``k_inf X + k0 (X - Xd)``
+    with ``Xd`` after the step [N], and the dashpot position after the step.
     """
-    x = z_tip - a0
-    xd = x + (xd - x) * decay_r
-    f_sls = kg * x - k0 * xd
-    if f_sls > sep_thr:
-        # separation: surface released, held only by the adhesion (if vdW on it)
-        if vdw_on_surface:
-            x = (k0 * xd + fa0) * inv_kg
-        else:
-            x = k0 * xd * inv_kg
-        return x, -fa0, xd, False, True
-    if vdw_on_surface:
-        return x, -f_sls, xd, True, False
-    return x, -f_sls - fa0, xd, True, False
+    f_sls = kc * x - k0er * xd
+    xd = (1.0 - er) * x + er * xd
+    return f_sls, xd
+
+
+@njit(cache=True, inline="always")
+def released_position(xd, fa_sep, k0, inv_kg):
+    """Surface position the instant the tip separates: ``(k0 Xd + Fa_sep)/Kg``."""
+    return (k0 * xd + fa_sep) * inv_kg

@@ -26,6 +26,8 @@ import math
 import numpy as np
 from numba import njit
 
+from .sls import contact_update, noncontact_update, released_position, sls_coefficients
+
 
 # Column order of the recorded sample arrays.
 COLUMNS = ("t", "z_tip", "z_cantilever", "z_paddle", "z_base", "f_ts", "x_surface", "x_dashpot")
@@ -138,29 +140,10 @@ def integrate(
     pvz, pvv, pvf = mp[1, 0], mp[1, 1], mp[1, 2]
     ef = czf + pzf  # d(z_tip next)/d(Fts)
 
-    kg = k0 + k_inf
-    inv_kg = 1.0 / kg
-    inv_kinf = 1.0 / k_inf
-    tau_c = cd * kg / (k0 * k_inf)  # retardation time (creep, non-contact) [s]
-    tau_r = cd / k0  # relaxation time (contact) [s]
-    ec = math.exp(-dt / tau_c)
-    er = math.exp(-dt / tau_r)
-    fa0 = hr6 / (a0 * a0)  # adhesion force at contact [N]
-    sep_thr = fa0 if vdw_on_surface else 0.0
-    # non-contact surface update as X_n = alpha Xd_{n-1} + beta Fa_n,
-    # Xd_n = gamma Fa_n + ec Xd_{n-1}  (exact exponential dashpot step)
-    alpha = k0 * inv_kg * ec
-    gamma = (1.0 - ec) * inv_kinf if vdw_on_surface else 0.0
-    beta = inv_kg * (1.0 + k0 * gamma) if vdw_on_surface else 0.0
+    (ec, er, alpha, beta, gamma, kc, k0er, fa0, sep_thr, fa_sep, fa_c, inv_kg) = sls_coefficients(
+        k_inf, k0, cd, dt, hr6, a0, vdw_on_surface
+    )
     kappa = ef + beta
-    ihr6 = 1.0 / hr6
-    newton_tol = 1e-4  # guess error 1e-4 -> relative error of Fa 1e-8 after one step
-    # contact: F_sls = Kg X - k0 (X + (Xd - X) er) = kc X - k0 er Xd
-    kc = kg - k0 * (1.0 - er)
-    k0er = k0 * er
-    one_m_er = 1.0 - er
-    fa_sep = fa0 if vdw_on_surface else 0.0  # pull holding the released surface
-    fa_c = 0.0 if vdw_on_surface else fa0  # vdW added to Fts in contact (tip-only model)
     cr = math.cos(omega * dt)
     sr = math.sin(omega * dt)
 
@@ -178,7 +161,7 @@ def integrate(
     d = z_tip
     fa = hr6 / (d * d)
     fts = -fa
-    x = (fa if vdw_on_surface else 0.0) * inv_kg
+    x = (fa if vdw_on_surface else 0.0) * inv_kg  # surface pulled by the initial Fa
     xbase = x + beta * fts
     vcp = vc0 - bv1 * fts
     vpp = vp0 - bv2 * fts
@@ -244,16 +227,9 @@ def integrate(
                     # gap on the critical path: one FMA after the previous force
                     d = (base - xbase) + kappa * fts
                     if d > a0:
-                        # Fa = H R / (6 d^2): one Newton step for 1/d^2 from the
-                        # previous step's value; exact division when the guess is off
-                        dd = d * d
-                        tn = 2.0 - dd * (fa * ihr6)
-                        fa = fa * tn
-                        if abs(tn - 1.0) > newton_tol:
-                            fa = hr6 / dd
+                        xbase = alpha * xd  # force-free part of X (off the critical path)
+                        fa, _x, xd = noncontact_update(d, xd, hr6, alpha, beta, gamma, ec)
                         fts = -fa
-                        xbase = alpha * xd
-                        xd = gamma * fa + ec * xd
                     else:
                         in_contact = True
                         z_tip = base + ef * fts_old
@@ -270,12 +246,11 @@ def integrate(
                 if in_contact:
                     # X = z_tip - a0; exact dashpot relaxation; F_sls = Kg X - k0 Xd
                     x = (base - a0) + ef * fts
-                    f_sls = kc * x - k0er * xd
-                    xd = x * one_m_er + er * xd
+                    f_sls, xd = contact_update(x, xd, kc, k0er, er)
                     if f_sls > sep_thr:
                         # separation: surface released, held only by the adhesion
                         in_contact = False
-                        x = (k0 * xd + fa_sep) * inv_kg
+                        x = released_position(xd, fa_sep, k0, inv_kg)
                         fts = -fa0
                         if recording:
                             n_sep += 1
