@@ -1,0 +1,330 @@
+"""Expand a study config (single-point schema + ``sweep:`` block) into points.
+
+A study config is a single-point config (sections ``probe``, ``operation``,
+``surface``, ``numerics``; see :mod:`vetica_cli.config`) plus, optionally,
+``name``/``description`` strings and a ``sweep:`` block that maps dotted keys
+to values::
+
+    sweep:
+      surface.cd: {logspace: [-5, 3, 33]}        # 10**linspace(-5, 3, 33)
+      surface.stiffness_ratio: [0.125, 1, 32]    # a plain list
+      operation.setpoint: {linspace: [0.25, 0.8, 5]}
+      zip:                                       # varied together, one factor
+        probe.f1: [10e3, 50e3]
+        numerics.max_time: [0.05, 0.01]
+
+Keys combine as a cartesian product in the order they are written (the first
+key varies slowest); a ``zip:`` group (a mapping, or a list of mappings for
+several groups) is one factor whose lists have equal lengths.
+
+Derived keys (thesis ch. 4) may be swept or set in the base sections:
+
+* ``surface.stiffness_ratio`` sets ``surface.k0 = ratio * surface.k_inf``
+  (thesis 4.4.2: ``k0:k_inf`` from 1:8 to 32:1 at ``k_inf = 4 N/m``);
+* ``probe.f2_ratio`` sets ``probe.f2 = ratio * probe.f1`` (thesis 4.5.1:
+  ``f2 = 15 f1``).
+
+A value in the sweep block overrides the base; a derived key and its target
+(``stiffness_ratio`` and ``k0``) may not both be set in the same layer.
+Logspace/linspace values are rounded to 12 significant digits so that the
+table shows ``1e-05``, not ``1.0000000000000001e-05``.
+
+Every problem raises :class:`ConfigError` with one line before any job starts:
+unknown key, bad range, empty grid, an invalid point (with the point named),
+duplicate points.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import itertools
+import json
+import math
+from dataclasses import dataclass, fields
+from pathlib import Path
+from typing import Any
+
+from . import __version__
+from .config import SECTIONS, Config, ConfigError, from_dict, read_yaml
+
+# derived key -> (target key, source key): target = value * source
+DERIVED = {
+    "surface.stiffness_ratio": ("surface.k0", "surface.k_inf"),
+    "probe.f2_ratio": ("probe.f2", "probe.f1"),
+}
+META_KEYS = ("name", "description")
+RANGE_FORMS = ("logspace", "linspace")
+
+
+def config_keys() -> list[str]:
+    """Every dotted key of the single-point schema, in declaration order."""
+    return [f"{sec}.{f.name}" for sec, cls in SECTIONS.items() for f in fields(cls)]
+
+
+def sweepable_keys() -> list[str]:
+    """Keys allowed in a ``sweep:`` block: the schema keys plus derived keys."""
+    return config_keys() + list(DERIVED)
+
+
+@dataclass(frozen=True)
+class Point:
+    """One point of a study: its swept values and its resolved config."""
+
+    index: int  # position in the grid (cartesian order)
+    values: dict  # swept key -> value, in column order
+    config: Config
+    key: str  # hash of the resolved config (names the persisted part)
+
+    def label(self) -> str:
+        return ", ".join(f"{k}={v!r}" for k, v in self.values.items())
+
+
+@dataclass(frozen=True)
+class Study:
+    name: str
+    description: str
+    keys: tuple  # swept keys, column order
+    points: tuple  # of Point
+    base: dict  # base sections as given (after overrides), derived keys included
+    sweep: dict  # the sweep block as given
+
+    def resolved(self) -> dict:
+        """A re-runnable study config: every base key resolved, sweep block as given."""
+        base = from_dict(_split_derived(self.base)[0]).to_dict()
+        _, derived = _split_derived(self.base)
+        for dkey, value in derived.items():
+            sec, name = dkey.split(".")
+            target = DERIVED[dkey][0].split(".")[1]
+            base[sec].pop(target, None)
+            base[sec][name] = value
+        out = {"name": self.name}
+        if self.description:
+            out["description"] = self.description
+        out.update(base)
+        out["sweep"] = self.sweep
+        return out
+
+
+def point_key(cfg: Config) -> str:
+    """Stable 16-hex hash of a resolved point config (and the package version)."""
+    blob = json.dumps({"version": __version__, "config": cfg.to_dict()}, sort_keys=True)
+    return hashlib.sha256(blob.encode()).hexdigest()[:16]
+
+
+def _num(key: str, v: Any, what: str) -> float:
+    if isinstance(v, str):
+        try:
+            v = float(v)
+        except ValueError:
+            pass
+    if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
+        raise ConfigError(f"sweep.{key}: {what} {v!r} is not allowed; expected a finite number")
+    return float(v)
+
+
+def _clean(x: float) -> float:
+    return float(f"{x:.12g}")
+
+
+def parse_values(key: str, spec: Any) -> list:
+    """Values of one sweep entry: a list, ``{logspace: [e1, e2, n]}`` or ``{linspace: [a, b, n]}``."""
+    if isinstance(spec, list):
+        if not spec:
+            raise ConfigError(f"sweep.{key}: empty list (empty grid); expected at least one value")
+        return list(spec)
+    if isinstance(spec, dict) and len(spec) == 1 and next(iter(spec)) in RANGE_FORMS:
+        form, args = next(iter(spec.items()))
+        if not isinstance(args, list) or len(args) != 3:
+            raise ConfigError(
+                f"sweep.{key}: {form} {args!r} is not allowed; expected [first, last, n]"
+                + (" with exponents of 10" if form == "logspace" else "")
+            )
+        a = _num(key, args[0], f"{form} first")
+        b = _num(key, args[1], f"{form} last")
+        n = args[2]
+        if isinstance(n, str):
+            try:
+                n = float(n)
+            except ValueError:
+                pass
+        if isinstance(n, bool) or not isinstance(n, (int, float)) or n != int(n) or n < 0:
+            raise ConfigError(f"sweep.{key}: {form} count {n!r} is not allowed; expected an integer >= 1")
+        n = int(n)
+        if n == 0:
+            raise ConfigError(f"sweep.{key}: {form} with 0 points (empty grid); expected n >= 1")
+        if n == 1 and a != b:
+            raise ConfigError(f"sweep.{key}: {form} [{args[0]}, {args[1]}, 1] is ambiguous; use n >= 2 or first == last")
+        step = (b - a) / (n - 1) if n > 1 else 0.0
+        lin = [a + i * step for i in range(n)]
+        if n > 1:
+            lin[-1] = b
+        if form == "logspace":
+            if max(abs(a), abs(b)) > 300:
+                raise ConfigError(f"sweep.{key}: logspace exponents {a:g}..{b:g} are out of range; expected |exponent| <= 300")
+            return [_clean(10.0**x) for x in lin]
+        return [_clean(x) for x in lin]
+    raise ConfigError(
+        f"sweep.{key}: {spec!r} is not allowed; expected a list, {{logspace: [first_exponent, last_exponent, n]}} "
+        "or {linspace: [first, last, n]}"
+    )
+
+
+def _check_key(key: Any) -> str:
+    if not isinstance(key, str) or key not in sweepable_keys():
+        allowed = ", ".join(sweepable_keys())
+        raise ConfigError(f"sweep: unknown key {key!r}; allowed: {allowed}")
+    return key
+
+
+def _factors(sweep: Any) -> tuple[list[str], list[list[dict]]]:
+    """Sweep block -> (column keys, factors); each factor is a list of {key: value} assignments."""
+    if sweep is None:
+        raise ConfigError("the study has no 'sweep:' block (empty grid); use 'vetica simulate' for one point")
+    if not isinstance(sweep, dict):
+        raise ConfigError(f"sweep: must be a mapping of dotted keys to values, got {type(sweep).__name__}")
+    if not sweep:
+        raise ConfigError("sweep: empty block (empty grid); expected at least one swept key")
+    keys: list[str] = []
+    factors: list[list[dict]] = []
+
+    def add_key(k):
+        if k in keys:
+            raise ConfigError(f"sweep: key {k!r} appears twice")
+        keys.append(k)
+
+    for key, spec in sweep.items():
+        if key == "zip":
+            groups = spec if isinstance(spec, list) else [spec]
+            for g in groups:
+                if not isinstance(g, dict) or not g:
+                    raise ConfigError("sweep.zip: expected a mapping of dotted keys to lists (or a list of such mappings)")
+                cols = {}
+                for k, s in g.items():
+                    add_key(_check_key(k))
+                    cols[k] = parse_values(k, s)
+                lengths = {k: len(v) for k, v in cols.items()}
+                if len(set(lengths.values())) > 1:
+                    desc = ", ".join(f"{k} has {n}" for k, n in lengths.items())
+                    raise ConfigError(f"sweep.zip: lists must have equal lengths ({desc})")
+                n = next(iter(lengths.values()))
+                factors.append([{k: cols[k][i] for k in cols} for i in range(n)])
+        else:
+            add_key(_check_key(key))
+            factors.append([{key: v} for v in parse_values(key, spec)])
+    for dkey, (target, _) in DERIVED.items():
+        if dkey in keys and target in keys:
+            raise ConfigError(f"sweep: {dkey} and {target} are both swept; sweep one of them")
+    return keys, factors
+
+
+def _split_derived(base: dict) -> tuple[dict, dict]:
+    """Base sections -> (schema-only sections, {derived dotted key: value})."""
+    clean, derived = {}, {}
+    for sec, body in base.items():
+        if isinstance(body, dict):
+            body = dict(body)
+            for dkey in DERIVED:
+                dsec, dname = dkey.split(".")
+                if dsec == sec and dname in body:
+                    derived[dkey] = body.pop(dname)
+        clean[sec] = body
+    for dkey, (target, _) in DERIVED.items():
+        tsec, tname = target.split(".")
+        if dkey in derived and isinstance(clean.get(tsec), dict) and tname in clean[tsec]:
+            raise ConfigError(f"{dkey} and {target} are both set in the base config; set one of them")
+    return clean, derived
+
+
+def _resolve(base_clean: dict, base_derived: dict, assign: dict) -> dict:
+    """Nested config dict for one point: base, then swept values, then derived keys."""
+    d = {sec: dict(body) if isinstance(body, dict) else body for sec, body in base_clean.items()}
+    derived = dict(base_derived)
+    for key, value in assign.items():
+        if key in DERIVED:
+            derived[key] = value
+            # a swept derived key overrides an explicit target in the base
+            tsec, tname = DERIVED[key][0].split(".")
+            if isinstance(d.get(tsec), dict):
+                d[tsec].pop(tname, None)
+        else:
+            sec, name = key.split(".")
+            if key in (t for t, _ in DERIVED.values()):
+                # a swept target overrides a derived key in the base
+                for dk, (t, _) in DERIVED.items():
+                    if t == key:
+                        derived.pop(dk, None)
+            d.setdefault(sec, {})
+            if not isinstance(d[sec], dict):
+                raise ConfigError(f"section {sec!r} must be a mapping, got {d[sec]!r}")
+            d[sec][name] = value
+    if derived:
+        defaults = Config().to_dict()
+        for dkey, value in derived.items():
+            target, source = DERIVED[dkey]
+            v = _num(dkey, value, "value")
+            if not v > 0:
+                raise ConfigError(f"{dkey}: {value!r} is not allowed; expected a ratio > 0")
+            ssec, sname = source.split(".")
+            src = (d.get(ssec) or {}).get(sname, defaults[ssec][sname])
+            src = _num(source, src, "value")
+            tsec, tname = target.split(".")
+            d.setdefault(tsec, {})[tname] = _clean(v * src)
+    return d
+
+
+def expand(raw: dict, name: str = "study", overrides: dict | None = None) -> Study:
+    """Study config mapping -> :class:`Study` with every point resolved and validated."""
+    if not isinstance(raw, dict):
+        raise ConfigError(f"a study config must be a mapping, got {type(raw).__name__}")
+    allowed_top = set(SECTIONS) | {"sweep", *META_KEYS}
+    for k in raw:
+        if k not in allowed_top:
+            raise ConfigError(f"unknown top-level key {k!r}; allowed: {', '.join([*SECTIONS, 'sweep', *META_KEYS])}")
+    name = str(raw.get("name") or name)
+    description = str(raw.get("description") or "")
+    sweep = raw.get("sweep")
+    base = {k: (dict(v) if isinstance(v, dict) else v) for k, v in raw.items() if k in SECTIONS}
+    keys, factors = _factors(sweep)
+    for key, value in (overrides or {}).items():
+        if key in keys:
+            raise ConfigError(f"--set {key}: the key is swept by the study; change its sweep entry instead")
+        if key not in sweepable_keys():
+            raise ConfigError(f"unknown key {key!r}; allowed: {', '.join(sweepable_keys())}")
+        sec, kname = key.split(".")
+        base.setdefault(sec, {})
+        if not isinstance(base[sec], dict):
+            raise ConfigError(f"section {sec!r} must be a mapping, got {base[sec]!r}")
+        base[sec][kname] = value
+    base_clean, base_derived = _split_derived(base)
+    points = []
+    seen: dict[str, int] = {}
+    for i, combo in enumerate(itertools.product(*factors)):
+        assign: dict = {}
+        for part in combo:
+            assign.update(part)
+        values = {k: assign[k] for k in keys}
+        label = ", ".join(f"{k}={v!r}" for k, v in values.items())
+        try:
+            cfg = from_dict(_resolve(base_clean, base_derived, assign))
+        except ConfigError as exc:
+            raise ConfigError(f"point {i} ({label}): {exc}") from None
+        key = point_key(cfg)
+        if key in seen:
+            raise ConfigError(f"points {seen[key]} and {i} ({label}) resolve to the same config; remove the duplicate")
+        seen[key] = i
+        # swept values as the config resolved them (e.g. '1e-4' -> 1e-4)
+        resolved = {}
+        for k in keys:
+            if k in DERIVED:
+                resolved[k] = _num(k, values[k], "value")
+            else:
+                sec, nm = k.split(".")
+                resolved[k] = getattr(getattr(cfg, sec), nm)
+        points.append(Point(index=i, values=resolved, config=cfg, key=key))
+    return Study(name=name, description=description, keys=tuple(keys), points=tuple(points), base=base, sweep=sweep)
+
+
+def load_study(path: str | Path, overrides: dict | None = None) -> Study:
+    """Read and expand a study YAML; the study name defaults to the file stem."""
+    raw = read_yaml(path)
+    return expand(raw, name=Path(path).stem, overrides=overrides)
