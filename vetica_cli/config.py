@@ -76,9 +76,9 @@ class Numerics:
     print_step: float = 0.125e-9  # sampling interval of the records [s]
     record_cycles: int = 10  # steady drive periods recorded
     max_time: float = 0.03  # simulated-time budget [s]
-    kp: float = 0.5  # PI proportional gain [m per m of amplitude error]
-    ki: float = 0.3  # PI integral gain [m per m of amplitude error per period]
-    tol_amp: float = 2e-4  # steady: |A - A_sp| <= tol_amp * A_sp
+    kp: float = 0.2  # PI proportional gain [m per m of amplitude error]
+    ki: float = 0.05  # PI integral gain [m per m of amplitude error per period]
+    tol_amp: float = 2e-5  # steady: |A - A_sp| <= tol_amp * A_sp
     tol_z: float = 1e-12  # steady: contact position changes <= tol_z per period [m]
     settle_cycles: int = 10  # consecutive settled periods before recording
     warm_start: bool = True  # start oscillating at A_sp just above the surface
@@ -143,8 +143,20 @@ def _type_name(tp) -> str:
     return {"float": "a number", "int": "an integer", "bool": "true or false"}.get(str(tp), str(tp))
 
 
+def _number(value: Any) -> Any:
+    """YAML 1.1 reads '1e-4' (no dot) as a string: turn numeric strings into floats."""
+    if isinstance(value, str):
+        try:
+            return float(value)
+        except ValueError:
+            return value
+    return value
+
+
 def _coerce(key: str, value: Any, tp: str) -> Any:
     """Coerce a YAML value to the declared field type or raise ConfigError."""
+    if tp != "bool":
+        value = _number(value)
     if tp == "bool":
         if isinstance(value, bool):
             return value
@@ -158,11 +170,6 @@ def _coerce(key: str, value: Any, tp: str) -> Any:
             return None
         tp = "float"
     if tp == "float":
-        if isinstance(value, str):
-            try:
-                value = float(value)
-            except ValueError:
-                raise ConfigError(f"{key}: {value!r} is not allowed; expected a number") from None
         if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
             raise ConfigError(f"{key}: {value!r} is not allowed; expected a finite number")
         return float(value)
@@ -250,7 +257,7 @@ def parse_set(items: list[str] | None) -> dict[str, Any]:
             value = yaml.safe_load(raw) if raw.strip() else None
         except yaml.YAMLError:
             raise ConfigError(f"--set {item!r}: the value is not a valid YAML scalar") from None
-        out[key.strip()] = value
+        out[key.strip()] = _number(value)
     return out
 
 

@@ -69,7 +69,7 @@ def sls_coefficients(k_inf, k0, cd, dt, hr6, a0, vdw_on_surface):
     return ec, er, alpha, beta, gamma, kc, k0er, fa0, sep_thr, fa_sep, fa_c, inv_kg
 
 
-@njit(cache=True, inline="always", fastmath={"contract"})
+@njit(cache=True, inline="always", fastmath={"contract"}, error_model="numpy")
 def noncontact_update(d, xd, hr6, alpha, beta, gamma, ec):
     """One step out of contact at gap ``d`` [m] (> a0).
 
@@ -83,7 +83,7 @@ def noncontact_update(d, xd, hr6, alpha, beta, gamma, ec):
     return fa, x, xd
 
 
-@njit(cache=True, inline="always", fastmath={"contract"})
+@njit(cache=True, inline="always", fastmath={"contract"}, error_model="numpy")
 def contact_update(x, xd, kc, k0er, er):
     """One step in contact with the surface at ``x`` [m] (= z_tip - a0).
 

@@ -94,7 +94,7 @@ def _step_matrix(dt, w2, g, im, bv, inv):
     return m
 
 
-@njit(cache=True, fastmath={"contract"})
+@njit(cache=True, fastmath={"contract"}, error_model="numpy")
 def integrate(
     m1, k1, c1, m2, k2, c2, omega, f0,
     k_inf, k0, cd, hr6, a0, vdw_on_surface,
