@@ -1,0 +1,181 @@
+"""extract(run table) -> k0, k_inf, cd and the VETICA constants, with errors
+against the run's own truth when its metadata knows it.
+
+Input: a table with at least ``t`` [s], ``z_tip`` [m] and ``f_ts`` [N] (the
+true force) or ``z_paddle`` [m] (from which the force is reconstructed by
+spectral inversion, SPEC 6), optionally a ``segment`` column ('approach' =
+the window around the first contact, 'steady' = the taps to analyse), and the
+``vetica`` metadata dict written by ``vetica simulate`` ({} for measured
+data: then the probe's ``k2, f2, q2`` and ``Z1`` come as keyword arguments).
+"""
+
+from __future__ import annotations
+
+import math
+import time
+
+import numpy as np
+
+from .errors import InputError
+from .spectral import reconstruct_force, reconstruction_error
+from .vetica import NAMES, first_contact_minimum, theory, vetica
+
+FORCES = ("auto", "true", "reconstructed")
+METHODS = ("vetica",)
+
+
+def _finite_or_none(v):
+    if v is None:
+        return None
+    v = float(v)
+    return v if math.isfinite(v) else None
+
+
+def _segment(df, name):
+    if "segment" not in df.columns:
+        return None
+    sel = df[df["segment"].astype(str) == name]
+    return sel if len(sel) else None
+
+
+def _column(df, name, where):
+    a = df[name].to_numpy(dtype=float)
+    if not np.all(np.isfinite(a)):
+        raise InputError(f"column {name!r} has missing or non-finite values in {where}")
+    return a
+
+
+def _check_time(t, where):
+    if len(t) < 2 or not np.all(np.diff(t) > 0):
+        raise InputError(f"time column 't' is not strictly increasing in {where}")
+
+
+def extract(
+    df,
+    meta: dict | None = None,
+    force: str = "auto",
+    kg_points: int = 10,
+    method: str = "vetica",
+    *,
+    k2: float | None = None,
+    f2: float | None = None,
+    q2: float | None = None,
+    z1: float | None = None,
+    f1: float | None = None,
+    cutoff_hz: float | None = None,
+    taper: float = 0.0,
+    kr_guess: float | None = None,
+) -> dict:
+    """Extract ``tau_c, k_g, k_r, tau_r, k0, k_inf, cd`` from a run table.
+
+    ``force``: 'true' uses the ``f_ts`` column, 'reconstructed' rebuilds the
+    force from ``z_paddle`` (probe ``k2, f2, q2`` from the metadata or the
+    keyword arguments; low-pass ``cutoff_hz``, default the Nyquist frequency,
+    with a raised-cosine ``taper``); 'auto' = reconstructed when ``z_paddle``
+    is present.  ``Z1`` comes from ``z1`` if given, else from the first force
+    minimum of the 'approach' segment (with the chosen force), else from the
+    metadata.  ``f1`` (drive frequency, Hz) only labels the cut-off in drive
+    harmonics.  ``method``: only 'vetica' (thesis 3.3) for now.
+
+    Returns ``{name: {"value", "theory", "error_pct", "spread"}, ...,
+    "force", "taps", "method", "info"}``; theory and error_pct are None when
+    the metadata does not hold the surface's k0, k_inf, cd.  Raises
+    InputError (one line) for missing columns, non-increasing time, no
+    contact, too few taps or missing probe parameters.
+    """
+    meta = meta or {}
+    if force not in FORCES:
+        raise InputError(f"force {force!r} not allowed; choose one of: {', '.join(FORCES)}")
+    if method not in METHODS:
+        raise InputError(f"method {method!r} not available; choose one of: {', '.join(METHODS)}")
+    cols = set(df.columns)
+    missing = [c for c in ("t", "z_tip") if c not in cols]
+    if missing or not ({"f_ts", "z_paddle"} & cols):
+        need = missing + ([] if {"f_ts", "z_paddle"} & cols else ["f_ts or z_paddle"])
+        raise InputError(f"missing column(s): {', '.join(need)} (need t, z_tip and f_ts or z_paddle)")
+    if force == "auto":
+        force = "reconstructed" if "z_paddle" in cols else "true"
+    fcol = "f_ts" if force == "true" else "z_paddle"
+    if fcol not in cols:
+        raise InputError(f"--force {force} needs the column {fcol!r}, which the table does not have")
+
+    steady = _segment(df, "steady")
+    if steady is None:  # measured data: every row not labelled 'approach'
+        steady = df if "segment" not in cols else df[df["segment"].astype(str) != "approach"]
+        if not len(steady):
+            raise InputError("the table has no rows outside the 'approach' segment to analyse")
+    approach = _segment(df, "approach")
+    t = _column(steady, "t", "the steady record")
+    _check_time(t, "the steady record")
+    z = _column(steady, "z_tip", "the steady record")
+
+    params = meta.get("params") or {}
+    probe = params.get("probe") or {}
+    surface = params.get("surface") or {}
+    warnings = []
+    info: dict = {}
+    t_start = time.perf_counter()
+
+    def force_of(seg, where):
+        if force == "true":
+            return _column(seg, "f_ts", where)
+        p = {"k2": k2 if k2 is not None else probe.get("k2"),
+             "f2": f2 if f2 is not None else probe.get("f2"),
+             "q2": q2 if q2 is not None else probe.get("q2")}  # fmt: skip
+        absent = [k for k, v in p.items() if v is None]
+        if absent:
+            raise InputError(
+                f"the force reconstruction needs the probe's {', '.join(absent)} (not in the file's metadata): "
+                f"pass {' '.join('--' + k for k in absent)}, or use --force true"
+            )
+        rec = reconstruct_force(seg["t"].to_numpy(float), _column(seg, "z_paddle", where),
+                                p["k2"], p["f2"], p["q2"], cutoff_hz=cutoff_hz, taper=taper)  # fmt: skip
+        info["cutoff_hz"] = rec.cutoff_hz
+        return rec.f
+
+    f = force_of(steady, "the steady record")
+    t_rec = time.perf_counter()
+    if force == "reconstructed" and "f_ts" in cols:
+        info["reconstruction_error"] = reconstruction_error(f, _column(steady, "f_ts", "the steady record"))
+    drive = f1 if f1 is not None else probe.get("f1")
+    if "cutoff_hz" in info and drive:
+        info["cutoff_harmonic"] = info["cutoff_hz"] / drive
+
+    if z1 is not None:
+        z1_value, z1_source = float(z1), "given"
+    elif approach is not None:
+        ta = _column(approach, "t", "the approach segment")
+        _check_time(ta, "the approach segment")
+        fa = force_of(approach, "the approach segment")
+        i1 = first_contact_minimum(fa)
+        z1_value, z1_source = float(_column(approach, "z_tip", "the approach segment")[i1]), "approach segment"
+    elif (meta.get("observables") or {}).get("z1") is not None:
+        z1_value, z1_source = float(meta["observables"]["z1"]), "metadata"
+    else:
+        raise InputError("Z1 unknown: the table has no 'approach' segment and no metadata; pass --z1")
+    info["z1"] = z1_value
+    info["z1_source"] = z1_source
+
+    ex = vetica(t, z, f, z1_value, kg_points=kg_points, kr_guess=kr_guess)
+    truth = None
+    if all(surface.get(k) is not None for k in ("k0", "k_inf", "cd")):
+        truth = theory(surface["k0"], surface["k_inf"], surface["cd"])
+    spread = ex.spread()
+    out = {}
+    for name in NAMES:
+        v = _finite_or_none(ex.values.get(name))
+        th = _finite_or_none(truth[name]) if truth else None
+        err = 100.0 * abs(v - th) / abs(th) if (v is not None and th) else None
+        out[name] = {"value": v, "theory": th, "error_pct": err, "spread": spread[name]}
+    out["force"] = force
+    out["taps"] = ex.taps
+    out["method"] = method
+    info["timing_s"] = {
+        "reconstruction": (t_rec - t_start) if force == "reconstructed" else 0.0,
+        **ex.timing_s,
+        "total": time.perf_counter() - t_start,
+    }
+    info["diagnostics"] = ex.diagnostics
+    info["warnings"] = warnings + ex.warnings + list(meta.get("warnings") or [])
+    out["info"] = info
+    return out

@@ -1,0 +1,463 @@
+"""VETICA: the SLS surface's k0, k_inf, cd from time, tip position and force
+(thesis 3.3 and 4.3; SPEC section 7).
+
+Inputs are plain arrays of one record of consecutive taps: ``t`` [s],
+``z_tip`` [m] (up positive, undeformed surface at ``z_tip = a0``), ``f``
+[N] the tip-sample force (repulsive positive), and ``Z1`` [m], the tip
+position at the first force minimum of the initial approach.
+
+Theory of a Zener SLS (thesis eqs. 43-44, 68, 75-76)::
+
+    Kg = k0 + k_inf            glassy stiffness     [N/m]
+    Kr = k_inf                 rubbery stiffness    [N/m]
+    tau_r = cd / k0            relaxation time      [s]
+    tau_c = cd Kg / (k0 k_inf) retardation time     [s]   (tau_r = tau_c Kr / Kg)
+
+Stage 1a (thesis eq. 73): creep between the separation of tap i (tip at
+``Z'i``) and the contact of tap i+1 (tip at ``Z(i+1)``, ``dt`` later)::
+
+    tau_c = -dt / ln((Z(i+1) - Z1) / (Z'i - Z1))
+
+Stage 1b (thesis 4.3.2, eq. 86): ``Kg = -dF/dz_tip``, a straight-line fit
+over the first ``kg_points`` samples after the contact minimum (10 in the
+thesis).
+
+Stage 2 (thesis eqs. 75-83): the contact trajectory is fitted by a 3-term
+sum of sines (thesis eq. 88) and the SLS force is the Boltzmann
+superposition of the indentation ``delta(t) = Zc - z_tip(t)`` from the
+contact instant::
+
+    F_SLS(t) = Fc + int_0^t Erel(t - s) d delta/ds ds
+    Erel(t)  = Kr + (Kg - Kr) exp(-t / tau_r),   tau_r = tau_c Kr / Kg
+
+``Fc`` is the force measured at the contact minimum (-F_vdW(a0)); the
+thesis does not say how it handled this offset, and fitting without it
+biases Kr by the adhesion force over the indentation.  ``Kr`` is found by
+bounded least squares of ``F_SLS - F`` over the contact samples
+(scipy ``least_squares``, trust-region-reflective, the equivalent of the
+thesis's MATLAB ``lsqnonlin``), bounded to ``0 < Kr < Kg``.  Then
+``k_inf = Kr``, ``k0 = Kg - Kr``, ``cd = tau_r k0`` (thesis eqs. 81-83).
+
+The superposition integral of a sum of sines against the exponential kernel
+has a closed form (:func:`_exp_conv_cos`), so stage 2 costs a few
+milliseconds per tap.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+from scipy.optimize import least_squares
+
+from .errors import InputError
+
+NAMES = ("tau_c", "k_g", "k_r", "tau_r", "k0", "k_inf", "cd")
+UNITS = {"tau_c": "s", "k_g": "N/m", "k_r": "N/m", "tau_r": "s", "k0": "N/m", "k_inf": "N/m", "cd": "kg/s"}
+
+
+def theory(k0: float, k_inf: float, cd: float) -> dict:
+    """Characteristic constants of a Zener SLS (SPEC 7; thesis eqs. 68, 75-76)."""
+    kg = k0 + k_inf
+    return {
+        "tau_c": cd * kg / (k0 * k_inf),
+        "k_g": kg,
+        "k_r": k_inf,
+        "tau_r": cd / k0,
+        "k0": k0,
+        "k_inf": k_inf,
+        "cd": cd,
+    }
+
+
+def sls_elements(tau_c: float, k_g: float, k_r: float) -> dict:
+    """SLS elements from the characteristic constants (thesis eqs. 76, 81-83)."""
+    tau_r = tau_c * k_r / k_g
+    k0 = k_g - k_r
+    return {"tau_c": tau_c, "k_g": k_g, "k_r": k_r, "tau_r": tau_r, "k0": k0, "k_inf": k_r, "cd": tau_r * k0}
+
+
+# ----------------------------------------------------------------------------- taps
+
+
+@dataclass
+class Taps:
+    """Sample indices of the complete taps of a record (one row per tap)."""
+
+    contact: np.ndarray  # force minimum at contact
+    separation: np.ndarray  # force minimum at separation
+    peak: np.ndarray  # largest repulsive force
+    spacing: float  # median number of samples between peaks
+    incomplete: int = 0  # taps cut by the record's ends (dropped)
+
+
+def find_taps(f: np.ndarray) -> Taps:
+    """Locate every tap's contact and separation force minimum (thesis 4.3.1, fig. 32).
+
+    A tap is a run of samples above half the peak repulsive force (runs
+    split by ringing inside one contact are merged); its contact minimum is the smallest force in the half tap-spacing
+    before its peak, its separation minimum the smallest in the half spacing
+    after.  Taps whose search range is cut by the record's ends are dropped.
+    Raises InputError when the force has no repulsive peak or fewer than two taps.
+    """
+    f = np.asarray(f, dtype=float)
+    n = len(f)
+    above = _repulsive(f, "the record")
+    edges = np.flatnonzero(np.diff(above.astype(np.int8)))
+    starts = list(edges[~above[edges]] + 1)
+    ends = list(edges[above[edges]] + 1)
+    if above[0]:
+        starts.insert(0, 0)
+    if above[-1]:
+        ends.append(n)
+    runs = list(zip(starts, ends))
+    if len(runs) >= 2:
+        # merge runs split inside one contact (paddle ringing): gaps much shorter than the longest one
+        gaps = np.array([a - b for (_, b), (a, _) in zip(runs[:-1], runs[1:])])
+        merged = [runs[0]]
+        for (a, b), gap in zip(runs[1:], gaps):
+            if gap < 0.25 * gaps.max():
+                merged[-1] = (merged[-1][0], b)
+            else:
+                merged.append((a, b))
+        runs = merged
+    peaks = [a + int(np.argmax(f[a:b])) for a, b in runs]
+    if len(peaks) < 2:
+        raise InputError(f"too few taps: found {len(peaks)} contact(s) in the record, need at least 2")
+    spacing = float(np.median(np.diff(peaks)))
+    half = int(0.5 * spacing)
+    contact, separation, peak = [], [], []
+    incomplete = 0
+    for p in peaks:
+        lo, hi = p - half, p + half
+        if lo < 0 or hi >= n:
+            incomplete += 1
+            continue
+        ic = lo + int(np.argmin(f[lo : p + 1]))
+        isep = p + int(np.argmin(f[p : hi + 1]))
+        if ic == lo or isep == hi:  # minimum at the search edge: not a clean tap
+            incomplete += 1
+            continue
+        contact.append(ic)
+        separation.append(isep)
+        peak.append(p)
+    return Taps(np.array(contact, int), np.array(separation, int), np.array(peak, int), spacing, incomplete)
+
+
+def _repulsive(f: np.ndarray, where: str) -> np.ndarray:
+    """Samples above half the peak repulsive force; InputError if there is no
+    repulsive peak of at least a tenth of the deepest attraction."""
+    fmax, fmin = float(np.max(f)), float(np.min(f))
+    if not (fmax > 0 and fmax > 0.1 * max(-fmin, 0.0)):
+        raise InputError(f"no contact found in {where}: the force has no repulsive peak")
+    return f > 0.5 * fmax
+
+
+def first_contact_minimum(f: np.ndarray) -> int:
+    """Index of the force minimum at the first contact of an approach record.
+
+    The smallest force before the first sample above half the peak
+    repulsive force; Z1 is the tip position there (thesis 3.3.1, eq. 84).
+    Raises InputError when no contact is found.
+    """
+    f = np.asarray(f, dtype=float)
+    first = int(np.argmax(_repulsive(f, "the approach segment")))
+    if first == 0:
+        raise InputError("the approach segment starts in contact: cannot measure Z1")
+    return int(np.argmin(f[:first]))
+
+
+# ----------------------------------------------------------------------------- stage 1
+
+
+def stage1a_tau_c(t: np.ndarray, z: np.ndarray, taps: Taps, z1: float) -> np.ndarray:
+    """Retardation time of each creep interval (thesis eq. 73) [s].
+
+    One value per pair (separation of tap i, contact of tap i+1); nan where
+    the two positions are not both on the same side of Z1 with the surface
+    recovering (ratio outside (0, 1)).
+    """
+    out = []
+    for i in range(len(taps.contact) - 1):
+        js, jc = taps.separation[i], taps.contact[i + 1]
+        ratio = (z[jc] - z1) / (z[js] - z1)
+        dt = t[jc] - t[js]
+        out.append(-dt / math.log(ratio) if 0.0 < ratio < 1.0 and dt > 0 else math.nan)
+    return np.array(out)
+
+
+def stage1b_kg(z: np.ndarray, f: np.ndarray, taps: Taps, points: int = 10) -> np.ndarray:
+    """Glassy stiffness of each tap: ``-dF/dz_tip`` fitted over ``points``
+    samples after the contact minimum (thesis 4.3.2, eq. 86) [N/m]."""
+    out = []
+    for ic, isep in zip(taps.contact, taps.separation):
+        a, b = ic + 1, ic + 1 + points
+        if b > isep:
+            out.append(math.nan)
+            continue
+        slope = np.polyfit(z[a:b], f[a:b], 1)[0]
+        out.append(-slope)
+    return np.array(out)
+
+
+# ----------------------------------------------------------------------------- stage 2
+
+
+@dataclass
+class SineFit:
+    """``z(u) = sum_j p_j sin(b_j u) + q_j cos(b_j u)``, u = t - t_contact [s]."""
+
+    b: np.ndarray  # [rad/s]
+    p: np.ndarray  # [m]
+    q: np.ndarray  # [m]
+    rms: float  # [m] residual RMS
+
+    def __call__(self, u):
+        u = np.asarray(u)[:, None]
+        return np.sum(self.p * np.sin(self.b * u) + self.q * np.cos(self.b * u), axis=1)
+
+
+STARTS = ((0.5, 1.5, 3.0), (0.3, 2.0, 4.0), (0.1, 1.0, 2.0), (1.0, 2.0, 3.0))
+SCOUT_NFEV = 15  # per starting set
+NFEV = 100  # for the best start (residual ~0.05 pm on the worked example)
+
+
+def _sines_model(params: np.ndarray, x: np.ndarray, terms: int) -> tuple[np.ndarray, np.ndarray]:
+    """Value and Jacobian of ``c0 + sum_j a_j sin(b_j x + c_j)``; params = (a, b, c, c0)."""
+    a, b, c = params[:terms], params[terms : 2 * terms], params[2 * terms : 3 * terms]
+    ph = np.outer(x, b) + c
+    sn, cs = np.sin(ph), np.cos(ph)
+    value = sn @ a + params[-1]
+    jac = np.hstack([sn, cs * a * x[:, None], cs * a, np.ones((len(x), 1))])
+    return value, jac
+
+
+def fit_sum_of_sines(u: np.ndarray, z: np.ndarray, terms: int = 3, max_points: int = 250) -> SineFit:
+    """Least-squares sum of ``terms`` sines plus a constant (thesis eq. 88).
+
+    ``z(u) ~ c0 + sum_j a_j sin(b_j u + c_j)``: MATLAB's ``sin3`` plus a
+    constant offset, which the superposition integral does not see (it uses
+    only ``dz/du``) but which frees the sines to fit the shape.  Levenberg-
+    Marquardt with the analytic Jacobian on at most ``max_points`` evenly
+    spaced samples (the trajectory is smooth), time scaled to the contact
+    duration; a few starting frequency sets (amplitudes and phases from a
+    linear fit at those frequencies) are tried and the lowest residual kept.
+    ``rms`` is over all samples.
+    """
+    u = np.asarray(u, dtype=float)
+    z = np.asarray(z, dtype=float)
+    span = float(u[-1] - u[0]) or 1.0
+    step = max(1, len(u) // max_points)
+    x = (u[::step] - u[0]) / span
+    zs = float(np.std(z)) or 1.0
+    zm = float(np.mean(z))
+    y = (z[::step] - zm) / zs
+
+    cache = {}
+
+    def _eval(params):  # MINPACK asks for value and Jacobian at the same point: compute once
+        key = params.tobytes()
+        if key not in cache:
+            cache.clear()
+            cache[key] = _sines_model(params, x, terms)
+        return cache[key]
+
+    def resid(params):
+        return _eval(params)[0] - y
+
+    def jac(params):
+        return _eval(params)[1]
+
+    best = None
+    for freqs in STARTS:
+        b0 = np.pi * np.array(freqs[:terms])
+        design = np.hstack([np.sin(np.outer(x, b0)), np.cos(np.outer(x, b0)), np.ones((len(x), 1))])
+        lin, *_ = np.linalg.lstsq(design, y, rcond=None)
+        amp = np.hypot(lin[:terms], lin[terms : 2 * terms])
+        phase = np.arctan2(lin[terms : 2 * terms], lin[:terms])  # p sin + q cos = A sin(. + atan2(q, p))
+        p0 = np.concatenate([amp, b0, phase, [lin[-1]]])
+        try:  # short run from each start, then the best one to convergence
+            sol = least_squares(resid, p0, jac=jac, method="lm", max_nfev=SCOUT_NFEV)
+        except (ValueError, np.linalg.LinAlgError):  # pragma: no cover - degenerate start
+            continue
+        if best is None or sol.cost < best.cost:
+            best = sol
+    best = least_squares(resid, best.x, jac=jac, method="lm", max_nfev=NFEV)
+    a, b, c = best.x[:terms], best.x[terms : 2 * terms], best.x[2 * terms : 3 * terms]
+    # back to physical units: z = zm + zs (c0 + sum a sin(b (u - u0)/span + c))
+    bu = b / span
+    ph = c - bu * u[0]
+    fit = SineFit(
+        b=np.append(bu, 0.0),
+        p=np.append(zs * a * np.cos(ph), 0.0),
+        q=np.append(zs * a * np.sin(ph), zm + zs * best.x[-1]),
+        rms=0.0,
+    )
+    fit.rms = float(np.sqrt(np.mean((fit(u) - z) ** 2)))
+    return fit
+
+
+def _exp_conv_cos(u: np.ndarray, b: np.ndarray, c: np.ndarray, tau: float) -> np.ndarray:
+    """``int_0^u exp(-(u-s)/tau) cos(b s + c) ds`` for each (b, c) column.
+
+    Closed form: ``tau/(1+(b tau)^2) [cos(bu+c) + b tau sin(bu+c)
+    - exp(-u/tau) (cos c + b tau sin c)]``.
+    """
+    u = np.asarray(u)[:, None]
+    bt = b * tau
+    ph = b * u + c
+    return tau / (1.0 + bt * bt) * (np.cos(ph) + bt * np.sin(ph) - np.exp(-u / tau) * (np.cos(c) + bt * np.sin(c)))
+
+
+def boltzmann_force(u: np.ndarray, fit: SineFit, kg: float, kr: float, tau_r: float, fc: float = 0.0) -> np.ndarray:
+    """SLS force of the fitted contact trajectory (thesis eqs. 75-78) [N].
+
+    ``F = Fc + Kr delta(u) + (Kg - Kr) int_0^u exp(-(u-s)/tau_r) delta'(s) ds``
+    with ``delta(u) = z(0) - z(u)`` from the sum-of-sines fit (``u`` from the
+    contact instant, so ``u[0]`` should be 0).
+    """
+    z = fit(u)
+    delta = fit(np.array([0.0]))[0] - z
+    # z' = sum b (p cos(b u) + q cos(b u + pi/2)); delta' = -z'
+    b = fit.b
+    cols = np.concatenate([b, b])
+    phases = np.concatenate([np.zeros_like(b), np.full_like(b, 0.5 * np.pi)])
+    weights = -np.concatenate([b * fit.p, b * fit.q])
+    conv = _exp_conv_cos(u, cols, phases, tau_r) @ weights
+    return fc + kr * delta + (kg - kr) * conv
+
+
+def stage2_kr(
+    u, f, fit: SineFit, kg: float, tau_c: float, fc: float, kr_guess: float | None = None, max_points: int = 1000
+):
+    """Rubbery stiffness of one tap: bounded least squares of ``F_SLS - F``
+    (thesis eqs. 79-80), ``0 < Kr < Kg``, over at most ``max_points`` evenly
+    spaced contact samples.  Returns ``(Kr, residual RMS [N], nfev)``."""
+    step = max(1, len(u) // max_points)
+    u = np.asarray(u)[::step]
+    f = np.asarray(f)[::step]
+    lo, hi = 1e-12 * kg, kg * (1.0 - 1e-9)
+    x0 = min(max(kr_guess if kr_guess is not None else 0.1 * kg, lo * 10), hi * 0.999)
+    scale = float(np.max(np.abs(f))) or 1.0  # residuals in units of the peak force
+
+    def resid(x):
+        kr = x[0]
+        return (boltzmann_force(u, fit, kg, kr, tau_c * kr / kg, fc) - f) / scale
+
+    sol = least_squares(resid, [x0], bounds=([lo], [hi]), method="trf", xtol=1e-10)
+    return float(sol.x[0]), float(scale * np.sqrt(np.mean(sol.fun**2))), int(sol.nfev)
+
+
+# ----------------------------------------------------------------------------- driver
+
+
+def _spread(values: np.ndarray) -> dict:
+    v = np.asarray(values, dtype=float)
+    v = v[np.isfinite(v)]
+    if len(v) == 0:
+        return {"n": 0, "mean": None, "std": None, "min": None, "max": None}
+    return {
+        "n": int(len(v)),
+        "mean": float(np.mean(v)),
+        "std": float(np.std(v, ddof=1)) if len(v) > 1 else 0.0,
+        "min": float(np.min(v)),
+        "max": float(np.max(v)),
+    }
+
+
+@dataclass
+class Extraction:
+    """VETICA result: values (means over taps), per-tap values and diagnostics."""
+
+    values: dict  # NAMES -> float | None
+    per_tap: dict  # NAMES -> array (tau_c: one per creep interval)
+    taps: int
+    z1: float
+    timing_s: dict
+    diagnostics: dict = field(default_factory=dict)
+    warnings: list = field(default_factory=list)
+
+    def spread(self) -> dict:
+        return {k: _spread(v) for k, v in self.per_tap.items()}
+
+
+def vetica(
+    t: np.ndarray,
+    z: np.ndarray,
+    f: np.ndarray,
+    z1: float,
+    kg_points: int = 10,
+    kr_guess: float | None = None,
+) -> Extraction:
+    """Run VETICA stages 1a, 1b and 2 on a record of consecutive taps.
+
+    Values are the means over taps (``tau_c`` over creep intervals); stage 2
+    fits each tap with the mean ``tau_c`` and ``Kg``, and the derived
+    ``k0, k_inf, tau_r, cd`` use the mean ``Kr``.  Per-tap arrays give the
+    spread.  Raises InputError for too few taps.
+    """
+    t = np.asarray(t, dtype=float)
+    z = np.asarray(z, dtype=float)
+    f = np.asarray(f, dtype=float)
+    if kg_points < 2:
+        raise InputError(f"--kg-points {kg_points} not allowed; expected an integer >= 2")
+    t0 = time.perf_counter()
+    taps = find_taps(f)
+    n_taps = len(taps.contact)
+    if n_taps < 2:
+        raise InputError(
+            f"too few taps: {n_taps} complete tap(s) in the record ({taps.incomplete} cut by its ends), need at least 2"
+        )
+    warnings = []
+    pk = np.diff(taps.peak)
+    if len(pk) and np.ptp(pk) > 0.1 * np.median(pk):
+        warnings.append("irregular tap spacing (chatter or several contacts per drive period?)")
+    tau_c_i = stage1a_tau_c(t, z, taps, z1)
+    kg_i = stage1b_kg(z, f, taps, kg_points)
+    t1 = time.perf_counter()
+    if not np.any(np.isfinite(tau_c_i)):
+        raise InputError(
+            "stage 1a failed: the separation/contact positions are not below Z1 with the surface recovering "
+            f"(Z1 = {z1:.4g} m); check Z1"
+        )
+    if not np.any(np.isfinite(kg_i)):
+        raise InputError(f"stage 1b failed: contact shorter than --kg-points {kg_points} samples")
+    tau_c = float(np.nanmean(tau_c_i))
+    kg = float(np.nanmean(kg_i))
+
+    kr_i, fit_rms, f_rms, nfev = [], [], [], []
+    for ic, isep in zip(taps.contact, taps.separation):
+        sl = slice(ic, isep + 1)
+        u = t[sl] - t[ic]
+        fit = fit_sum_of_sines(u, z[sl])
+        kr, rms, nf = stage2_kr(u, f[sl], fit, kg, tau_c, float(f[ic]), kr_guess)
+        kr_i.append(kr)
+        fit_rms.append(fit.rms)
+        f_rms.append(rms)
+        nfev.append(nf)
+    t2 = time.perf_counter()
+    kr_i = np.array(kr_i)
+    values = sls_elements(tau_c, kg, float(np.mean(kr_i)))
+    per = [sls_elements(tau_c, kg, k) for k in kr_i]
+    per_tap = {
+        "tau_c": tau_c_i,
+        "k_g": kg_i,
+        "k_r": kr_i,
+        **{k: np.array([p[k] for p in per]) for k in ("tau_r", "k0", "k_inf", "cd")},
+    }
+    return Extraction(
+        values=values,
+        per_tap=per_tap,
+        taps=n_taps,
+        z1=float(z1),
+        timing_s={"stage1": t1 - t0, "stage2": t2 - t1, "stage2_per_tap": (t2 - t1) / n_taps},
+        diagnostics={
+            "sine_fit_rms_m": float(np.max(fit_rms)),
+            "force_fit_rms_n": float(np.max(f_rms)),
+            "kr_nfev_max": int(np.max(nfev)),
+            "contact_samples": int(np.median(taps.separation - taps.contact)),
+        },
+        warnings=warnings,
+    )
