@@ -11,7 +11,7 @@ import math
 import numpy as np
 import pytest
 
-from vetica_cli.core.sls import contact_update, noncontact_update, sls_coefficients
+from vetica_cli.core.sls import NEWTON_TOL, contact_update, noncontact_update, sls_coefficients, vdw_force
 
 K_INF, K0, CD = 4.0, 128.0, 3e-5  # thesis worked example (table 4)
 KG, KR = K0 + K_INF, K_INF
@@ -54,7 +54,7 @@ def test_released_surface_creeps_back_with_retardation_time(vdw_on_surface):
     xs = np.empty(n_steps)
     for i in range(n_steps):
         # hr6 = 0: no attraction, the released surface only creeps
-        _, xs[i], xd = noncontact_update(1e-6, xd, 0.0, alpha, beta, gamma, ec)
+        _, xs[i], xd = noncontact_update(1e-6, xd, 0.0, 0.0, 0.0, alpha, beta, gamma, ec)
     t = np.arange(n_steps) * DT  # X_n uses Xd_{n-1}: X_0 is the instant of release
     expected = K0 / KG * x0 * np.exp(-t / TAU_C)
     np.testing.assert_allclose(xs, expected, rtol=1e-3)
@@ -69,8 +69,9 @@ def test_constant_pull_gives_closed_form_creep_compliance():
     xd = 0.0
     n_steps = int(4 * TAU_C / DT)
     xs = np.empty(n_steps)
+    fa = 0.0  # no guess: the first step divides exactly, later ones refine the previous force
     for i in range(n_steps):
-        fa, xs[i], xd = noncontact_update(d, xd, HR6, alpha, beta, gamma, ec)
+        fa, xs[i], xd = noncontact_update(d, xd, fa, HR6, 1 / HR6, alpha, beta, gamma, ec)
     assert fa == pytest.approx(fa_expected, rel=1e-12)
     t = np.arange(1, n_steps + 1) * DT
     j = 1 / KR - (1 / KR - 1 / KG) * np.exp(-t / TAU_C)
@@ -90,3 +91,15 @@ def test_dashpot_step_is_stable_and_never_overshoots_when_tau_below_dt():
     # fully relaxed: only k_inf carries load
     assert f == pytest.approx(K_INF * x, rel=1e-9)
     assert math.isfinite(f)
+
+
+@pytest.mark.parametrize("rel_guess_error", [0.0, 1e-6, 0.9e-4, -0.9e-4, 1e-3, 0.5, -1.0])
+def test_vdw_force_newton_step_is_within_1e_8_of_exact(rel_guess_error):
+    """Fa = H R/(6 d^2) (thesis eq. 3) from a guess off by rel_guess_error: one
+    Newton step leaves a relative error <= (guess error)^2 <= 1e-8; guesses off by
+    more than NEWTON_TOL fall back to the exact division."""
+    for d in (0.2001e-9, 0.35e-9, 5e-9, 1e-6):
+        exact = HR6 / d**2
+        fa = vdw_force(d, exact * (1 + rel_guess_error), HR6, 1 / HR6)
+        bound = rel_guess_error**2 * 1.01 if abs(rel_guess_error) <= NEWTON_TOL else 1e-15
+        assert abs(fa / exact - 1) <= max(bound, 1e-15)

@@ -94,6 +94,19 @@ def _step_matrix(dt, w2, g, im, bv, inv):
     return m
 
 
+@njit(cache=True)
+def _two_step_row(m):
+    """Coefficients of z_{n+2} on (z_n, vp_n, Fts_n, drive_n, drive_{n+1}) with Fts_{n+1} = 0.
+
+    ``m`` is the one-step map of :func:`_step_matrix` (drive columns unscaled).
+    """
+    r = np.zeros(5)
+    for j in range(5):
+        r[j] = m[0, 0] * m[0, j] + m[0, 1] * m[1, j]
+    r[4] += m[0, 3]  # drive_{n+1} also enters z_{n+2} directly
+    return r[0], r[1], r[2], r[3], r[4]
+
+
 @njit(cache=True, fastmath={"contract"}, error_model="numpy")
 def integrate(
     m1, k1, c1, m2, k2, c2, omega, f0,
@@ -139,11 +152,18 @@ def integrate(
     pzz, pzv, pzf = mp[0, 0], mp[0, 1], mp[0, 2]
     pvz, pvv, pvf = mp[1, 0], mp[1, 1], mp[1, 2]
     ef = czf + pzf  # d(z_tip next)/d(Fts)
+    # two steps composed, Fts_{n+1} = 0: z_{n+2} = r . (z_n, vp_n, Fts_n, c_n, c_{n+1})
+    rcz, rcv, rcf, rc0, rc1 = _two_step_row(mc)
+    rpz, rpv, rpf, _, _ = _two_step_row(mp)
+    rc0 *= f0
+    rc1 *= f0
+    rho = rcf + rpf
 
     (ec, er, alpha, beta, gamma, kc, k0er, fa0, sep_thr, fa_sep, fa_c, inv_kg) = sls_coefficients(
         k_inf, k0, cd, dt, hr6, a0, vdw_on_surface
     )
     kappa = ef + beta
+    ihr6 = 1.0 / hr6 if hr6 > 0.0 else 0.0
     cr = math.cos(omega * dt)
     sr = math.sin(omega * dt)
 
@@ -165,6 +185,8 @@ def integrate(
     xbase = x + beta * fts
     vcp = vc0 - bv1 * fts
     vpp = vp0 - bv2 * fts
+    # force-free part of the first step's tip deflection: z_1 = u1 + ef Fts_0
+    u1 = (czz * zc + czv * vcp + czd * math.cos(0.0)) + (pzz * zp + pzv * vpp)
 
     n = 0  # global step index, t = n dt
     vb_dt = -approach_rate * dt  # base increment per step before first contact
@@ -213,14 +235,17 @@ def integrate(
                 cw_old = cw
                 cw, sw = cw * cr - sw * sr, sw * cr + cw * sr
                 zb += vb_dt
-                # force-free part of the next deflections (linear Verlet map)
-                ac = czz * zc + czv * vcp
-                ap = pzz * zp + pzv * vpp
-                vcp = (cvz * zc + cvv * vcp) + cvf * fts + (cvd0 * cw_old + cvd1 * cw)
-                vpp = (pvz * zp + pvv * vpp) + pvf * fts
-                zc = (ac + czd * cw_old) + czf * fts
-                zp = ap + pzf * fts
-                base = zb + (ac + ap) + czd * cw_old  # z_tip = base + ef * Fts_n
+                # tip deflection two steps ahead, without Fts_{n+1}: from y_n, Fts_n
+                # (off the critical path; enters the next gap with one add)
+                u2 = ((rcz * zc + rcv * vcp) + (rpz * zp + rpv * vpp)) + (rc0 * cw_old + rc1 * cw) + rho * fts
+                # probe state y_{n+1} (linear Verlet map); late operand Fts_n last
+                zc, vcp = (
+                    (czz * zc + czv * vcp) + (czd * cw_old + czf * fts),
+                    (cvz * zc + cvv * vcp) + ((cvd0 * cw_old + cvd1 * cw) + cvf * fts),
+                )
+                zp, vpp = (pzz * zp + pzv * vpp) + pzf * fts, (pvz * zp + pvv * vpp) + pvf * fts
+                base = zb + u1  # z_tip_{n+1} = base + ef * Fts_n
+                u1 = u2
                 n += 1
                 xd_prev = xd
                 if not in_contact:
@@ -228,7 +253,7 @@ def integrate(
                     d = (base - xbase) + kappa * fts
                     if d > a0:
                         xbase = alpha * xd  # force-free part of X (off the critical path)
-                        fa, _x, xd = noncontact_update(d, xd, hr6, alpha, beta, gamma, ec)
+                        fa, _x, xd = noncontact_update(d, xd, fa, hr6, ihr6, alpha, beta, gamma, ec)
                         fts = -fa
                     else:
                         in_contact = True
