@@ -88,6 +88,8 @@ def extract(
         raise InputError(f"force {force!r} not allowed; choose one of: {', '.join(FORCES)}")
     if method not in METHODS:
         raise InputError(f"method {method!r} not available; choose one of: {', '.join(METHODS)}")
+    if isinstance(kg_points, bool) or not isinstance(kg_points, (int, np.integer)) or kg_points < 2:
+        raise InputError(f"kg_points {kg_points!r} not allowed; expected an integer >= 2")
     cols = set(df.columns)
     missing = [c for c in ("t", "z_tip") if c not in cols]
     if missing or not ({"f_ts", "z_paddle"} & cols):
@@ -179,3 +181,61 @@ def extract(
     info["warnings"] = warnings + ex.warnings + list(meta.get("warnings") or [])
     out["info"] = info
     return out
+
+
+ROWS = (
+    ("tau_c", "tau_c", "s"),
+    ("k_g", "Kg", "N/m"),
+    ("k_r", "Kr", "N/m"),
+    ("tau_r", "tau_r", "s"),
+    ("k0", "k0", "N/m"),
+    ("k_inf", "k_inf", "N/m"),
+    ("cd", "cd", "kg/s"),
+)
+
+
+def _num(v, fmt=".5g"):
+    return "-" if v is None else format(v, fmt)
+
+
+def format_table(res: dict, source=None) -> str:
+    """Plain-text table of an :func:`extract` result (value, theory, error %,
+    spread over taps) plus the reconstruction error, Z1 and timing."""
+    info = res.get("info", {})
+    head = f"VETICA on {source}" if source is not None else "VETICA"
+    z1 = info.get("z1")
+    lines = [
+        f"{head}: force {res['force']}, {res['taps']} taps, "
+        f"Z1 = {_num(z1 * 1e9 if z1 is not None else None, '.4f')} nm ({info.get('z1_source', '?')})",
+        f"{'quantity':<14}{'value':>13}{'theory':>13}{'error %':>10}   spread over taps (std; min .. max)",
+    ]
+    for key, label, unit in ROWS:
+        e = res[key]
+        sp = e.get("spread") or {}
+        spread = (
+            f"{_num(sp.get('std'), '.2g')}; {_num(sp.get('min'))} .. {_num(sp.get('max'))} (n={sp.get('n')})"
+            if sp.get("n")
+            else "-"
+        )
+        lines.append(
+            f"{label + ' [' + unit + ']':<14}{_num(e['value']):>13}{_num(e['theory']):>13}"
+            f"{_num(e['error_pct'], '.2f'):>10}   {spread}"
+        )
+    if "cutoff_hz" in info:
+        harm = f" = {info['cutoff_harmonic']:.4g} f1" if "cutoff_harmonic" in info else ""
+        lines.append(f"force reconstruction: spectral inversion of z_paddle, low-pass cut-off {info['cutoff_hz']:.4g} Hz{harm}")
+    if "reconstruction_error" in info:
+        r = info["reconstruction_error"]
+        lines.append(
+            f"reconstructed vs true f_ts (% of peak force): RMS {r['rms_pct']:.2g}, max {r['max_pct']:.2g}, "
+            f"peak {r['peak_pct']:+.2g}"
+        )
+    tm = info.get("timing_s", {})
+    if tm:
+        lines.append(
+            f"time: reconstruction {tm.get('reconstruction', 0):.2f} s, stage 1 {tm.get('stage1', 0):.3f} s, "
+            f"stage 2 {tm.get('stage2', 0):.3f} s ({tm.get('stage2_per_tap', 0) * 1e3:.0f} ms per tap)"
+        )
+    for w in info.get("warnings", []):
+        lines.append(f"warning: {w}")
+    return "\n".join(lines)

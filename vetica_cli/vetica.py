@@ -311,22 +311,46 @@ def _exp_conv_cos(u: np.ndarray, b: np.ndarray, c: np.ndarray, tau: float) -> np
     return tau / (1.0 + bt * bt) * (np.cos(ph) + bt * np.sin(ph) - np.exp(-u / tau) * (np.cos(c) + bt * np.sin(c)))
 
 
+class _Superposition:
+    """Parts of the Boltzmann integral of one tap that do not depend on Kr.
+
+    ``delta(u) = z(0) - z(u)`` and ``delta'(u) = -sum_j b_j (p_j cos(b_j u) -
+    q_j sin(b_j u))`` from the sum-of-sines fit; the convolution with
+    ``exp(-u/tau)`` of each cosine column has the closed form of
+    :func:`_exp_conv_cos`, whose trigonometric parts are computed once here.
+    """
+
+    def __init__(self, u: np.ndarray, fit: SineFit):
+        self.u = np.asarray(u, dtype=float)
+        self.delta = fit(np.array([0.0]))[0] - fit(self.u)
+        b = fit.b
+        self.b = np.concatenate([b, b])
+        c = np.concatenate([np.zeros_like(b), np.full_like(b, 0.5 * np.pi)])
+        self.w = -np.concatenate([b * fit.p, b * fit.q])  # delta' = sum w cos(b u + c)
+        ph = np.outer(self.u, self.b) + c
+        self.cos, self.sin = np.cos(ph), np.sin(ph)
+        self.cos0, self.sin0 = np.cos(c), np.sin(c)
+
+    def conv(self, tau: float) -> np.ndarray:
+        """``int_0^u exp(-(u-s)/tau) delta'(s) ds`` [m]."""
+        bt = self.b * tau
+        a = tau / (1.0 + bt * bt) * self.w
+        decay = np.exp(-self.u / tau)
+        return (self.cos @ a) + (self.sin @ (bt * a)) - decay * np.dot(a, self.cos0 + bt * self.sin0)
+
+    def force(self, kg: float, kr: float, tau_r: float, fc: float = 0.0) -> np.ndarray:
+        """``Fc + Kr delta + (Kg - Kr) conv(tau_r)`` [N] (thesis eqs. 75-78)."""
+        return fc + kr * self.delta + (kg - kr) * self.conv(tau_r)
+
+
 def boltzmann_force(u: np.ndarray, fit: SineFit, kg: float, kr: float, tau_r: float, fc: float = 0.0) -> np.ndarray:
     """SLS force of the fitted contact trajectory (thesis eqs. 75-78) [N].
 
     ``F = Fc + Kr delta(u) + (Kg - Kr) int_0^u exp(-(u-s)/tau_r) delta'(s) ds``
-    with ``delta(u) = z(0) - z(u)`` from the sum-of-sines fit (``u`` from the
-    contact instant, so ``u[0]`` should be 0).
+    with ``delta(u) = z(0) - z(u)`` from the sum-of-sines fit, ``u`` [s] from
+    the contact instant.
     """
-    z = fit(u)
-    delta = fit(np.array([0.0]))[0] - z
-    # z' = sum b (p cos(b u) + q cos(b u + pi/2)); delta' = -z'
-    b = fit.b
-    cols = np.concatenate([b, b])
-    phases = np.concatenate([np.zeros_like(b), np.full_like(b, 0.5 * np.pi)])
-    weights = -np.concatenate([b * fit.p, b * fit.q])
-    conv = _exp_conv_cos(u, cols, phases, tau_r) @ weights
-    return fc + kr * delta + (kg - kr) * conv
+    return _Superposition(u, fit).force(kg, kr, tau_r, fc)
 
 
 def stage2_kr(
@@ -336,7 +360,7 @@ def stage2_kr(
     (thesis eqs. 79-80), ``0 < Kr < Kg``, over at most ``max_points`` evenly
     spaced contact samples.  Returns ``(Kr, residual RMS [N], nfev)``."""
     step = max(1, len(u) // max_points)
-    u = np.asarray(u)[::step]
+    sup = _Superposition(np.asarray(u)[::step], fit)
     f = np.asarray(f)[::step]
     lo, hi = 1e-12 * kg, kg * (1.0 - 1e-9)
     x0 = min(max(kr_guess if kr_guess is not None else 0.1 * kg, lo * 10), hi * 0.999)
@@ -344,7 +368,7 @@ def stage2_kr(
 
     def resid(x):
         kr = x[0]
-        return (boltzmann_force(u, fit, kg, kr, tau_c * kr / kg, fc) - f) / scale
+        return (sup.force(kg, kr, tau_c * kr / kg, fc) - f) / scale
 
     sol = least_squares(resid, [x0], bounds=([lo], [hi]), method="trf", xtol=1e-10)
     return float(sol.x[0]), float(scale * np.sqrt(np.mean(sol.fun**2))), int(sol.nfev)
