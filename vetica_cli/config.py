@@ -85,6 +85,10 @@ class Numerics:
     approach_gap: float = 0.5e-9  # initial clearance of the lowest tip point [m]
     approach_rate: float = 0.0  # base descent before the first contact [m/s]
     approach_cycles: float = 1.0  # length of the recorded first-approach window [periods]
+    position_noise: float = 0.0  # RMS detector noise on z_cantilever, z_paddle (and so z_tip) [m]
+    force_noise: float = 0.0  # RMS noise on the recorded f_ts [N]
+    noise_seed: int = 0  # seed of the noise generator (same seed -> same noise)
+    detector_bandwidth: float = 0.0  # one-pole low-pass of the position detector [Hz]; 0 = infinite
 
 
 @dataclass(frozen=True)
@@ -136,6 +140,10 @@ RULES = {
     "numerics.approach_gap": (_nonneg, "a distance >= 0 m"),
     "numerics.approach_rate": (_nonneg, "a speed >= 0 m/s"),
     "numerics.approach_cycles": (lambda v: 0 < v <= 20, "a number of periods in (0, 20]"),
+    "numerics.position_noise": (_nonneg, "an RMS noise >= 0 m"),
+    "numerics.force_noise": (_nonneg, "an RMS noise >= 0 N"),
+    "numerics.noise_seed": (_nonneg, "an integer >= 0"),
+    "numerics.detector_bandwidth": (_nonneg, "a bandwidth >= 0 Hz (0 = infinite)"),
 }
 
 
@@ -231,6 +239,11 @@ def _check_cross(cfg: Config) -> None:
         )
     p = cfg.probe
     period = 1.0 / p.f1
+    if 0 < n.detector_bandwidth <= p.f1:
+        raise ConfigError(
+            f"numerics.detector_bandwidth: {n.detector_bandwidth!r} is not allowed; expected 0 (infinite) "
+            f"or above the drive frequency probe.f1 ({p.f1!r} Hz)"
+        )
     if n.dt > period / 200 or n.dt > 1.0 / p.f2 / 50:
         raise ConfigError(
             f"numerics.dt: {n.dt!r} is not allowed; expected <= 1/50 of the paddle period ({1 / p.f2 / 50:.3g} s)"

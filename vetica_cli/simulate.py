@@ -184,5 +184,46 @@ def simulate(cfg: Config) -> Run:
         params=cfg.to_dict(),
         wall_s=wall,
     )
-    compute_observables(run, cfg, d)
+    compute_observables(run, cfg, d)  # from the noise-free signals
+    apply_instrument(run, cfg)
     return run
+
+
+def _lowpass(x: np.ndarray, fc: float, ts: float, periodic: bool) -> np.ndarray:
+    """One-pole (RC) low-pass ``y_n = a y_(n-1) + (1 - a) x_n``, ``a = exp(-2 pi fc ts)``:
+    a detector of bandwidth ``fc`` [Hz] sampled every ``ts`` [s].  A periodic window
+    is filtered twice and the second pass kept (steady state of the filter)."""
+    from scipy.signal import lfilter
+
+    a = math.exp(-2.0 * math.pi * fc * ts)
+    b, den = [1.0 - a], [1.0, -a]
+    if periodic:
+        y, zf = lfilter(b, den, x, zi=[a * x[-1]])
+        y, _ = lfilter(b, den, x, zi=zf)
+        return y
+    y, _ = lfilter(b, den, x, zi=[a * x[0]]) if len(x) else (x, None)
+    return y
+
+
+def apply_instrument(run: Run, cfg: Config) -> None:
+    """Detector realism on the recorded signals (issue 6): a finite position-detector
+    bandwidth, then white Gaussian noise of the given RMS on the deflections
+    (z_tip is rebuilt as z_base + z_cantilever + z_paddle) and on f_ts.
+    x_surface and x_dashpot are the simulator's truth and stay noise-free.
+    Seeded: the same config gives the same noise."""
+    n = cfg.numerics
+    if not (n.position_noise or n.force_noise or n.detector_bandwidth):
+        return
+    rng = np.random.default_rng(n.noise_seed)
+    ic, ip, it, ib, iff = (thc.COLUMNS.index(c) for c in ("z_cantilever", "z_paddle", "z_tip", "z_base", "f_ts"))
+    for arr, periodic in ((run.approach, False), (run.steady, True)):
+        if not len(arr):
+            continue
+        for i in (ic, ip):
+            if n.detector_bandwidth:
+                arr[:, i] = _lowpass(arr[:, i], n.detector_bandwidth, n.print_step, periodic)
+            if n.position_noise:
+                arr[:, i] += rng.normal(0.0, n.position_noise, len(arr))
+        arr[:, it] = arr[:, ib] + arr[:, ic] + arr[:, ip]
+        if n.force_noise:
+            arr[:, iff] += rng.normal(0.0, n.force_noise, len(arr))
