@@ -90,8 +90,12 @@ class Study:
 
     def resolved(self) -> dict:
         """A re-runnable study config: every base key resolved, sweep block as given."""
-        base = from_dict(_split_derived(self.base)[0]).to_dict()
-        _, derived = _split_derived(self.base)
+        # defaults filled in without validating the base alone: only the points
+        # (base + sweep values) need to be valid configs
+        clean, derived = _split_derived(self.base)
+        base = Config().to_dict()
+        for sec, body in clean.items():
+            base[sec].update(body or {})
         for dkey, value in derived.items():
             sec, name = dkey.split(".")
             target = DERIVED[dkey][0].split(".")[1]
