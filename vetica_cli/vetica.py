@@ -420,13 +420,16 @@ def vetica(
     Values are the means over taps (``tau_c`` over creep intervals); stage 2
     fits each tap with the mean ``tau_c`` and ``Kg``, and the derived
     ``k0, k_inf, tau_r, cd`` use the mean ``Kr``.  Per-tap arrays give the
-    spread.  Raises InputError for too few taps.
+    spread.  A stage that cannot produce a value (no creep interval with
+    the surface recovering below Z1, or contacts shorter than ``kg_points``)
+    gives nan for it and for what depends on it, with a warning.  Raises
+    InputError for no contact or fewer than two complete taps.
     """
     t = np.asarray(t, dtype=float)
     z = np.asarray(z, dtype=float)
     f = np.asarray(f, dtype=float)
     if kg_points < 2:
-        raise InputError(f"--kg-points {kg_points} not allowed; expected an integer >= 2")
+        raise InputError(f"kg_points {kg_points} not allowed; expected an integer >= 2")
     t0 = time.perf_counter()
     taps = find_taps(f)
     n_taps = len(taps.contact)
@@ -441,28 +444,29 @@ def vetica(
     tau_c_i = stage1a_tau_c(t, z, taps, z1)
     kg_i = stage1b_kg(z, f, taps, kg_points)
     t1 = time.perf_counter()
-    if not np.any(np.isfinite(tau_c_i)):
-        raise InputError(
-            "stage 1a failed: the separation/contact positions are not below Z1 with the surface recovering "
-            f"(Z1 = {z1:.4g} m); check Z1"
+    tau_c = float(np.nanmean(tau_c_i)) if np.any(np.isfinite(tau_c_i)) else math.nan
+    kg = float(np.nanmean(kg_i)) if np.any(np.isfinite(kg_i)) else math.nan
+    if math.isnan(tau_c):
+        warnings.append(
+            "stage 1a: no creep interval gives a retardation time (positions at separation and next contact "
+            f"not both below Z1 = {z1:.4g} m with the surface recovering); tau_c and stage 2 skipped"
         )
-    if not np.any(np.isfinite(kg_i)):
-        raise InputError(f"stage 1b failed: contact shorter than --kg-points {kg_points} samples")
-    tau_c = float(np.nanmean(tau_c_i))
-    kg = float(np.nanmean(kg_i))
+    if math.isnan(kg):
+        warnings.append(f"stage 1b: contacts shorter than kg_points = {kg_points} samples; Kg and stage 2 skipped")
 
     kr_i, fit_rms, f_rms, nfev = [], [], [], []
-    for ic, isep in zip(taps.contact, taps.separation):
-        sl = slice(ic, isep + 1)
-        u = t[sl] - t[ic]
-        fit = fit_sum_of_sines(u, z[sl])
-        kr, rms, nf = stage2_kr(u, f[sl], fit, kg, tau_c, float(f[ic]), kr_guess)
-        kr_i.append(kr)
-        fit_rms.append(fit.rms)
-        f_rms.append(rms)
-        nfev.append(nf)
+    if not (math.isnan(tau_c) or math.isnan(kg)):
+        for ic, isep in zip(taps.contact, taps.separation):
+            sl = slice(ic, isep + 1)
+            u = t[sl] - t[ic]
+            fit = fit_sum_of_sines(u, z[sl])
+            kr, rms, nf = stage2_kr(u, f[sl], fit, kg, tau_c, float(f[ic]), kr_guess)
+            kr_i.append(kr)
+            fit_rms.append(fit.rms)
+            f_rms.append(rms)
+            nfev.append(nf)
     t2 = time.perf_counter()
-    kr_i = np.array(kr_i)
+    kr_i = np.array(kr_i) if kr_i else np.full(n_taps, math.nan)
     values = sls_elements(tau_c, kg, float(np.mean(kr_i)))
     per = [sls_elements(tau_c, kg, k) for k in kr_i]
     per_tap = {
@@ -471,17 +475,19 @@ def vetica(
         "k_r": kr_i,
         **{k: np.array([p[k] for p in per]) for k in ("tau_r", "k0", "k_inf", "cd")},
     }
+    diagnostics = {"contact_samples": int(np.median(taps.separation - taps.contact))}
+    if fit_rms:
+        diagnostics.update(
+            sine_fit_rms_m=float(np.max(fit_rms)),
+            force_fit_rms_n=float(np.max(f_rms)),
+            kr_nfev_max=int(np.max(nfev)),
+        )
     return Extraction(
         values=values,
         per_tap=per_tap,
         taps=n_taps,
         z1=float(z1),
         timing_s={"stage1": t1 - t0, "stage2": t2 - t1, "stage2_per_tap": (t2 - t1) / n_taps},
-        diagnostics={
-            "sine_fit_rms_m": float(np.max(fit_rms)),
-            "force_fit_rms_n": float(np.max(f_rms)),
-            "kr_nfev_max": int(np.max(nfev)),
-            "contact_samples": int(np.median(taps.separation - taps.contact)),
-        },
+        diagnostics=diagnostics,
         warnings=warnings,
     )
