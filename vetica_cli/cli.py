@@ -84,7 +84,7 @@ def bench(
 def sweep(
     config: Path = typer.Argument(..., help="Study YAML: single-point sections plus a 'sweep:' block (see configs/)."),
     output: Optional[Path] = typer.Option(
-        None, "-o", "--output", help="Parquet table to write [default: results/<config name>.parquet]."
+        None, "-o", "--output", help="Parquet table to write (default: results/<config name>.parquet)."
     ),
     jobs: int = typer.Option(2, "--jobs", "-j", help="Parallel workers (processes), one core each."),
     backend: str = typer.Option("loky", help="loky (local processes) or dask (a Dask cluster via joblib)."),

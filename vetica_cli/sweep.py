@@ -764,10 +764,10 @@ class _Progress:
 
 # measured on the project machine (2 cores): `vetica bench` gives 14 ns per
 # integration step on one core (worked example, dt = 0.025 ns); one extraction
-# takes ~1.0 s (true force) + ~1.4 s (reconstructed) on 10 recorded periods.
+# takes ~0.6 s (true force) + ~0.8 s (reconstructed) on 10 recorded periods.
 # Used only for the --dry-run estimate.
 NS_PER_STEP = 14.0
-EXTRACT_S_PER_POINT = 2.4
+EXTRACT_S_PER_POINT = 1.4
 
 
 def dry_run_text(study: Study, output: Path, jobs: int, share_print_step: bool = True) -> str:
