@@ -113,23 +113,32 @@ def sweep(
     """
     from . import config as cfgmod
     from .grid import load_study
-    from .sweep import dry_run_text, run_sweep, summary
+    from .sweep import dry_run_text, parts_dir, run_sweep, summary
 
     study = load_study(config, cfgmod.parse_set(set_))
     out = output if output is not None else Path("results") / f"{config.stem}.parquet"
     if dry_run:
         typer.echo(dry_run_text(study, out, jobs, share_print_step))
         return
-    res = run_sweep(
-        study,
-        out,
-        jobs=jobs,
-        backend=backend,
-        scheduler=scheduler,
-        resume=resume,
-        share_print_step=share_print_step,
-        progress=not quiet,
-    )
+    try:
+        res = run_sweep(
+            study,
+            out,
+            jobs=jobs,
+            backend=backend,
+            scheduler=scheduler,
+            resume=resume,
+            share_print_step=share_print_step,
+            progress=not quiet,
+        )
+    except KeyboardInterrupt:
+        n = len(list(parts_dir(out).glob("*.parquet")))
+        typer.echo(
+            f"interrupted: {n} of {len(study.points)} points are persisted in {parts_dir(out)}/; "
+            "run the same command again to compute the rest",
+            err=True,
+        )
+        raise typer.Exit(130) from None
     typer.echo(summary(res, study))
 
 
