@@ -142,6 +142,53 @@ def sweep(
     typer.echo(summary(res, study))
 
 
+@app.command()
+@user_errors
+def extract(
+    run: Path = typer.Argument(
+        ..., help="Parquet written by 'vetica simulate', or any Parquet/CSV with t, z_tip and f_ts or z_paddle."
+    ),
+    force: str = typer.Option(
+        "auto",
+        "--force",
+        help="Force to analyse: reconstructed (spectral inversion of z_paddle) or true (the f_ts column); "
+        "auto = reconstructed when z_paddle is present.",
+    ),
+    kg_points: int = typer.Option(10, "--kg-points", help="Samples after the contact minimum in the Kg fit (thesis: 10)."),
+    json_out: bool = typer.Option(False, "--json", help="Print one JSON object instead of the table."),
+    k2: Optional[float] = typer.Option(None, "--k2", help="Paddle stiffness [N/m] (data without metadata)."),
+    f2: Optional[float] = typer.Option(None, "--f2", help="Paddle resonance [Hz] (data without metadata)."),
+    q2: Optional[float] = typer.Option(None, "--q2", help="Paddle quality factor (data without metadata)."),
+    z1: Optional[float] = typer.Option(
+        None, "--z1", help="Tip position at the first approach force minimum [m]; default: from the approach segment."
+    ),
+    f1: Optional[float] = typer.Option(None, "--f1", help="Drive frequency [Hz]; only labels the cut-off in harmonics."),
+    cutoff: Optional[float] = typer.Option(
+        None, "--cutoff", help="Low-pass cut-off of the force reconstruction [Hz]; default: Nyquist, 1/(2 print step)."
+    ),
+):
+    """Extract k0, k_inf, cd (and tau_c, Kg, Kr, tau_r) from a run with VETICA.
+
+    Prints value, theory and error % (theory known only when the file's
+    metadata holds the surface parameters), the spread over taps, the
+    force-reconstruction error against f_ts when both are present, and the
+    extraction time.
+    """
+    import json
+
+    from .extract import extract as _extract
+    from .extract import format_table
+    from .io import read_table
+
+    df, meta = read_table(run)
+    res = _extract(df, meta, force=force, kg_points=kg_points,
+                   k2=k2, f2=f2, q2=q2, z1=z1, f1=f1, cutoff_hz=cutoff)  # fmt: skip
+    if json_out:
+        typer.echo(json.dumps(res, allow_nan=False))
+    else:
+        typer.echo(format_table(res, run))
+
+
 def main():  # pragma: no cover - console script entry
     app()
 
