@@ -240,6 +240,27 @@ def test_killed_sweep_resumes_only_missing_points_and_ends_with_the_same_table(t
     numeric_equal(fresh.table, ref.table)
 
 
+def test_parts_made_by_other_code_or_config_are_recomputed(tmp_path, monkeypatch):
+    """A persisted part whose code fingerprint differs (the simulator or the
+    extraction changed since) is stale; so is an unreadable part."""
+    from vetica_cli.io import write_table
+
+    monkeypatch.setattr(sweep, "_extract", fake_extract)
+    st = cheap_study({"surface.cd": [1e-5, 1e-4, 1e-3]})
+    out = tmp_path / "t.parquet"
+    first = sweep.run_sweep(st, out, jobs=1, progress=False)
+    assert len(first.computed) == 3
+    k0, k1 = st.points[0].key, st.points[1].key
+    part = sweep.parts_dir(out) / f"{k0}.parquet"
+    df, meta = read_table(part)
+    write_table(df, part, {**meta, "code": "0000000000000000"})
+    (sweep.parts_dir(out) / f"{k1}.parquet").write_bytes(b"not parquet")
+    again = sweep.run_sweep(st, out, jobs=1, progress=False)
+    assert sorted(again.computed) == sorted([k0, k1])
+    assert again.reused == [st.points[2].key]
+    numeric_equal(again.table, first.table)
+
+
 def test_same_config_gives_bit_identical_numeric_columns_with_two_workers(tmp_path):
     """Two loky workers, unordered completion: rows are still in grid order and the
     numeric columns are bit-identical across runs (real extraction)."""

@@ -14,8 +14,9 @@ Nothing is lost:
   when only the extraction failed); the other points run on;
 * every finished point is written at once, atomically, to
   ``<output>.parts/<point key>.parquet`` (the key is a hash of the resolved
-  point config and the package version), so a killed sweep run again
-  computes only the missing points;
+  point config and the package version; the part also records a hash of the
+  source that computed it, and a part from other code is recomputed), so a
+  killed sweep run again computes only the missing points;
 * the final table is assembled from the parts in grid order and written
   atomically, with the units, the resolved study config and the acceptance
   regime in its Parquet metadata; the config is also saved as
@@ -36,6 +37,7 @@ measured difference; sharing is on by default and can be switched off
 
 from __future__ import annotations
 
+import functools
 import math
 import os
 import time
@@ -375,6 +377,27 @@ def plan(study: Study, share_print_step: bool = True) -> list[Task]:
 # --------------------------------------------------------------------------- parts
 
 
+# modules that do not change a point's numbers: editing them keeps persisted parts valid
+_FINGERPRINT_SKIP = {"cli.py", "plots.py", "report.py", "bench.py"}
+
+
+@functools.lru_cache(maxsize=1)
+def code_fingerprint() -> str:
+    """Hash of the package source that computes a point (simulation, extraction,
+    sweep).  A part made by different code is stale and is recomputed, so a
+    resumed sweep never mixes results of two code versions."""
+    import hashlib
+
+    h = hashlib.sha256()
+    root = Path(__file__).resolve().parent
+    for f in sorted(root.rglob("*.py")):
+        if f.name in _FINGERPRINT_SKIP:
+            continue
+        h.update(str(f.relative_to(root)).encode())
+        h.update(f.read_bytes())
+    return h.hexdigest()[:16]
+
+
 def parts_dir(output: Path) -> Path:
     return output.with_name(output.name + ".parts")
 
@@ -393,7 +416,7 @@ def read_part(path: Path, key: str, sim_print_step: float) -> pd.DataFrame | Non
         df, meta = read_table(path)
     except InputError:
         return None
-    if meta.get("point") != key or meta.get("version") != __version__:
+    if meta.get("point") != key or meta.get("code") != code_fingerprint():
         return None
     if not math.isclose(float(meta.get("sim_print_step", -1)), sim_print_step, rel_tol=1e-12):
         return None
@@ -413,6 +436,7 @@ def write_part(pdir: Path, point: Point, rows: list[dict], sim_print_step: float
         "params": point.config.to_dict(),
         "sim_print_step": sim_print_step,
         "version": __version__,
+        "code": code_fingerprint(),
     }
     return write_table(df, _part_path(pdir, point.key), meta)
 
@@ -570,6 +594,7 @@ def _run(study, output, runner, resume, share_print_step, progress, console, t_s
         "swept_keys": list(study.keys),
         "units": column_units(study),
         "version": __version__,
+        "code": code_fingerprint(),
         "points": n_total,
         "share_print_step": share_print_step,
         "acceptance_err_pct": ACCEPT_ERR_PCT,
