@@ -199,20 +199,38 @@ def test_swept_keys_come_from_varying_columns_and_drop_lockstep_keys():
     assert plots.swept_keys(df, {"units": {}}) == ["surface.cd", "probe.f1"]
 
 
-def test_acceptance_regime_is_the_longest_run_below_30_percent():
+def test_acceptance_regime_spans_the_ok_points_below_30_percent():
     # hand-made errors over cd 1..8 (thesis fig. 52: acceptance = tau_c error < 30 %):
-    # 80, 20, 10, 45, 5, 25, 28, 60 -> runs {2, 3} and {5, 6, 7}: the longer one wins
+    # 80, 20, 10, 45, 5, 25, 28, 60 -> accepted cd 2, 3, 5, 6, 7: range 2..7, broken at cd 4
     d = pd.DataFrame(
         {"surface.cd": np.arange(1, 9.0), "tau_c_err_pct": [80, 20, 10, 45, 5, 25, 28, 60.0], "status": ["ok"] * 8}
     )
-    assert plots.acceptance(d) == (5.0, 7.0)
-    # a not-steady or failed point neither accepts nor breaks a run: without cd 4 the runs join
+    r = plots.acceptance(d)
+    assert (r.lo, r.hi, r.contiguous) == (2.0, 7.0, False)
+    assert list(r.accepted) == [2, 3, 5, 6, 7]
+    d.loc[3, "tau_c_err_pct"] = 12.0
+    assert plots.acceptance(d).contiguous
+    # a not-steady point is not accepted, whatever its error, and breaks the run
     d.loc[3, "status"] = "not_steady"
-    assert plots.acceptance(d) == (2.0, 7.0)
-    d.loc[3, "status"] = "failed"
-    assert plots.acceptance(d) == (2.0, 7.0)
+    r = plots.acceptance(d)
+    assert (r.lo, r.hi, r.contiguous) == (2.0, 7.0, False)
     d["tau_c_err_pct"] = 31.0
     assert plots.acceptance(d) is None
+
+
+@pytest.mark.parametrize("study", ["frequency", "print_step"])
+def test_acceptance_regime_agrees_with_what_vetica_sweep_reports(study):
+    from vetica_cli.sweep import acceptance_regime
+
+    df, _ = synthetic_sweep(study)
+    other = next(k for k in STUDIES[study] if k != "surface.cd")
+    for entry in acceptance_regime(df, list(STUDIES[study])):
+        g = df[(df[other] == entry[other]) & (df["force_source"] == entry["force_source"])]
+        r = plots.acceptance(g)
+        if entry["cd_min"] is None:
+            assert r is None
+        else:
+            assert (r.lo, r.hi, r.contiguous) == (entry["cd_min"], entry["cd_max"], entry["contiguous"])
 
 
 def test_failed_and_not_steady_points_are_reported_in_the_figure_note(table, tmp_path):

@@ -866,11 +866,18 @@ def _status(d: pd.DataFrame) -> np.ndarray:
     return d["status"].astype(str).to_numpy()
 
 
-def _series(ax, x, y, status, color, ls, marker, filled, label, floor=None):
-    """Line through the usable points; not_steady points get a grey cross over the marker."""
+def _series(ax, x, y, status, color, ls, marker, filled, label, floor=None, show_missing=False) -> set:
+    """Line through the usable points; not-steady points get a grey cross over the marker.
+
+    With ``show_missing``, points that ran (not failed) but have no value
+    (the extraction returned none, e.g. no measurable creep for tau_c) are
+    drawn as triangles on the top edge of the axes.  Returns the set of
+    special markers drawn ({'not_steady', 'no_value'}) for the legend.
+    """
     x = np.asarray(x, float)
     y = np.asarray(y, float)
-    ok = (status != "failed") & np.isfinite(x) & np.isfinite(y)
+    ran = (status != "failed") & np.isfinite(x)
+    ok = ran & np.isfinite(y)
     if floor is not None:
         y = np.where(ok, np.maximum(y, floor), y)
     order = np.argsort(x[ok])
@@ -887,16 +894,38 @@ def _series(ax, x, y, status, color, ls, marker, filled, label, floor=None):
         mec=color,
         label=label,
     )
+    flags = set()
     ns = ok & (status == "not_steady")
     if ns.any():
         ax.plot(x[ns], y[ns], "x", color="0.35", ms=11, mew=1.6, ls="none")
-    return bool(ns.any())
+        flags.add("not_steady")
+    missing = ran & ~np.isfinite(y)
+    if show_missing and missing.any():
+        ax.plot(
+            x[missing],
+            np.full(missing.sum(), 0.985),
+            "^",
+            transform=ax.get_xaxis_transform(),
+            color=color,
+            mfc=color if filled else "white",
+            ms=8,
+            ls="none",
+            clip_on=False,
+        )
+        flags.add("no_value")
+    return flags
 
 
-def _not_steady_handle():
+def _extra_handles(flags: set) -> list:
+    """Legend entries for the special markers of :func:`_series`."""
     from matplotlib.lines import Line2D
 
-    return Line2D([], [], marker="x", color="0.35", ms=9, mew=1.6, ls="none", label="not steady (run hit max_time)")
+    h = []
+    if "not_steady" in flags:
+        h.append(Line2D([], [], marker="x", color="0.35", ms=9, mew=1.6, ls="none", label="not steady (hit max_time)"))
+    if "no_value" in flags:
+        h.append(Line2D([], [], marker="^", color="0.35", ms=8, ls="none", label="no value extracted (top edge)"))
+    return h
 
 
 def _status_note(d: pd.DataFrame, swept: list, extra: str = "", regime: bool = False, marked: bool = True) -> str:
@@ -919,7 +948,8 @@ def _status_note(d: pd.DataFrame, swept: list, extra: str = "", regime: bool = F
 
 
 def _fixed_line(sw: SweepData) -> str:
-    """The study's fixed parameters (not swept), for the title."""
+    """The study's fixed parameters (the keys not swept), for the title; derived keys
+    (``stiffness_ratio``, ``f2_ratio``) as the study config states them."""
     b = sw.base
     if not b:
         return ""
@@ -927,25 +957,40 @@ def _fixed_line(sw: SweepData) -> str:
     pr, op, su, nu = (b.get(k, {}) or {} for k in ("probe", "operation", "surface", "numerics"))
     items = []
 
-    def add(key, text):
-        if key not in s:
-            items.append(text)
+    def num(d, k):
+        v = d.get(k)
+        return float(v) if isinstance(v, (int, float)) and not isinstance(v, bool) else None
 
-    try:
-        add(F1, f"$f_1$ {pr['f1'] * 1e-3:g} kHz")
-        if F1 not in s:
-            add("probe.f2", f"$f_2$ {pr['f2'] * 1e-3:g} kHz")
-        add("probe.k1", f"$k_1$ {pr['k1']:g} N/m")
-        add(K2, f"$k_2$ {pr['k2']:g} N/m")
-        add(SETPOINT, f"set point {op['setpoint'] * 100:g} %")
-        add("surface.k_inf", f"$k_\\infty$ {su['k_inf']:g} N/m")
-        if RATIO not in s and "surface.k0" not in s:
-            items.append(f"$k_0:k_\\infty$ {_ratio_label(su['k0'] / su['k_inf'])}")
-        add(CD, f"$c_d$ {su['cd']:g} kg/s")
-        add(PS, f"PS {nu['print_step'] * 1e9:g} ns")
-    except (KeyError, TypeError, ZeroDivisionError):
-        return ""
-    return "fixed: " + ", ".join(items)
+    f1, f2, f2r = num(pr, "f1"), num(pr, "f2"), num(pr, "f2_ratio")
+    if F1 not in s and f1:
+        items.append(f"$f_1$ {f1 * 1e-3:g} kHz")
+    if f2r:
+        items.append(f"$f_2$ = {f2r:g} $f_1$")
+    elif F1 not in s and "probe.f2" not in s and f2:
+        items.append(f"$f_2$ {f2 * 1e-3:g} kHz")
+    for key, d, name, unit, scale in (
+        ("probe.k1", pr, "$k_1$", "N/m", 1.0),
+        (K2, pr, "$k_2$", "N/m", 1.0),
+        (SETPOINT, op, "set point", "%", 100.0),
+        ("surface.k_inf", su, r"$k_\infty$", "N/m", 1.0),
+    ):
+        v = num(d, key.split(".")[1])
+        if key not in s and v is not None:
+            items.append(f"{name} {v * scale:g} {unit}")
+    k_inf, k0, ratio = num(su, "k_inf"), num(su, "k0"), num(su, "stiffness_ratio")
+    if ratio is None and k0 and k_inf:
+        ratio = k0 / k_inf
+    if RATIO not in s and "surface.k0" not in s and ratio:
+        items.append(f"$k_0:k_\\infty$ {_ratio_label(ratio)}")
+    for key, d, name, unit, scale in (
+        (CD, su, "$c_d$", "kg/s", 1.0),
+        (PS, nu, "PS", "ns", 1e9),
+        ("numerics.dt", nu, "dt", "ns", 1e9),
+    ):
+        v = num(d, key.split(".")[1])
+        if key not in s and v is not None:
+            items.append(f"{name} {v * scale:g} {unit}")
+    return ("fixed: " + ", ".join(items)) if items else ""
 
 
 def _title(fig: Figure, sw: SweepData, text: str) -> None:
@@ -953,28 +998,33 @@ def _title(fig: Figure, sw: SweepData, text: str) -> None:
     fig.suptitle(text + ("\n" + fixed if fixed else ""), fontsize=10.5)
 
 
-def acceptance(d: pd.DataFrame, err_col: str = "tau_c_err_pct") -> tuple[float, float] | None:
-    """Acceptance regime of one force source and one setting: (lowest, highest) cd.
+@dataclass
+class Regime:
+    """Acceptance regime of one force source at one setting of the other keys."""
 
-    The longest run of consecutive cd grid points whose ``tau_c`` error is
-    below 30 % (thesis fig. 52); None if there is none.  Only points with
-    status ok count: failed and not-steady points are left out, neither
-    accepting nor breaking a run.
+    lo: float  # lowest accepted cd [kg/s]
+    hi: float  # highest accepted cd [kg/s]
+    accepted: np.ndarray  # every accepted cd
+    contiguous: bool  # the accepted points are one unbroken run of the cd grid
+
+
+def acceptance(d: pd.DataFrame, err_col: str = "tau_c_err_pct") -> Regime | None:
+    """The range of cd whose points have status ok and a ``tau_c`` error below 30 % (thesis fig. 52).
+
+    The same definition ``vetica sweep`` prints and stores in the table's
+    metadata (``sweep.acceptance_regime``): lowest to highest accepted cd,
+    and whether the accepted points are one unbroken run of the cd grid
+    (a not-steady, failed or inaccurate point in between breaks it).
+    None when no point is accepted.
     """
-    d = d[d["status"].astype(str) == "ok"].sort_values(CD)
-    cd = d[CD].to_numpy(float)
-    good = (d[err_col] < ACCEPT_PCT).to_numpy()
-    best, start = None, None
-    for i, g in enumerate(list(good) + [False]):
-        if g and start is None:
-            start = i
-        elif not g and start is not None:
-            if best is None or i - start > best[1] - best[0]:
-                best = (start, i)
-            start = None
-    if best is None:
+    grid = np.sort(d[CD].to_numpy(float))
+    ok = d[(d["status"].astype(str) == "ok") & (d[err_col] < ACCEPT_PCT)]
+    acc = np.sort(ok[CD].to_numpy(float))
+    if not len(acc):
         return None
-    return float(cd[best[0]]), float(cd[best[1] - 1])
+    i0 = int(np.searchsorted(grid, acc[0]))
+    contiguous = bool(np.array_equal(grid[i0 : i0 + len(acc)], acc))
+    return Regime(float(acc[0]), float(acc[-1]), acc, contiguous)
 
 
 def _half_step(cd: np.ndarray) -> float:
@@ -986,7 +1036,7 @@ def _shade_regime(ax, rng, cd_values, color="tab:green", label=None):
     if rng is None:
         return
     h = _half_step(np.asarray(cd_values, float))
-    ax.axvspan(rng[0] / h, rng[1] * h, color=color, alpha=0.12, lw=0, label=label)
+    ax.axvspan(rng.lo / h, rng.hi * h, color=color, alpha=0.12, lw=0, label=label)
 
 
 # -- sweep figures ----------------------------------------------------------
@@ -1002,7 +1052,7 @@ def fig_errors_vs_cd(sw: SweepData) -> Figure | None:
     """
     sources = sw.sources()
     others = sw.others
-    any_ns = False
+    flags = set()
     if not others:
         fig = _figure(6.2 * len(sources) + 0.6, 5.6)
         axes = np.atleast_1d(fig.subplots(1, len(sources), sharey=True))
@@ -1012,7 +1062,7 @@ def fig_errors_vs_cd(sw: SweepData) -> Figure | None:
             _shade_regime(ax, rng, d[CD], label="acceptance regime (τc error < 30 %)")
             for q, (qlab, _, _) in QUANTITIES.items():
                 col, mk = Q_STYLE[q]
-                any_ns |= _series(
+                flags |= _series(
                     ax,
                     d[CD],
                     d[f"{q}_err_pct"],
@@ -1023,6 +1073,7 @@ def fig_errors_vs_cd(sw: SweepData) -> Figure | None:
                     SOURCE_FILLED[src],
                     qlab,
                     floor=ERR_FLOOR,
+                    show_missing=True,
                 )
             ax.axhline(ACCEPT_PCT, color="k", ls=":", lw=1)
             ax.set_title(
@@ -1031,8 +1082,7 @@ def fig_errors_vs_cd(sw: SweepData) -> Figure | None:
             _err_axes(ax)
         axes[0].set_ylabel(_label("error |extracted - theory| / theory", "%"))
         handles, _labels = axes[-1].get_legend_handles_labels()
-        if any_ns:
-            handles.append(_not_steady_handle())
+        handles += _extra_handles(flags)
         axes[-1].legend(handles=handles, fontsize=8, loc="upper left")
     else:
         groups = _groups(sw.df, others)
@@ -1043,7 +1093,7 @@ def fig_errors_vs_cd(sw: SweepData) -> Figure | None:
             for (glab, _, g), color in zip(groups, colors):
                 for src in sources:
                     d = g[g["force_source"].astype(str) == src]
-                    any_ns |= _series(
+                    flags |= _series(
                         ax,
                         d[CD],
                         d[f"{q}_err_pct"],
@@ -1054,6 +1104,7 @@ def fig_errors_vs_cd(sw: SweepData) -> Figure | None:
                         SOURCE_FILLED[src],
                         None,
                         floor=ERR_FLOOR,
+                        show_missing=True,
                     )
             if q == "tau_c":
                 ax.axhline(ACCEPT_PCT, color="k", ls=":", lw=1.2)
@@ -1063,7 +1114,7 @@ def fig_errors_vs_cd(sw: SweepData) -> Figure | None:
             ax.set_title(f"error of {qlab}", fontsize=10)
             ax.set_ylabel(_label("error", "%"))
             _err_axes(ax)
-        _legend_panel(axes[-1], groups, colors, sources, any_ns)
+        _legend_panel(axes[-1], groups, colors, sources, flags)
     _note(
         fig,
         _status_note(
@@ -1079,10 +1130,11 @@ def fig_errors_vs_cd(sw: SweepData) -> Figure | None:
     return fig
 
 
-def _regime_text(rng) -> str:
+def _regime_text(rng: Regime | None) -> str:
     if rng is None:
-        return "no acceptance regime (τc error ≥ 30 % everywhere)"
-    return f"acceptance regime {rng[0]:.2g} - {rng[1]:.2g} kg/s"
+        return "no acceptance regime (no ok point with τc error < 30 %)"
+    broken = "" if rng.contiguous else ", not contiguous"
+    return f"acceptance regime {rng.lo:.2g} to {rng.hi:.2g} kg/s ({len(rng.accepted)} points{broken})"
 
 
 def _err_axes(ax) -> None:
@@ -1100,12 +1152,12 @@ def _plain_log_labels(ax) -> None:
     lo, hi = ax.get_ylim() if ax.get_yscale() == "log" else (1.0, 1e9)
     if lo > 0 and hi / lo < 1e3:
         fmt = FuncFormatter(lambda v, _: f"{v:g}")
-        ax.yaxis.set_major_locator(LogLocator(base=10, subs=(1.0, 2.0, 5.0)))
+        ax.yaxis.set_major_locator(LogLocator(base=10, subs=(1.0, 2.0, 3.0, 5.0)))
         ax.yaxis.set_major_formatter(fmt)
         ax.yaxis.set_minor_formatter(NullFormatter())
 
 
-def _legend_panel(ax, groups, colors, sources, any_ns, title=None) -> None:
+def _legend_panel(ax, groups, colors, sources, flags, title=None) -> None:
     """Use an empty axes as the legend: colours = settings, line styles = force source."""
     from matplotlib.lines import Line2D
 
@@ -1123,8 +1175,7 @@ def _legend_panel(ax, groups, colors, sources, any_ns, title=None) -> None:
         )
         for s in sources
     ]
-    if any_ns:
-        h.append(_not_steady_handle())
+    h += _extra_handles(flags)
     ax.legend(handles=h, loc="center", fontsize=9, title=title, ncol=2 if len(h) > 14 else 1)
 
 
@@ -1132,7 +1183,7 @@ def fig_values_vs_cd(sw: SweepData) -> Figure | None:
     """Extracted against theory for tau_c, Kg, k0, k_inf, cd over cd (thesis figs. 43 A-B, 45 A-C)."""
     fig = _figure(15, 8.5)
     axes = fig.subplots(2, 3).ravel()
-    any_ns = False
+    flags = set()
     t = sw.rows(sw.sources()[0])
     rng = acceptance(sw.rows("true")) if "true" in sw.sources() else None
     for ax, (q, (qlab, unit, scale)) in zip(axes, QUANTITIES.items()):
@@ -1143,7 +1194,7 @@ def fig_values_vs_cd(sw: SweepData) -> Figure | None:
             if src not in sw.sources():
                 continue
             d = sw.rows(src)
-            any_ns |= _series(
+            flags |= _series(
                 ax,
                 d[CD],
                 d[q] * scale,
@@ -1153,6 +1204,7 @@ def fig_values_vs_cd(sw: SweepData) -> Figure | None:
                 mk,
                 SOURCE_FILLED[src],
                 "VETICA, " + SOURCE_LABEL[src],
+                show_missing=True,
             )
         ax.set_xscale("log")
         vals = np.concatenate([th[f"{q}_theory"].to_numpy(float), t[q].to_numpy(float)]) * scale
@@ -1164,8 +1216,7 @@ def fig_values_vs_cd(sw: SweepData) -> Figure | None:
         ax.set_title(qlab, fontsize=10)
         ax.grid(alpha=0.3)
     handles, _labels = axes[0].get_legend_handles_labels()
-    if any_ns:
-        handles.append(_not_steady_handle())
+    handles += _extra_handles(flags)
     axes[-1].axis("off")
     axes[-1].legend(handles=handles, loc="center", fontsize=9)
     _note(fig, _status_note(sw.df, sw.swept))
@@ -1181,9 +1232,9 @@ def fig_observable_vs_cd(sw: SweepData, obs: str, thesis: str) -> Figure | None:
     name, unit, scale = OBSERVABLES[obs]
     fig = _figure(9.5, 6)
     ax = fig.subplots()
-    any_ns = False
+    flags = set()
     for (glab, _, g), color in zip(groups, colors):
-        any_ns |= _series(ax, g[CD], g[obs] * scale, _status(g), color, "-", "o", True, glab or None)
+        flags |= _series(ax, g[CD], g[obs] * scale, _status(g), color, "-", "o", True, glab or None)
     ax.set_xscale("log")
     vals = (pts[obs] * scale).to_numpy(float)
     vals = vals[np.isfinite(vals)]
@@ -1194,8 +1245,7 @@ def fig_observable_vs_cd(sw: SweepData, obs: str, thesis: str) -> Figure | None:
     ax.set_ylabel(_label(ylabel, unit))
     ax.grid(alpha=0.3)
     handles, _ = ax.get_legend_handles_labels()
-    if any_ns:
-        handles.append(_not_steady_handle())
+    handles += _extra_handles(flags)
     if handles:
         ax.legend(handles=handles, fontsize=8, ncol=1 if len(handles) < 10 else 2)
     what = {
@@ -1235,10 +1285,16 @@ def _heat(ax, fig, x, y, z, ykey, ns, norm, cmap, clabel):
     m = ax.pcolormesh(xe, ye, np.ma.masked_invalid(z), norm=norm, cmap=cmap, shading="flat")
     over = norm is not None and np.nanmax(z) > norm.vmax if np.isfinite(z).any() else False
     cb = fig.colorbar(m, ax=ax, extend="max" if over else "neither")
+    if isinstance(norm, LogNorm) and norm.vmax / norm.vmin < 1e3:
+        from matplotlib.ticker import FuncFormatter, LogLocator, NullFormatter
+
+        cb.ax.yaxis.set_major_locator(LogLocator(base=10, subs=(1.0, 2.0, 3.0, 5.0)))
+        cb.ax.yaxis.set_major_formatter(FuncFormatter(lambda v, _: f"{v:g}"))
+        cb.ax.yaxis.set_minor_formatter(NullFormatter())
     cb.set_label(clabel)
     yy, xx = np.meshgrid(y * _axis_meta(ykey)[2], x, indexing="ij")
     if ns.any():
-        ax.plot(xx[ns], yy[ns], "x", color="w", ms=7, mew=1.5, ls="none")
+        ax.plot(xx[ns], yy[ns], "X", color="w", mec="k", mew=0.8, ms=9, ls="none")
     ax.set_xscale("log")
     ax.set_xlabel(_label("dashpot $c_d$", "kg/s"))
     _set_axis(ax, ykey, "y", y)
@@ -1304,9 +1360,9 @@ def fig_ediss_map(sw: SweepData) -> Figure | None:
     # (b) the same as lines against cd, one per ratio
     ax = axes[1]
     groups = _groups(pts, [RATIO])
-    any_ns = False
+    flags = set()
     for (glab, _, g), color in zip(groups, _colors(len(groups))):
-        any_ns |= _series(ax, g[CD], g["e_diss_ev"], _status(g), color, "-", "o", True, glab)
+        flags |= _series(ax, g[CD], g["e_diss_ev"], _status(g), color, "-", "o", True, glab)
     ax.set_xscale("log")
     if logscale:
         ax.set_yscale("log")
@@ -1314,8 +1370,7 @@ def fig_ediss_map(sw: SweepData) -> Figure | None:
     ax.set_ylabel(_label("$E_{diss}$", "eV per cycle"))
     ax.grid(alpha=0.3)
     h, _ = ax.get_legend_handles_labels()
-    if any_ns:
-        h.append(_not_steady_handle())
+    h += _extra_handles(flags)
     ax.legend(handles=h, fontsize=8)
     ax.set_title("(b) $E_{diss}$ against $c_d$, one line per stiffness ratio", fontsize=10, loc="left")
     errs = [_grid(sw.rows(src), RATIO, "tau_c_err_pct") for src in sources]
@@ -1335,8 +1390,11 @@ def fig_ediss_map(sw: SweepData) -> Figure | None:
     _note(
         fig,
         _status_note(
-            pts, sw.swept, f"grey cells: failed points; τc error colours stop at {ERR_CAP:g} %", regime=True
-        ).replace("grey cross", "cross (white on maps)"),
+            pts,
+            sw.swept,
+            f"grey cells: no value (failed point, or VETICA found no τc); τc error colours stop at {ERR_CAP:g} %",
+            regime=True,
+        ).replace("grey cross", "cross (white X on maps)"),
     )
     _title(
         fig,
@@ -1371,8 +1429,11 @@ def fig_depth_error_map(sw: SweepData) -> Figure | None:
     _note(
         fig,
         _status_note(
-            pts, sw.swept, f"grey cells: failed points; τc error colours stop at {ERR_CAP:g} %", regime=True
-        ).replace("grey cross", "white cross"),
+            pts,
+            sw.swept,
+            f"grey cells: no value (failed point, or VETICA found no τc); τc error colours stop at {ERR_CAP:g} %",
+            regime=True,
+        ).replace("grey cross", "white X"),
     )
     _title(
         fig,
@@ -1394,11 +1455,11 @@ def fig_acceptance_vs(sw: SweepData, key: str, thesis: str) -> Figure | None:
     colors = _colors(len(groups))
     fig = _figure(15, 6.3)
     ax_e, ax_r = fig.subplots(1, 2, width_ratios=[1.15, 1])
-    any_ns = False
+    flags = set()
     for (glab, _, g), color in zip(groups, colors):
         for src in sources:
             d = g[g["force_source"].astype(str) == src]
-            any_ns |= _series(
+            flags |= _series(
                 ax_e,
                 d[CD],
                 d["tau_c_err_pct"],
@@ -1409,6 +1470,7 @@ def fig_acceptance_vs(sw: SweepData, key: str, thesis: str) -> Figure | None:
                 SOURCE_FILLED[src],
                 glab if src == sources[0] else None,
                 floor=ERR_FLOOR,
+                show_missing=True,
             )
     ax_e.axhline(ACCEPT_PCT, color="k", ls=":", lw=1.2)
     ax_e.text(0.01, ACCEPT_PCT, " 30 %", transform=ax_e.get_yaxis_transform(), va="bottom", fontsize=8)
@@ -1416,8 +1478,7 @@ def fig_acceptance_vs(sw: SweepData, key: str, thesis: str) -> Figure | None:
     ax_e.set_ylabel(_label("τc error", "%"))
     ax_e.set_title("(a) τc error (solid: true force, dashed: reconstructed)", fontsize=10, loc="left")
     h, _ = ax_e.get_legend_handles_labels()
-    if any_ns:
-        h.append(_not_steady_handle())
+    h += _extra_handles(flags)
     ax_e.legend(handles=h, fontsize=8, loc="best")
     # (b) interval bars
     off = {"true": -0.17, "reconstructed": 0.17} if len(sources) > 1 else {sources[0]: 0.0}
@@ -1433,22 +1494,26 @@ def fig_acceptance_vs(sw: SweepData, key: str, thesis: str) -> Figure | None:
                     np.sqrt(cd_all.min() * cd_all.max()), yv, "none", ha="center", va="center", fontsize=8, color="0.3"
                 )
                 continue
-            lo, hi = rng[0] / h2, rng[1] * h2
+            lo, hi = rng.lo / h2, rng.hi * h2
             hs[src] = ax_r.barh(
                 yv,
                 hi - lo,
                 left=lo,
                 height=0.3,
                 color=color if src == "true" else "white",
+                alpha=1.0 if rng.contiguous else 0.45,
                 edgecolor=color,
                 hatch=None if src == "true" else "///",
                 lw=1.5,
                 label=SOURCE_LABEL[src],
             )
-            ax_r.text(hi * 1.15, yv, f"{rng[0]:.2g} to {rng[1]:.2g}", va="center", fontsize=7.5)
+            ax_r.plot(rng.accepted, np.full(len(rng.accepted), yv), "|", color="k", ms=9, mew=1.5)
+            span = f"{rng.lo:.2g} only" if rng.lo == rng.hi else f"{rng.lo:.2g} to {rng.hi:.2g}"
+            broken = "" if rng.contiguous else " (broken)"
+            ax_r.text(hi * 1.15, yv, span + broken, va="center", fontsize=7.5)
     ax_r.set_xscale("log")
     his = [
-        r[1]
+        r.hi
         for _, _, g in groups
         for r in [acceptance(g[g["force_source"].astype(str) == s]) for s in sources]
         if r is not None
@@ -1465,7 +1530,13 @@ def fig_acceptance_vs(sw: SweepData, key: str, thesis: str) -> Figure | None:
     name = _axis_meta(key)[0]
     _note(
         fig,
-        _status_note(sw.df, sw.swept, "bars span the cd grid cells of the longest run of accepted points", regime=True),
+        _status_note(
+            sw.df,
+            sw.swept,
+            "bars: lowest to highest accepted cd, ticks: the accepted points; pale bar: the accepted points are not "
+            "one unbroken run of the grid",
+            regime=True,
+        ),
     )
     _title(fig, sw, f"Acceptance regime against {name} (cf. thesis fig. {thesis})")
     return fig
@@ -1564,7 +1635,7 @@ def fig_errors_vs(sw: SweepData, key: str, thesis: str | None) -> Figure | None:
                     rng = acceptance(gg)
                     if rng is None:
                         continue
-                    gg = gg[(gg[CD] >= rng[0]) & (gg[CD] <= rng[1])]
+                    gg = gg[(gg[CD] >= rng.lo) & (gg[CD] <= rng.hi)]
                 sel.append(gg[gg["status"].astype(str) == "ok"])
             sel = pd.concat(sel) if sel else g.iloc[:0]
             rows.append({key: kv, **{q: sel[f"{q}_err_pct"].mean() if len(sel) else np.nan for q in QUANTITIES}})
@@ -1618,15 +1689,14 @@ def fig_observable_vs(sw: SweepData, key: str, obs: str, thesis: str) -> Figure 
     name, unit, scale = OBSERVABLES[obs]
     fig = _figure(9, 6)
     ax = fig.subplots()
-    any_ns = False
+    flags = set()
     for (glab, _, g), color in zip(groups, colors):
-        any_ns |= _series(ax, _disp(key, g[key]), g[obs] * scale, _status(g), color, "-", "o", True, glab or None)
+        flags |= _series(ax, _disp(key, g[key]), g[obs] * scale, _status(g), color, "-", "o", True, glab or None)
     _set_axis(ax, key, "x", pts[key])
     ax.set_ylabel(_label(name, unit))
     ax.grid(alpha=0.3)
     h, _ = ax.get_legend_handles_labels()
-    if any_ns:
-        h.append(_not_steady_handle())
+    h += _extra_handles(flags)
     if h:
         ax.legend(handles=h, fontsize=8)
     _note(fig, _status_note(pts, sw.swept))
