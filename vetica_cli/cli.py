@@ -144,6 +144,33 @@ def sweep(
 
 @app.command()
 @user_errors
+def plot(
+    table: Path = typer.Argument(..., help="A run (vetica simulate) or sweep table (vetica sweep), Parquet."),
+    output: Optional[Path] = typer.Option(
+        None, "-o", "--output", help="Folder for the PNG figures [default: figures/ next to TABLE]."
+    ),
+):
+    """Draw the thesis's figures from a run or a sweep table (PNG, headless).
+
+    A run gives trajectories with transitions (thesis fig. 33), force against
+    tip position with the dissipation loop (fig. 28), reconstructed against true
+    force, and force against distance and velocity (fig. 62).  A sweep table
+    gives the chapter-4 figures that its swept keys call for (errors and
+    acceptance regime against cd, f1, print step; E_diss maps; peak force,
+    penetration, contact times, zero-reference depth).  Files are named
+    <table stem>_<figure>.png.
+    """
+    from .plots import plot as _plot
+
+    result = _plot(table, output)
+    for note in result.notes:
+        typer.echo(f"note: {note}")
+    for p in result.paths:
+        typer.echo(f"wrote {p}")
+
+
+@app.command()
+@user_errors
 def extract(
     run: Path = typer.Argument(
         ..., help="Parquet written by 'vetica simulate', or any Parquet/CSV with t, z_tip and f_ts or z_paddle."
