@@ -147,7 +147,7 @@ def sweep(
 def plot(
     table: Path = typer.Argument(..., help="A run (vetica simulate) or sweep table (vetica sweep), Parquet."),
     output: Optional[Path] = typer.Option(
-        None, "-o", "--output", help="Folder for the PNG figures [default: figures/ next to TABLE]."
+        None, "-o", "--output", help="Folder for the PNG figures (default: figures/ next to TABLE)."
     ),
 ):
     """Draw the thesis's figures from a run or a sweep table (PNG, headless).
