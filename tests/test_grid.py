@@ -24,8 +24,9 @@ def test_logspace_gives_clean_decades_and_points_per_decade():
 
 
 def test_linspace_and_lists():
-    np.testing.assert_allclose(parse_values("operation.setpoint", {"linspace": [0.25, 0.8, 5]}),
-                               [0.25, 0.3875, 0.525, 0.6625, 0.8], rtol=1e-12)
+    np.testing.assert_allclose(
+        parse_values("operation.setpoint", {"linspace": [0.25, 0.8, 5]}), [0.25, 0.3875, 0.525, 0.6625, 0.8], rtol=1e-12
+    )
     assert parse_values("probe.k2", [200, 700, 1200]) == [200, 700, 1200]
     # YAML 1.1 reads 1e-4 without a dot as a string: range arguments accept it
     assert parse_values("surface.cd", {"logspace": ["-4", "-3", 2]}) == [1e-4, 1e-3]

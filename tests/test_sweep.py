@@ -7,7 +7,6 @@ Most machinery tests use cheap real simulations (dt 0.05 ns, 100 drive periods,
 test the sweep, not the physics; the smoke test runs the real extraction.
 """
 
-import json
 import math
 import os
 import signal
@@ -166,8 +165,15 @@ def test_acceptance_regime_per_combination_and_source():
         for cd, err in zip(cds, e):
             for src in sweep.SOURCES:
                 status = "not_steady" if (sp == 0.7 and cd == 1e-1) else "ok"
-                rows.append({"operation.setpoint": sp, "surface.cd": cd, "force_source": src,
-                             "status": status, "tau_c_err_pct": err if src == "true" else 99.0})
+                rows.append(
+                    {
+                        "operation.setpoint": sp,
+                        "surface.cd": cd,
+                        "force_source": src,
+                        "status": status,
+                        "tau_c_err_pct": err if src == "true" else 99.0,
+                    }
+                )
     acc = sweep.acceptance_regime(pd.DataFrame(rows), ("operation.setpoint", "surface.cd"))
     got = {(e["operation.setpoint"], e["force_source"]): e for e in acc}
     a = got[(0.5, "true")]

@@ -157,14 +157,18 @@ def parse_values(key: str, spec: Any) -> list:
         if n == 0:
             raise ConfigError(f"sweep.{key}: {form} with 0 points (empty grid); expected n >= 1")
         if n == 1 and a != b:
-            raise ConfigError(f"sweep.{key}: {form} [{args[0]}, {args[1]}, 1] is ambiguous; use n >= 2 or first == last")
+            raise ConfigError(
+                f"sweep.{key}: {form} [{args[0]}, {args[1]}, 1] is ambiguous; use n >= 2 or first == last"
+            )
         step = (b - a) / (n - 1) if n > 1 else 0.0
         lin = [a + i * step for i in range(n)]
         if n > 1:
             lin[-1] = b
         if form == "logspace":
             if max(abs(a), abs(b)) > 300:
-                raise ConfigError(f"sweep.{key}: logspace exponents {a:g}..{b:g} are out of range; expected |exponent| <= 300")
+                raise ConfigError(
+                    f"sweep.{key}: logspace exponents {a:g}..{b:g} are out of range; expected |exponent| <= 300"
+                )
             return [_clean(10.0**x) for x in lin]
         return [_clean(x) for x in lin]
     raise ConfigError(
@@ -201,7 +205,9 @@ def _factors(sweep: Any) -> tuple[list[str], list[list[dict]]]:
             groups = spec if isinstance(spec, list) else [spec]
             for g in groups:
                 if not isinstance(g, dict) or not g:
-                    raise ConfigError("sweep.zip: expected a mapping of dotted keys to lists (or a list of such mappings)")
+                    raise ConfigError(
+                        "sweep.zip: expected a mapping of dotted keys to lists (or a list of such mappings)"
+                    )
                 cols = {}
                 for k, s in g.items():
                     add_key(_check_key(k))

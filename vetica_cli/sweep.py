@@ -236,21 +236,21 @@ def _subsample(fine, cfg_f, cfg_c):
     samples after the recording-start step.  Both are rebuilt here from step
     indices.
     """
-    from .simulate import Run, derive
     from .observables import compute_observables
+    from .simulate import Run, derive
 
     n = cfg_c.numerics
     dt = n.dt
     dc = derive(cfg_c)
     s = dc.stride
     info = dict(fine.info)
-    n_rec = int(round(info["t_record_start"] / dt))
+    n_rec = round(info["t_record_start"] / dt)
     t_fc = info["t_first_contact"]
     j_rec = n_rec // s
     if t_fc is None or math.isnan(t_fc):
         j_end = j_rec
     else:
-        n_fc = int(round(t_fc / dt))
+        n_fc = round(t_fc / dt)
         j_end = min(-(-n_fc // s) + dc.n_ring // 2 - 1, j_rec)
     j_start = max(1, j_end - dc.n_ring + 1)
     a_idx = np.rint(fine.approach[:, 0] / dt).astype(np.int64)
@@ -292,8 +292,9 @@ def share_group_key(cfg) -> str | None:
     # the controller period must be a whole number of print steps
     if abs(dv.samples_per_period * cfg.numerics.print_step - dv.period) > 1e-9 * dv.period:
         return None
-    return json.dumps({"cfg": d, "steps_per_period": spp_steps, "approach_cycles": cfg.numerics.approach_cycles},
-                      sort_keys=True)
+    return json.dumps(
+        {"cfg": d, "steps_per_period": spp_steps, "approach_cycles": cfg.numerics.approach_cycles}, sort_keys=True
+    )
 
 
 def fine_config(cfgs):
@@ -481,7 +482,10 @@ class _Backend:
                     raise InputError(f"--scheduler {scheduler!r}: cannot connect ({type(exc).__name__})") from None
             else:
                 self.cluster = LocalCluster(
-                    n_workers=jobs, threads_per_worker=1, processes=True, dashboard_address=None,
+                    n_workers=jobs,
+                    threads_per_worker=1,
+                    processes=True,
+                    dashboard_address=None,
                     env={v: "1" for v in THREAD_VARS},
                 )
                 self.client = Client(self.cluster)
@@ -734,8 +738,7 @@ def summary(res: SweepResult, study: Study) -> str:
     by_status = t["status"].value_counts().to_dict()
     lines = [
         f"{len(study.points)} points ({len(res.computed)} computed, {len(res.reused)} reused from "
-        f"{parts_dir(res.output).name}/), {len(t)} rows: "
-        + ", ".join(f"{by_status.get(s, 0)} {s}" for s in STATUSES),
+        f"{parts_dir(res.output).name}/), {len(t)} rows: " + ", ".join(f"{by_status.get(s, 0)} {s}" for s in STATUSES),
         format_acceptance(res.acceptance, study.keys),
         f"wrote {res.output} and {res.config_path} in {res.wall_s:.1f} s",
     ]
@@ -804,11 +807,15 @@ def dry_run_text(study: Study, output: Path, jobs: int, share_print_step: bool =
     extract = EXTRACT_S_PER_POINT * len(study.points)
     total = kernel + extract
     lines = [
-        f"study {study.name}: {len(study.points)} points over {', '.join(study.keys)}; "
-        f"{len(tasks)} simulations ({'print-step groups shared' if share_print_step else 'no sharing'})",
-        f"cost at most {total:.0f} core-s = {total / max(jobs, 1) / 60:.1f} min wall on {jobs} workers: "
-        f"kernel {kernel:.0f} core-s if every simulation runs to numerics.max_time ({NS_PER_STEP:g} ns/step), "
-        f"extraction ~{extract:.0f} core-s ({EXTRACT_S_PER_POINT:g} s a point); steady points cost less",
+        (
+            f"study {study.name}: {len(study.points)} points over {', '.join(study.keys)}; "
+            f"{len(tasks)} simulations ({'print-step groups shared' if share_print_step else 'no sharing'})"
+        ),
+        (
+            f"cost at most {total:.0f} core-s = {total / max(jobs, 1) / 60:.1f} min wall on {jobs} workers: "
+            f"kernel {kernel:.0f} core-s if every simulation runs to numerics.max_time ({NS_PER_STEP:g} ns/step), "
+            f"extraction ~{extract:.0f} core-s ({EXTRACT_S_PER_POINT:g} s a point); steady points cost less"
+        ),
         f"output: {output} (parts in {parts_dir(output)}/)",
     ]
     for p in study.points[:5]:
