@@ -89,7 +89,7 @@ def result_columns() -> list[str]:
     cols = ["force_source"]
     for name in ESTIMATES:
         cols += [name, f"{name}_theory", f"{name}_err_pct"]
-    cols += ["taps", *OBSERVABLES, "stop_reason", "status", "error", "wall_s"]
+    cols += ["taps", *OBSERVABLES, "stop_reason", "sim_time", "status", "error", "wall_s"]
     return cols
 
 
@@ -109,6 +109,7 @@ def column_units(study: Study) -> dict:
     for name in OBSERVABLES:
         units[name] = OBSERVABLE_UNITS.get(name, "")
     units["stop_reason"] = "steady | max_time (numerics.max_time reached before steady state)"
+    units["sim_time"] = "s: simulated time to steady state plus the recorded periods (or numerics.max_time)"
     units["status"] = "ok | not_steady (stop_reason max_time) | failed (see error)"
     units["error"] = "error text of a failed simulation or extraction"
     units["wall_s"] = (
@@ -163,7 +164,7 @@ def _nan_row(cfg, source: str) -> dict:
     row["taps"] = -1
     for name in OBSERVABLES:
         row[name] = math.nan
-    row.update(stop_reason="", status="failed", error="", wall_s=0.0)
+    row.update(stop_reason="", sim_time=math.nan, status="failed", error="", wall_s=0.0)
     return row
 
 
@@ -178,6 +179,7 @@ def _rows_for_run(cfg, run, sim_wall: float) -> list[dict]:
             v = run.observables.get(name)
             row[name] = math.nan if v is None else float(v)
         row["stop_reason"] = run.stop_reason
+        row["sim_time"] = float(run.info["t_end"])
         t0 = time.perf_counter()
         try:
             res = _extract(df, meta, source)
