@@ -1,0 +1,581 @@
+"""Whole-cycle model inversion: ``vetica extract RUN --method full`` (issue 6).
+
+VETICA (thesis 3.3) reads a few samples of each tap.  This method uses every
+sample of the recorded steady periods: the measured tip trajectory
+``z_tip(t)`` drives the massless Zener SLS surface of SPEC section 3 (thesis
+3.2, appendix C: contact when the gap is <= a0, creep out of contact,
+separation when the surface would have to hold the tip with more than the
+adhesion), and bounded least squares finds ``k_inf, k0, cd`` (optionally
+the Hamaker constant ``H``) for which the predicted force matches the
+measured one::
+
+    minimise  sum_i ( Fts_model(t_i; k_inf, k0, cd[, H]) - F_i )^2 / F_peak^2
+    over      ln k_inf, ln k0, ln cd [, ln H]       (scipy least_squares, 'trf')
+
+Choices (see the module functions for details):
+
+* **Surface height.**  The record's tip coordinate has an unknown offset, so
+  the undeformed surface is placed with ``Z1``, the tip position at the
+  first force minimum of the approach (thesis eq. 84): at that instant the
+  gap is ``a0`` and the surface is pulled up to
+  ``X1 = (k0 Xd1 + Fa(a0))/Kg`` (``vdw_on_surface``; ``X1 = k0 Xd1/Kg``
+  without the surface pull), so ``s0 = Z1 - a0 - X1``.  ``Xd1``, the creep
+  of the dashpot under the attraction during the approach, comes from
+  running the same surface model over the recorded approach up to ``Z1``
+  (surface undeformed at the start of the approach record; ~15 pm on the
+  worked example).  ``s0`` then depends on the parameters; the fit
+  differentiates through it.
+* **State at the window start: periodic.**  The steady window spans whole
+  drive periods with the base fixed, so the surface state at its start
+  equals the state at its end.  The dashpot position ``Xd0`` at the start is
+  solved for with Newton's method on ``Xd_end(Xd0) = Xd0`` (the derivative
+  ``dXd_end/dXd0`` comes from the tangent-linear kernel; the map is affine
+  for a fixed contact schedule, so it converges in one or two passes even
+  when nothing relaxes within the window, where iterating the window would
+  need ~tau/window repetitions).  The periodicity residual after the fit is
+  reported.  Its limit: a record taken before the surface has settled (a
+  dashpot that has not reached its periodic state in the run's time, e.g.
+  tau_c of seconds in a 30 ms run) is not periodic; the fit then cannot
+  match it, which shows as a large residual and a warning.
+* **Decimation.**  The forward model runs over every sample of the record
+  (one surface update per print step); far from the surface (gap > 5 nm,
+  attraction < 0.2 % of Fa(a0)) it advances in exact steps of ``block``
+  samples.  Residuals are taken at every ``near_stride``-th sample where the
+  measured tip is within ``near_gap`` of Z1 (contact and the van der Waals
+  range) and at every ``far_stride``-th sample elsewhere.
+* **Start.**  VETICA's answer on the first taps of the record when it has
+  one, else a generic start (glassy stiffness from the contact slope); then
+  a short scan of ``cd`` over ten decades at those stiffnesses picks the
+  starting ``cd``, so the fit converges from starting guesses decades away.
+* **Uncertainty.**  ``cov = s^2 (J^T J)^-1`` with ``s^2`` the residual
+  variance (J in log-parameters: the square roots of its diagonal are
+  relative 1-sigma uncertainties).  A parameter is flagged not identifiable
+  when that exceeds 100 %, when it sits at a bound, or when the fitted
+  dashpot does not act within the record (nothing creeps or relaxes during
+  a tap: cd has only a lower bound; or it relaxes within one sample: only
+  an upper bound).
+"""
+
+from __future__ import annotations
+
+import math
+import time
+
+import numpy as np
+from scipy.optimize import least_squares
+
+from .core.prescribed import NDIR, coefficient_tangents, surface_force
+from .core.prescribed import C_FASEP, C_INVKG, C_K0
+from .errors import InputError
+from .extract import FORCES, _check_time, _column, _finite_or_none
+from .spectral import reconstruct_force, reconstruction_error
+from .vetica import NAMES, first_contact_minimum, theory
+
+PARAMS = ("k_inf", "k0", "cd", "hamaker")
+# fit bounds (SI)
+BOUNDS = {"k_inf": (1e-4, 1e6), "k0": (1e-4, 1e6), "cd": (1e-13, 1e6), "hamaker": (1e-24, 1e-14)}
+NEAR_GAP = 5e-9  # [m] residuals densely (and fine steps) where the measured tip is within this of Z1
+FAR_GAP = 5e-9  # [m] model gap above which blocks are advanced in one exact step
+CD_SCAN = np.logspace(-10, 2, 13)  # [kg/s] starting-cd scan
+REL_LIMIT = 1.0  # relative 1-sigma above which a parameter is not identifiable
+START_TAPS = 3  # taps of the record VETICA sees for the starting point
+SUB_PERIODS = 2  # drive periods of the first (coarse) fit stage
+
+
+def _segment(df, name):
+    """Rows of one segment (None if absent).  Compares the column directly: casting a
+    categorical column of 1.8e6 rows to str, as extract's helper does, takes ~0.4 s."""
+    if "segment" not in df.columns:
+        return None
+    sel = df[(df["segment"] == name).to_numpy()]
+    return sel if len(sel) else None
+
+
+class SurfaceFit:
+    """The forward model of one record and its least-squares residuals.
+
+    ``z`` (N,) steady tip positions [m] every ``h`` [s] spanning whole drive
+    periods, ``f`` (N,) measured force [N], ``z1`` [m]; ``za`` the approach
+    tip positions up to (excluding) the first-contact minimum, or None.
+    """
+
+    def __init__(self, z, f, h, z1, za, a0, tip_radius, vdw_on_surface,
+                 near_stride=4, far_stride=256, block=16, near_gap=NEAR_GAP):  # fmt: skip
+        self.z = np.ascontiguousarray(z, dtype=float)
+        self.h = float(h)
+        self.z1 = float(z1)
+        self.za = None if za is None or len(za) < 2 else np.ascontiguousarray(za, dtype=float)
+        self.a0 = float(a0)
+        self.radius = float(tip_radius)
+        self.vdw = bool(vdw_on_surface)
+        self.block = int(block)
+        n = len(self.z)
+        idx = np.arange(n)
+        near = (self.z - self.z1) < near_gap
+        want = np.where(near, idx % near_stride == 0, (idx + 1) % far_stride == 0)
+        nblock = n // self.block
+        near_blocks = near[: nblock * self.block].reshape(nblock, self.block).any(axis=1)
+        self.coarse_ok = (~near_blocks).astype(np.uint8)
+        self.want = want.astype(np.uint8)
+        self.idx = np.flatnonzero(want)
+        self.f = np.asarray(f, dtype=float)[self.idx]
+        self.scale = float(np.max(f)) or 1.0
+        self.near_samples = int(np.count_nonzero(near))
+        self._out_f = np.empty(len(self.idx))
+        self._out_j = np.empty((len(self.idx), NDIR))
+        self._state = (0.0, False)  # periodic (Xd0, contact0) of the last evaluation: warm start
+        self._s0 = None
+        if self.za is not None:
+            self._za_want = np.zeros(len(self.za), np.uint8)
+            self._za_ok = np.ones(len(self.za) // self.block, np.uint8)
+        self.passes = 0
+        self.periodic_residual = math.nan
+
+    # -- pieces of the model
+    def offset(self, k_inf, k0, cd, hr6, tangents=True):
+        """Surface height ``s0 = Z1 - a0 - X1`` [m] and ``ds0/d(DIRECTIONS)``.
+
+        ``X1 = (k0 Xd1 + fa_sep)/Kg`` is the pulled-up surface at the first
+        contact, ``Xd1`` from the approach record (0 without one); solved
+        with Newton's method since ``Xd1`` depends (weakly) on ``s0``.
+        """
+        c, dc = coefficient_tangents(k_inf, k0, cd, hr6, self.a0, self.vdw, self.h)
+        kg_inv, fa_sep = c[C_INVKG], c[C_FASEP]
+        s0 = self.z1 - self.a0 - fa_sep * kg_inv
+        dxd1 = np.zeros(NDIR)
+        xd1 = 0.0
+        if self.za is not None and self.vdw:
+            if self._s0 is not None:
+                s0 = self._s0  # warm start: the last evaluation's surface height
+            for _ in range(6):
+                xd1, _, _, dxd1, *_ = surface_force(
+                    self.za, s0, k_inf, k0, cd, hr6, self.a0, self.vdw, self.h, self.block, self._za_ok,
+                    self._za_want, FAR_GAP, 0.0, False, NDIR if tangents else 2, self._out_f[:0], self._out_j[:0],
+                )  # fmt: skip
+                g = self.z1 - self.a0 - (k0 * xd1 + fa_sep) * kg_inv - s0  # Newton on s0 = z1 - a0 - X1(s0)
+                s0 -= g / (-k0 * kg_inv * dxd1[1] - 1.0)
+                if abs(g) < 1e-17:
+                    break
+            self._s0 = s0
+        # dX1 along each direction at fixed s0, then ds0 = -dX1/(1 + dX1/ds0)
+        dx1 = (dc[C_K0] * xd1 + k0 * dxd1 + dc[C_FASEP]) * kg_inv + (k0 * xd1 + fa_sep) * dc[C_INVKG]
+        ds0 = -dx1 / (1.0 + dx1[1])
+        ds0[0] = ds0[1] = 0.0
+        return s0, ds0
+
+    def _pass(self, s0, theta, xd0, contact0, ndir):
+        self.passes += 1
+        return surface_force(
+            self.z, s0, theta[0], theta[1], theta[2], theta[3], self.a0, self.vdw, self.h,
+            self.block, self.coarse_ok, self.want, FAR_GAP, xd0, contact0, ndir, self._out_f, self._out_j,
+        )  # fmt: skip
+
+    def evaluate(self, theta, ndir=NDIR):
+        """Force at the wanted samples [N] for physical ``theta = (k_inf, k0, cd, hr6)``
+        in the periodic state, and the total derivatives ``dF/d ln theta`` (N_out, 4)
+        through ``s0`` and the periodic ``Xd0`` (None when ``ndir`` = 0)."""
+        s0, ds0 = self.offset(*theta, tangents=ndir > 0)
+        xd0, contact0 = self._state
+        tol = 1e-9 * self.scale / theta[1]  # [m] an Xd0 error worth 1e-9 of the peak force
+        # Newton on the periodic dashpot state Xd_end(Xd0) = Xd0: the map is affine for a
+        # fixed contact schedule, so one cheap pass and one full pass usually settle it
+        xd_end, _, contact_end, dxd, *_ = self._pass(s0, theta, xd0, contact0, 1)
+        step = (xd_end - xd0) / (1.0 - dxd[0])
+        for _ in range(12):
+            xd0 += step
+            contact0 = contact_end
+            xd_end, _, contact_end, dxd, k, *_ = self._pass(s0, theta, xd0, contact0, max(ndir, 1))
+            last, step = step, (xd_end - xd0) / (1.0 - dxd[0])
+            # converged, or no longer contracting (round-off when nothing relaxes in the window)
+            if contact_end == contact0 and (abs(step) <= tol or abs(step) > 0.5 * abs(last)):
+                break
+        self._state = (xd0, contact0)
+        self.periodic_residual = xd_end - xd0
+        f = self._out_f[:k].copy()
+        if ndir == 0:
+            return f, None
+        jd = self._out_j[:k]
+        b = dxd[0]
+        # dXd0 along the parameters (periodicity), through s0 too
+        dxd0 = (dxd[2:] + dxd[1] * ds0[2:]) / (1.0 - b)
+        jac = jd[:, 2:] + np.outer(jd[:, 1], ds0[2:]) + np.outer(jd[:, 0], dxd0)
+        return f, jac
+
+
+def _full_theta(x, fit_idx, base):
+    theta = np.array(base, dtype=float)
+    theta[fit_idx] = np.exp(x)
+    return theta
+
+
+def fit_surface(model: SurfaceFit, theta0, fit_hamaker=False, scan=True, max_nfev=60, xtol=1e-10) -> dict:
+    """Bounded least squares of the force residuals in log-parameters.
+
+    ``theta0`` = starting ``(k_inf, k0, cd, hr6)`` [SI; hr6 = H R/6 in J m,
+    held fixed unless ``fit_hamaker``].  ``scan``: first replace the starting
+    cd by the best of ``CD_SCAN`` (and itself) at the starting stiffnesses.
+    Returns the fit (parameters, residuals, Jacobian, counts).
+    """
+    fit_idx = [0, 1, 2] + ([3] if fit_hamaker else [])
+    base = np.array(theta0, dtype=float)
+    names = [PARAMS[i] for i in fit_idx]
+    r = model.radius
+    lo = np.log([BOUNDS[n][0] * (r / 6 if n == "hamaker" else 1.0) for n in names])
+    hi = np.log([BOUNDS[n][1] * (r / 6 if n == "hamaker" else 1.0) for n in names])
+    x0 = np.clip(np.log(base[fit_idx]), lo + 1e-9, hi - 1e-9)
+    cache = {}
+
+    def evaluate(x):
+        key = x.tobytes()
+        if key not in cache:
+            cache.clear()
+            f, jac = model.evaluate(_full_theta(x, fit_idx, base))
+            cache[key] = ((f - model.f) / model.scale, jac[:, fit_idx] / model.scale)
+        return cache[key]
+
+    scanned = []
+    if scan:  # starting cd: the best of a decade scan at the starting stiffnesses
+        for cd in CD_SCAN:
+            th = base.copy()
+            th[2] = cd
+            f, _ = model.evaluate(th, ndir=0)
+            scanned.append((float(np.sum((f - model.f) ** 2)), cd))
+        f, _ = model.evaluate(base, ndir=0)
+        scanned.append((float(np.sum((f - model.f) ** 2)), base[2]))
+        x0[2] = np.clip(math.log(min(scanned)[1]), lo[2] + 1e-9, hi[2] - 1e-9)
+        model._state = (0.0, False)
+    sol = least_squares(
+        lambda x: evaluate(x)[0], x0, jac=lambda x: evaluate(x)[1], bounds=(lo, hi), method="trf",
+        x_scale=1.0, xtol=xtol, ftol=1e-12, gtol=1e-12, max_nfev=max_nfev,
+    )  # fmt: skip
+    res, jac = evaluate(sol.x)
+    theta = _full_theta(sol.x, fit_idx, base)
+    return {
+        "names": names,
+        "x": sol.x,
+        "theta": theta,
+        "residual": res,
+        "jac": jac,
+        "lo": lo,
+        "hi": hi,
+        "nfev": int(sol.nfev),
+        "njev": int(sol.njev or 0),
+        "status": int(sol.status),
+        "message": str(sol.message),
+        "scan": scanned,
+    }
+
+
+# ----------------------------------------------------------------------------- driver
+
+
+def _spread_none() -> dict:
+    """A whole-record fit has no per-tap spread (same keys as VETICA's)."""
+    return {"n": 0, "mean": None, "std": None, "min": None, "max": None}
+
+
+def _generic_start(z: np.ndarray, f: np.ndarray, taps) -> dict:
+    """Stiffnesses from the loading slope of the first tap, ``Kg ~ -dF/dz``
+    between 20 % and 80 % of its peak force; ``k0 = 0.9 Kg``, ``k_inf = 0.1 Kg``."""
+    ic, ip = int(taps.contact[0]), int(taps.peak[0])
+    seg = slice(ic, ip + 1)
+    fp = f[ip]
+    sel = np.flatnonzero((f[seg] > 0.2 * fp) & (f[seg] < 0.8 * fp))
+    kg = math.nan
+    if len(sel) >= 3:
+        kg = -float(np.polyfit(z[seg][sel], f[seg][sel], 1)[0])
+    if not (math.isfinite(kg) and kg > 0):
+        depth = float(z[ic] - np.min(z[seg]))
+        kg = fp / depth if depth > 0 else 1.0
+    return {"k_inf": 0.1 * kg, "k0": 0.9 * kg, "cd": 1e-5}
+
+
+def _vetica_start(t, z, f, z1, taps, kg_points):
+    """VETICA (thesis 3.3) on the first ``START_TAPS`` taps: a starting point only."""
+    from .vetica import vetica
+
+    stop = len(t)
+    if len(taps.peak) > START_TAPS + 1:
+        stop = int(taps.peak[START_TAPS + 1] + 0.5 * taps.spacing)
+    ex = vetica(t[:stop], z[:stop], f[:stop], z1, kg_points=kg_points)
+    v = {k: ex.values.get(k) for k in ("k_inf", "k0", "cd")}
+    if all(x is not None and math.isfinite(x) and x > 0 for x in v.values()):
+        return {k: float(x) for k, x in v.items()}
+    return None
+
+
+def _identifiability(names, rel, at_bound, theta, t_contact, t_free, h):
+    """Per fitted parameter: (identifiable, reason)."""
+    k_inf, k0, cd = theta[:3]
+    th = theory(k0, k_inf, cd)
+    relax = -math.expm1(-t_contact / th["tau_r"])  # fraction the dashpot relaxes in one contact
+    creep = -math.expm1(-t_free / th["tau_c"])  # fraction it creeps between taps
+    out = {}
+    for i, name in enumerate(names):
+        if at_bound[i]:
+            out[name] = (False, "at the bound of the fit range")
+        elif not math.isfinite(rel[i]) or rel[i] > REL_LIMIT:
+            out[name] = (False, f"relative 1-sigma uncertainty {rel[i]:.3g} > {REL_LIMIT:g} (Jacobian)")
+        elif name == "cd" and relax < 1e-3 and creep < 1e-3:
+            out[name] = (
+                False,
+                f"the dashpot hardly moves within a tap (relaxes {100 * relax:.2g} % in contact, creeps "
+                f"{100 * creep:.2g} % between taps): cd has only a lower bound",
+            )
+        elif name == "cd" and th["tau_r"] < h and th["tau_c"] < h:
+            out[name] = (False, "the dashpot relaxes within one sample: cd has only an upper bound")
+        else:
+            out[name] = (True, f"relative 1-sigma uncertainty {rel[i]:.2g}")
+    return out
+
+
+def extract_full(
+    df,
+    meta: dict | None = None,
+    force: str = "auto",
+    start: dict | None = None,
+    fit_hamaker: bool = False,
+    *,
+    kg_points: int = 10,
+    k2: float | None = None,
+    f2: float | None = None,
+    q2: float | None = None,
+    z1: float | None = None,
+    f1: float | None = None,
+    cutoff_hz: float | None = None,
+    taper: float = 0.0,
+    near_stride: int = 4,
+    far_stride: int = 256,
+    scan: bool = True,
+    **_unused,
+) -> dict:
+    """Whole-cycle inversion of a run table for ``k_inf, k0, cd`` (module docstring).
+
+    Input handling, ``force``, ``Z1`` and the probe keywords are those of
+    :func:`vetica_cli.extract.extract`.  ``start``: starting ``k_inf, k0, cd``
+    (default: VETICA on the first taps, else a generic start); ``fit_hamaker``
+    also fits ``H``; ``near_stride, far_stride``: residual decimation.
+    Surface constants ``a0, H, vdw_on_surface`` and the tip radius come from
+    the metadata (else the thesis defaults).
+
+    Returns the dict of :func:`extract` (``{name: {value, theory, error_pct,
+    spread}}`` for ``tau_c, k_g, k_r, tau_r, k0, k_inf, cd``, ``force``,
+    ``taps``, ``method`` = 'full', ``info``) plus ``uncertainty`` (relative
+    1-sigma of every quantity, from the Jacobian), ``identifiable``
+    ({fitted parameter: bool}) and ``identifiable_reason``; with
+    ``fit_hamaker`` also a ``hamaker`` entry.
+    """
+    from .config import Probe, Surface
+    from .vetica import find_taps
+
+    meta = meta or {}
+    if force not in FORCES:
+        raise InputError(f"force {force!r} not allowed; choose one of: {', '.join(FORCES)}")
+    cols = set(df.columns)
+    missing = [c for c in ("t", "z_tip") if c not in cols]
+    if missing or not ({"f_ts", "z_paddle"} & cols):
+        need = missing + ([] if {"f_ts", "z_paddle"} & cols else ["f_ts or z_paddle"])
+        raise InputError(f"missing column(s): {', '.join(need)} (need t, z_tip and f_ts or z_paddle)")
+    if force == "auto":
+        force = "reconstructed" if "z_paddle" in cols else "true"
+    fcol = "f_ts" if force == "true" else "z_paddle"
+    if fcol not in cols:
+        raise InputError(f"--force {force} needs the column {fcol!r}, which the table does not have")
+    t_start = time.perf_counter()
+
+    steady = _segment(df, "steady")
+    if steady is None:
+        steady = df if "segment" not in cols else df[(df["segment"] != "approach").to_numpy()]
+        if not len(steady):
+            raise InputError("the table has no rows outside the 'approach' segment to analyse")
+    approach = _segment(df, "approach")
+    t = _column(steady, "t", "the steady record")
+    _check_time(t, "the steady record")
+    z = _column(steady, "z_tip", "the steady record")
+    h = (t[-1] - t[0]) / (len(t) - 1)
+    if np.max(np.abs(np.diff(t) - h)) > 1e-3 * h:
+        raise InputError("--method full needs uniformly sampled t (constant time step) in the steady record")
+
+    params = meta.get("params") or {}
+    probe = params.get("probe") or {}
+    surface = params.get("surface") or {}
+    a0 = float(surface.get("a0", Surface.a0))
+    hamaker = float(surface.get("hamaker", Surface.hamaker))
+    radius = float(probe.get("tip_radius", Probe.tip_radius))
+    vdw = bool(surface.get("vdw_on_surface", Surface.vdw_on_surface))
+    hr6 = hamaker * radius / 6.0
+    info: dict = {}
+    warnings: list = []
+
+    def force_of(seg, where):
+        if force == "true":
+            return _column(seg, "f_ts", where)
+        p = {"k2": k2 if k2 is not None else probe.get("k2"),
+             "f2": f2 if f2 is not None else probe.get("f2"),
+             "q2": q2 if q2 is not None else probe.get("q2")}  # fmt: skip
+        absent = [k for k, v in p.items() if v is None]
+        if absent:
+            raise InputError(
+                f"the force reconstruction needs the probe's {', '.join(absent)} (not in the file's metadata): "
+                f"pass {' '.join('--' + k for k in absent)}, or use --force true"
+            )
+        rec = reconstruct_force(seg["t"].to_numpy(float), _column(seg, "z_paddle", where),
+                                p["k2"], p["f2"], p["q2"], cutoff_hz=cutoff_hz, taper=taper)  # fmt: skip
+        info["cutoff_hz"] = rec.cutoff_hz
+        return rec.f
+
+    f = force_of(steady, "the steady record")
+    t_rec = time.perf_counter()
+    if force == "reconstructed" and "f_ts" in cols:
+        info["reconstruction_error"] = reconstruction_error(f, _column(steady, "f_ts", "the steady record"))
+    drive = f1 if f1 is not None else probe.get("f1")
+    if "cutoff_hz" in info and drive:
+        info["cutoff_harmonic"] = info["cutoff_hz"] / drive
+
+    za = None
+    if approach is not None:
+        ta = _column(approach, "t", "the approach segment")
+        _check_time(ta, "the approach segment")
+        i1 = first_contact_minimum(force_of(approach, "the approach segment"))
+        zap = _column(approach, "z_tip", "the approach segment")
+        za = zap[:i1]
+        z1_value, z1_source = (float(z1), "given") if z1 is not None else (float(zap[i1]), "approach segment")
+    elif z1 is not None:
+        z1_value, z1_source = float(z1), "given"
+    elif (meta.get("observables") or {}).get("z1") is not None:
+        z1_value, z1_source = float(meta["observables"]["z1"]), "metadata"
+    else:
+        raise InputError("Z1 unknown: the table has no 'approach' segment and no metadata; pass --z1")
+    info["z1"] = z1_value
+    info["z1_source"] = z1_source
+    if za is None:
+        warnings.append("no approach record: the dashpot is assumed undeformed at the first contact (Xd1 = 0)")
+
+    taps = find_taps(f)
+    n_taps = len(taps.contact)
+    if n_taps < 1:
+        raise InputError("too few taps: no complete tap in the record")
+    if start is not None:
+        start_values, start_source = {k: float(start[k]) for k in ("k_inf", "k0", "cd")}, "given"
+    else:
+        try:
+            start_values, start_source = _vetica_start(t, z, f, z1_value, taps, kg_points), "vetica"
+        except (InputError, ValueError, FloatingPointError, np.linalg.LinAlgError):
+            start_values = None
+        if start_values is None:
+            start_values, start_source = _generic_start(z, f, taps), "generic"
+    t_start_done = time.perf_counter()
+
+    def surface_fit(n):
+        return SurfaceFit(z[:n], f[:n], h, z1_value, za, a0, radius, vdw, near_stride=near_stride, far_stride=far_stride)
+
+    theta0 = [start_values["k_inf"], start_values["k0"], start_values["cd"], hr6]
+    model = surface_fit(len(z))
+    # coarse to fine: scan and fit on the first SUB_PERIODS drive periods (the periodic state of
+    # a whole number of periods is the window's), then refine on the whole window
+    cycles = int(round(len(z) / taps.spacing)) if taps.spacing > 0 else 0
+    stages = []
+    if cycles >= 2 * SUB_PERIODS:
+        sub = surface_fit(int(round(len(z) * SUB_PERIODS / cycles)))
+        stages.append(fit_surface(sub, theta0, fit_hamaker=fit_hamaker, scan=scan, xtol=1e-6))
+        theta0 = stages[-1]["theta"]
+        model._state = sub._state
+    stages.append(fit_surface(model, theta0, fit_hamaker=fit_hamaker, scan=scan and not stages))
+    fit = stages[-1]
+    t_fit = time.perf_counter()
+
+    theta = fit["theta"]
+    names = fit["names"]
+    res, jac = fit["residual"], fit["jac"]
+    n_res, n_par = jac.shape
+    s2 = float(np.sum(res**2)) / max(n_res - n_par, 1)
+    jtj_inv = np.linalg.pinv(jac.T @ jac)
+    cov = s2 * jtj_inv
+    rel = np.sqrt(np.clip(np.diag(cov), 0.0, None))
+    at_bound = (fit["x"] - fit["lo"] < 1e-6) | (fit["hi"] - fit["x"] < 1e-6)
+
+    k_inf, k0, cd, hr6_fit = (float(v) for v in theta)
+    values = theory(k0, k_inf, cd)
+    # d ln(quantity) / d ln(k_inf, k0, cd): propagate the covariance to the derived constants
+    kg = k0 + k_inf
+    grads = {
+        "k_inf": (1.0, 0.0, 0.0),
+        "k0": (0.0, 1.0, 0.0),
+        "cd": (0.0, 0.0, 1.0),
+        "k_r": (1.0, 0.0, 0.0),
+        "k_g": (k_inf / kg, k0 / kg, 0.0),
+        "tau_r": (0.0, -1.0, 1.0),
+        "tau_c": (k_inf / kg - 1.0, k0 / kg - 1.0, 1.0),
+    }
+    uncertainty = {}
+    for name, g in grads.items():
+        gv = np.zeros(n_par)
+        gv[:3] = g
+        uncertainty[name] = float(math.sqrt(max(gv @ cov @ gv, 0.0)))
+    if fit_hamaker:
+        uncertainty["hamaker"] = float(rel[3])
+
+    contact_s = float(np.median(taps.separation - taps.contact)) * h
+    free_s = float(taps.spacing) * h - contact_s
+    ident = _identifiability(names, rel, at_bound, theta, contact_s, free_s, h)
+
+    truth = None
+    if all(surface.get(k) is not None for k in ("k0", "k_inf", "cd")):
+        truth = theory(surface["k0"], surface["k_inf"], surface["cd"])
+    out: dict = {}
+    for name in NAMES:
+        v = _finite_or_none(values[name])
+        th = _finite_or_none(truth[name]) if truth else None
+        err = 100.0 * abs(v - th) / abs(th) if (v is not None and th) else None
+        out[name] = {"value": v, "theory": th, "error_pct": err, "spread": _spread_none()}
+    if fit_hamaker:
+        h_fit = 6.0 * hr6_fit / radius
+        th = surface.get("hamaker")
+        out["hamaker"] = {
+            "value": h_fit,
+            "theory": th,
+            "error_pct": 100.0 * abs(h_fit - th) / th if th else None,
+            "spread": _spread_none(),
+        }
+    out["force"] = force
+    out["taps"] = n_taps
+    out["method"] = "full"
+    out["uncertainty"] = uncertainty
+    out["identifiable"] = {k: bool(v[0]) for k, v in ident.items()}
+    out["identifiable_reason"] = {k: v[1] for k, v in ident.items()}
+
+    rms_pct = 100.0 * math.sqrt(float(np.mean(res**2)))
+    s0, _ = model.offset(*theta, tangents=False)
+    info["start"] = {"source": start_source, **start_values}
+    info["fit"] = {
+        "parameters": names,
+        "nfev": [s["nfev"] for s in stages],
+        "njev": [s["njev"] for s in stages],
+        "status": fit["status"],
+        "message": fit["message"],
+        "residual_rms_pct": rms_pct,
+        "residuals": int(n_res),
+        "near_samples": model.near_samples,
+        "decimation": {"near_stride": near_stride, "far_stride": far_stride, "block": model.block},
+        "surface_height_m": float(s0),
+        "xd0_m": float(model._state[0]),
+        "periodic_residual_m": float(model.periodic_residual),
+        "model_passes": int(model.passes),
+        "stages": len(stages),
+    }
+    if rms_pct > 1.0:
+        warnings.append(
+            f"the SLS model does not reproduce the measured force (RMS residual {rms_pct:.2g} % of the peak): "
+            "a record taken before the surface settled, chatter, noise, or a surface that is not a Zener SLS"
+        )
+    if fit["status"] <= 0:
+        warnings.append(f"least squares did not converge: {fit['message']}")
+    info["timing_s"] = {
+        "reconstruction": (t_rec - t_start) if force == "reconstructed" else 0.0,
+        "start": t_start_done - t_rec,
+        "fit": t_fit - t_start_done,
+        "total": time.perf_counter() - t_start,
+    }
+    info["warnings"] = warnings + list(meta.get("warnings") or [])
+    out["info"] = info
+    return out
