@@ -205,6 +205,30 @@ def main():
     p(f"Plain FFT of the {cfg.numerics.record_cycles} recorded periods (no end correction): RMS {e_plain['rms_pct']:.3g} %, "
       f"max {e_plain['max_pct']:.3g} % of the peak force; z_paddle differs by {(zp[0] - zp[-1]) * 1e12:.2f} pm between "
       f"the window's ends. With the Bernoulli end correction: RMS {e_corr['rms_pct']:.2g} %, max {e_corr['max_pct']:.2g} %.")  # fmt: skip
+
+    # --- detector noise: the low-pass becomes compulsory
+    noise = 1e-12
+    cfg_n = load(None, {"surface.vdw_on_surface": False, "numerics.position_noise": noise})
+    rn = simulate(cfg_n)
+    dfn, metan = rn.frame(), rn.metadata()
+    p(f"\n## With {noise * 1e12:g} pm RMS detector noise on the deflections (vdW off)\n")
+    p("| cut-off | harmonics of f1 | RMS % | max % | τc % | Kg % | k0 % | k_inf % | cd % |")
+    p("|---|---|---|---|---|---|---|---|---|")
+    for fc in (nyq, 1e9, 1e8, 2e7, 5e6, 2e6):
+        try:
+            r = extract(dfn, metan, force="reconstructed", cutoff_hz=fc)
+        except InputError as exc:
+            p(f"| {fc / 1e6:g} MHz | {fc / f1:.0f} | extraction failed: {exc} |||||||")
+            continue
+        e = r["info"]["reconstruction_error"]
+        errs = " | ".join(f"{pct(r[k]['value'], th[k]):+.3g}" for k in ("tau_c", "k_g", "k0", "k_inf", "cd"))
+        p(f"| {fc / 1e6:g} MHz | {fc / f1:.0f} | {e['rms_pct']:.3g} | {e['max_pct']:.3g} | {errs} |")
+    try:
+        r = extract(dfn, metan, force="true")
+        p("\nTrue force, same noisy positions: " + ", ".join(
+            f"{k} {pct(r[k]['value'], th[k]):+.3g} %" for k in ("tau_c", "k_g", "k0", "k_inf", "cd")))
+    except InputError as exc:
+        p(f"\nTrue force, same noisy positions: extraction failed: {exc}")
     print("\n".join(out))
 
 

@@ -23,7 +23,8 @@ correction with Bernoulli polynomials (the Eckhoff / Lanczos method)::
 
 ``J_j`` is the jump of the j-th derivative across the wrap of the window of
 length ``L = n h`` (derivative just after the last sample minus derivative at
-the first, each from a local polynomial fit of the end samples).  The
+the first, each from a local polynomial fit of the end samples; a jump not
+resolved above the noise of that fit is left out).  The
 periodic extension of ``r`` is then ``C^K`` (K = 2: value, velocity and
 acceleration continuous), so ``r`` inverts spectrally without ringing, and
 the paddle operator is applied to the polynomial ``b`` analytically.  The same
@@ -60,7 +61,7 @@ class Reconstruction:
     f: np.ndarray  # [N] reconstructed tip-sample force
     cutoff_hz: float  # [Hz] low-pass cut-off fc actually used
     taper: float  # raised-cosine taper width as a fraction of fc
-    end_jumps: np.ndarray  # [m, m/s, m/s^2, ...] derivative jumps across the window wrap
+    end_jumps: np.ndarray  # [m, m/s, m/s^2, ...] derivative jumps corrected (0 = below the noise)
 
 
 def paddle_inverse_transfer(omega: np.ndarray, k2: float, f2: float, q2: float) -> np.ndarray:
@@ -78,17 +79,31 @@ def _bernoulli_poly(m: int, s: np.ndarray) -> np.ndarray:
     return np.polyval(coeffs, s)
 
 
-def end_jumps(y: np.ndarray, h: float, order: int = 2, points: int = 12, degree: int = 4) -> np.ndarray:
+def end_jumps(
+    y: np.ndarray, h: float, order: int = 2, points: int = 12, degree: int = 4
+) -> tuple[np.ndarray, np.ndarray]:
     """Jumps of the derivatives 0..order of ``y`` across the periodic wrap.
 
     ``J_j = y^(j)(t_last + h) - y^(j)(t_first)``, each derivative from a
     least-squares polynomial of ``degree`` through ``points`` samples at that
-    end (extrapolated one step past the last sample).  Units: [y] / s^j.
+    end (extrapolated one step past the last sample).  Returns ``(J, se)``:
+    the jumps and their standard errors from the fits' residuals (noise).
+    Units: [y] / s^j.
     """
     x = np.arange(points, dtype=float)
-    c0 = np.polynomial.polynomial.polyfit(x, y[:points], degree)  # at x = 0 (first sample)
-    c1 = np.polynomial.polynomial.polyfit(x - points, y[-points:], degree)  # x = 0 one step past the last
-    return np.array([math.factorial(j) * (c1[j] - c0[j]) / h**j for j in range(order + 1)])
+    jumps = np.zeros(order + 1)
+    var = np.zeros(order + 1)
+    for xs, ys, sign in ((x, y[:points], -1.0), (x - points, y[-points:], 1.0)):
+        a = np.vander(xs, degree + 1, increasing=True)
+        coef, *_ = np.linalg.lstsq(a, ys, rcond=None)
+        resid = ys - a @ coef
+        s2 = float(resid @ resid) / max(points - degree - 1, 1)
+        cov = s2 * np.linalg.inv(a.T @ a)
+        for j in range(order + 1):
+            scale = math.factorial(j) / h**j
+            jumps[j] += sign * scale * coef[j]
+            var[j] += scale**2 * cov[j, j]
+    return jumps, np.sqrt(var)
 
 
 def reconstruct_force(
@@ -133,8 +148,12 @@ def reconstruct_force(
     m2 = k2 / w2**2
     c2 = m2 * w2 / q2
 
-    # Bernoulli end correction: b has the same derivative jumps as zp across the wrap
-    jumps = end_jumps(zp, h, order=order, points=points)
+    # Bernoulli end correction: b has the same derivative jumps as zp across the wrap.
+    # A jump not resolved above the noise (|J| < 3 standard errors) is left out: a wrong
+    # J_2 would bias the force over the whole window (by m2 J_2 (s - 1/2)), an omitted
+    # one only rings near the window's ends.
+    jumps, se = end_jumps(zp, h, order=order, points=points)
+    jumps = np.where(np.abs(jumps) > 3.0 * se, jumps, 0.0)
     s = np.arange(n) / n
     b = np.zeros(n)
     b1 = np.zeros(n)

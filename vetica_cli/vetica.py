@@ -54,6 +54,7 @@ from scipy.optimize import least_squares
 
 from .errors import InputError
 
+MIN_CONTACT_SAMPLES = 20  # stage 2 needs the contact resolved: 3 sines + constant = 10 parameters
 NAMES = ("tau_c", "k_g", "k_r", "tau_r", "k0", "k_inf", "cd")
 UNITS = {"tau_c": "s", "k_g": "N/m", "k_r": "N/m", "tau_r": "s", "k0": "N/m", "k_inf": "N/m", "cd": "kg/s"}
 
@@ -284,6 +285,8 @@ def fit_sum_of_sines(u: np.ndarray, z: np.ndarray, terms: int = 3, max_points: i
             continue
         if best is None or sol.cost < best.cost:
             best = sol
+    if best is None:
+        raise InputError(f"sum-of-sines fit failed on a contact of {len(u)} samples")
     best = least_squares(resid, best.x, jac=jac, method="lm", max_nfev=NFEV)
     a, b, c = best.x[:terms], best.x[terms : 2 * terms], best.x[2 * terms : 3 * terms]
     # back to physical units: z = zm + zs (c0 + sum a sin(b (u - u0)/span + c))
@@ -453,10 +456,16 @@ def vetica(
         )
     if math.isnan(kg):
         warnings.append(f"stage 1b: contacts shorter than kg_points = {kg_points} samples; Kg and stage 2 skipped")
+    elif kg <= 0:
+        warnings.append(f"stage 1b: the initial contact slope gives Kg = {kg:.4g} N/m <= 0; stage 2 skipped")
 
     kr_i, fit_rms, f_rms, nfev = [], [], [], []
-    if not (math.isnan(tau_c) or math.isnan(kg)):
+    stage2 = not (math.isnan(tau_c) or math.isnan(kg)) and kg > 0
+    if stage2:
         for ic, isep in zip(taps.contact, taps.separation):
+            if isep - ic < MIN_CONTACT_SAMPLES:
+                kr_i.append(math.nan)
+                continue
             sl = slice(ic, isep + 1)
             u = t[sl] - t[ic]
             fit = fit_sum_of_sines(u, z[sl])
@@ -467,7 +476,9 @@ def vetica(
             nfev.append(nf)
     t2 = time.perf_counter()
     kr_i = np.array(kr_i) if kr_i else np.full(n_taps, math.nan)
-    values = sls_elements(tau_c, kg, float(np.mean(kr_i)))
+    if stage2 and not fit_rms:
+        warnings.append(f"stage 2: every contact is shorter than {MIN_CONTACT_SAMPLES} samples; Kr skipped")
+    values = sls_elements(tau_c, kg, float(np.nanmean(kr_i)) if np.any(np.isfinite(kr_i)) else math.nan)
     per = [sls_elements(tau_c, kg, k) for k in kr_i]
     per_tap = {
         "tau_c": tau_c_i,
