@@ -267,6 +267,13 @@ def test_parts_made_by_other_code_or_config_are_recomputed(tmp_path, monkeypatch
     numeric_equal(again.table, first.table)
 
 
+def test_code_fingerprint_covers_simulation_and_extraction_only():
+    names = {f.relative_to(ROOT / "vetica_cli").as_posix() for f in sweep.fingerprint_files()}
+    assert {"simulate.py", "core/thc.py", "core/sls.py", "observables.py", "extract.py", "vetica.py",
+            "spectral.py", "sweep.py", "grid.py", "config.py"} <= names  # fmt: skip
+    assert not names & {"cli.py", "plots.py", "report.py", "bench.py"}
+
+
 def test_same_config_gives_bit_identical_numeric_columns_with_two_workers(tmp_path):
     """Two loky workers, unordered completion: rows are still in grid order and the
     numeric columns are bit-identical across runs (real extraction)."""

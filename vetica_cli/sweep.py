@@ -380,22 +380,55 @@ def plan(study: Study, share_print_step: bool = True) -> list[Task]:
 # --------------------------------------------------------------------------- parts
 
 
-# modules that do not change a point's numbers: editing them keeps persisted parts valid
-_FINGERPRINT_SKIP = {"cli.py", "plots.py", "report.py", "bench.py"}
+# the modules whose import closure computes a point (simulation, extraction, this sweep)
+_FINGERPRINT_ROOTS = ("sweep.py", "grid.py", "simulate.py", "extract.py")
+
+
+def _local_imports(path: Path, root: Path) -> set[Path]:
+    """Package files imported by ``path`` (relative imports, at any depth in the file)."""
+    import ast
+
+    out: set[Path] = set()
+    pkg = path.parent
+    for node in ast.walk(ast.parse(path.read_bytes())):
+        if not isinstance(node, ast.ImportFrom) or node.level == 0:
+            continue
+        base = pkg
+        for _ in range(node.level - 1):
+            base = base.parent
+        if node.module:
+            base = base.joinpath(*node.module.split("."))
+        candidates = [base.with_suffix(".py"), base / "__init__.py"]
+        candidates += [base / f"{a.name}.py" for a in node.names]  # from .core import thc
+        out.update(c.resolve() for c in candidates if c.is_file() and root in c.resolve().parents)
+    return out
+
+
+def fingerprint_files() -> list[Path]:
+    """The import closure of the simulation, the extraction and the sweep."""
+    root = Path(__file__).resolve().parent
+    todo = [root / name for name in _FINGERPRINT_ROOTS if (root / name).is_file()]
+    seen: set[Path] = set()
+    while todo:
+        f = todo.pop()
+        if f in seen:
+            continue
+        seen.add(f)
+        todo.extend(_local_imports(f, root) - seen)
+    return sorted(seen)
 
 
 @functools.lru_cache(maxsize=1)
 def code_fingerprint() -> str:
-    """Hash of the package source that computes a point (simulation, extraction,
-    sweep).  A part made by different code is stale and is recomputed, so a
-    resumed sweep never mixes results of two code versions."""
+    """Hash of the package source that computes a point (:func:`fingerprint_files`).
+    A part made by different code is stale and is recomputed, so a resumed sweep
+    never mixes results of two code versions; editing e.g. the plots leaves
+    parts valid."""
     import hashlib
 
-    h = hashlib.sha256()
     root = Path(__file__).resolve().parent
-    for f in sorted(root.rglob("*.py")):
-        if f.name in _FINGERPRINT_SKIP:
-            continue
+    h = hashlib.sha256()
+    for f in fingerprint_files():
         h.update(str(f.relative_to(root)).encode())
         h.update(f.read_bytes())
     return h.hexdigest()[:16]
