@@ -149,6 +149,12 @@ def plot(
     output: Optional[Path] = typer.Option(
         None, "-o", "--output", help="Folder for the PNG figures (default: figures/ next to TABLE)."
     ),
+    cutoff: Optional[float] = typer.Option(
+        None,
+        "--cutoff",
+        help="Low-pass cut-off [Hz] of the force reconstruction and tip velocity of a run; default: Nyquist. "
+        "Noisy records need one.",
+    ),
 ):
     """Draw the thesis's figures from a run or a sweep table (PNG, headless).
 
@@ -162,7 +168,7 @@ def plot(
     """
     from .plots import plot as _plot
 
-    result = _plot(table, output)
+    result = _plot(table, output, cutoff)
     for note in result.notes:
         typer.echo(f"note: {note}")
     for p in result.paths:

@@ -116,20 +116,24 @@ class PlotResult:
 # entry point
 
 
-def plot(path: str | Path, outdir: str | Path | None = None) -> PlotResult:
+def plot(path: str | Path, outdir: str | Path | None = None, cutoff_hz: float | None = None) -> PlotResult:
     """Write the figures for a run or sweep table into ``outdir``.
 
-    ``outdir`` defaults to ``figures/`` next to the table.  Files are named
+    ``outdir`` defaults to ``figures/`` next to the table.  ``cutoff_hz`` is
+    the low-pass cut-off of the run figures' spectral operations (force
+    reconstruction and tip velocity; None = Nyquist, as ``vetica extract``).  Files are named
     ``<table stem>_<figure>.png``, so several studies can share one folder.
     The input is read and checked completely before any file is written;
     each PNG is written to a temporary file and renamed into place.
     Raises InputError (one line) for a missing, corrupt or non-vetica file.
     """
     path = Path(path)
+    if cutoff_hz is not None and not (math.isfinite(cutoff_hz) and cutoff_hz > 0):
+        raise InputError(f"--cutoff {cutoff_hz!r} is not allowed; expected a frequency > 0 Hz")
     df, meta = read_table(path)
     kind = table_kind(df, meta, path)
     if kind == "run":
-        figures, notes = run_figures(df, meta)
+        figures, notes = run_figures(df, meta, cutoff_hz)
     else:
         figures, notes = sweep_figures(df, meta)
     outdir = Path(outdir) if outdir is not None else path.parent / "figures"
@@ -164,12 +168,27 @@ def _save(fig: Figure, target: Path) -> Path:
     os.close(fd)
     try:
         FigureCanvasAgg(fig)
+        _lean_log_axes(fig)
         fig.savefig(tmp, format="png", dpi=130)
         os.replace(tmp, target)
     except BaseException:
         Path(tmp).unlink(missing_ok=True)
         raise
     return target
+
+
+def _lean_log_axes(fig: Figure) -> None:
+    """No minor ticks on log axes spanning more than three decades: a tick per decade reads
+    better there, and the minor tick artists were most of the drawing time."""
+    from matplotlib.ticker import NullLocator
+
+    for ax in fig.axes:
+        for axis, lim, scale in ((ax.xaxis, ax.get_xlim, ax.get_xscale), (ax.yaxis, ax.get_ylim, ax.get_yscale)):
+            if scale() != "log":
+                continue
+            lo, hi = sorted(lim())
+            if lo > 0 and hi / lo > 1e3:
+                axis.set_minor_locator(NullLocator())
 
 
 def _figure(w: float, h: float) -> Figure:
@@ -214,6 +233,7 @@ class RunData:
     z1: float | None
     params: dict
     observables: dict
+    cutoff_hz: float | None = None  # low-pass of the spectral operations (None = Nyquist)
 
 
 def load_run(df: pd.DataFrame, meta: dict) -> RunData:
@@ -235,7 +255,7 @@ def load_run(df: pd.DataFrame, meta: dict) -> RunData:
     z = st["z_tip"].to_numpy(float)
     x = st["x_surface"].to_numpy(float)
     f = st["f_ts"].to_numpy(float)
-    on, off = find_transitions(z, x, f, a0)
+    on, off = find_transitions(z, x, f, a0, spp)
     contact = np.zeros(n, bool)
     for i, j in zip(on, off):
         contact[i : j + 1] = True
@@ -259,14 +279,15 @@ def load_run(df: pd.DataFrame, meta: dict) -> RunData:
     )
 
 
-def find_transitions(z: np.ndarray, x: np.ndarray, f: np.ndarray, a0: float) -> tuple[np.ndarray, np.ndarray]:
+def find_transitions(z: np.ndarray, x: np.ndarray, f: np.ndarray, a0: float, spp: int) -> tuple[np.ndarray, np.ndarray]:
     """Sample indices of the contact and separation transitions of each complete tap.
 
     They are the force minima VETICA reads (thesis 3.3.1 and fig. 32:
     ``F_ts`` is smallest, ``-Fa(a0)``, at contact and at separation), found by
     ``vetica.find_taps`` so the figures mark the very points the extraction
-    uses.  With fewer than two taps in the record, ``find_taps`` declines;
-    then the simulator's own contact state is used: in contact the tip and
+    uses.  With fewer than two taps in the record (``spp`` samples per drive
+    period tell), ``find_taps`` declines or splits a tap at its paddle
+    ringing; then the simulator's own contact state is used: in contact the tip and
     the surface move together at the gap ``a0`` (SPEC 3), so the edges of
     ``z_tip - x_surface <= a0 (1 + 1e-6)`` are the transitions (noise-free
     records only).
@@ -275,7 +296,10 @@ def find_transitions(z: np.ndarray, x: np.ndarray, f: np.ndarray, a0: float) -> 
 
     try:
         taps = find_taps(f)
-        return taps.contact, taps.separation
+        if taps.spacing >= 0.75 * spp and len(taps.contact):
+            return taps.contact, taps.separation
+        # taps closer than a drive period: find_taps split one tap at its paddle ringing (it needs
+        # at least two real taps to tell the ringing gaps from the gaps between taps)
     except InputError:
         pass
     c = ((z - x) <= a0 * (1 + 1e-6)).astype(np.int8)
@@ -293,7 +317,7 @@ def transitions(run: RunData) -> tuple[np.ndarray, np.ndarray]:
     return run.on, run.off
 
 
-def spectral_velocity(z: np.ndarray, dt: float) -> np.ndarray:
+def spectral_velocity(z: np.ndarray, dt: float, cutoff_hz: float | None = None) -> np.ndarray:
     """Tip velocity by the spectral derivative ``dz/dt = F^-1[i w Z(w)]`` (thesis eqs. 93-94, 5.3.1).
 
     ``z`` spans whole drive periods (the steady window does), but a run that
@@ -303,8 +327,10 @@ def spectral_velocity(z: np.ndarray, dt: float) -> np.ndarray:
     the wrap are therefore removed first with Bernoulli polynomials (Eckhoff's
     end correction: ``b(t) = J0 B1(s) + J1 L B2(s)/2``, ``s = (t - t0)/L``)
     and ``b'`` is added back analytically.  The Nyquist bin of an even-length
-    signal is dropped (its derivative is not real).  Units: m/s for ``z`` in m
-    and ``dt`` in s.
+    signal is dropped (its derivative is not real).  ``cutoff_hz``: bins above
+    it are dropped (brick wall; None keeps the whole band), which noisy
+    records need, since differentiation multiplies noise by ``w``.  Units:
+    m/s for ``z`` in m and ``dt`` in s.
     """
     z = np.asarray(z, float)
     n = len(z)
@@ -318,6 +344,8 @@ def spectral_velocity(z: np.ndarray, dt: float) -> np.ndarray:
     deriv = 1j * w * spec
     if n % 2 == 0:
         deriv[-1] = 0.0
+    if cutoff_hz is not None:
+        deriv[w > 2 * np.pi * cutoff_hz] = 0.0
     return np.fft.irfft(deriv, n) + db
 
 
@@ -335,15 +363,20 @@ def _wrap_jumps(z: np.ndarray, dt: float, points: int = 12, degree: int = 4) -> 
     return float(c1[0] - c0[0]), float((c1[1] - c0[1]) / dt)
 
 
-def tap_window(run: RunData) -> slice:
-    """One drive period centred on the last contact that has half a period on each side."""
+def tap_window(run: RunData) -> np.ndarray:
+    """Sample indices of one drive period centred on a contact.
+
+    The last contact with half a period recorded on each side; if there is
+    none (a record of one period), the record is read as periodic, which it
+    is up to the simulator's steady-state drift, and the window wraps.
+    """
     on, _ = transitions(run)
-    half = run.spp // 2
-    ok = on[(on - half >= 0) & (on - half + run.spp <= len(run.t))]
-    if not len(ok):
+    if not len(on):
         raise InputError("no contact in the recorded steady periods")
-    i = int(ok[-1])
-    return slice(i - half, i - half + run.spp)
+    half = run.spp // 2
+    inside = on[(on - half >= 0) & (on - half + run.spp <= len(run.t))]
+    i = int(inside[-1]) if len(inside) else int(on[-1])
+    return (np.arange(run.spp) + i - half) % len(run.t)
 
 
 def loop_energy_ev(z: np.ndarray, f: np.ndarray) -> float:
@@ -353,9 +386,9 @@ def loop_energy_ev(z: np.ndarray, f: np.ndarray) -> float:
     return float(-np.sum(0.5 * (fc[1:] + fc[:-1]) * np.diff(zc)) / EV)
 
 
-def reconstructed_force(run: RunData) -> tuple[np.ndarray | None, str]:
+def reconstructed_force(run: RunData, cutoff_hz: float | None = None) -> tuple[np.ndarray | None, str]:
     """Force rebuilt from the paddle signal by spectral inversion (``vetica_cli.spectral.reconstruct_force``,
-    thesis eqs. 17-20, its default cut-off), or (None, why not)."""
+    thesis eqs. 17-20; ``cutoff_hz`` None = its default, Nyquist), or (None, why not)."""
     try:
         from .spectral import reconstruct_force
     except ImportError:
@@ -363,28 +396,41 @@ def reconstructed_force(run: RunData) -> tuple[np.ndarray | None, str]:
     if run.zp is None:
         return None, "reconstructed-force figure skipped: the run has no z_paddle column"
     p = run.params["probe"]
-    rec = reconstruct_force(run.t, run.zp, k2=float(p["k2"]), f2=float(p["f2"]), q2=float(p["q2"]))
+    rec = reconstruct_force(run.t, run.zp, k2=float(p["k2"]), f2=float(p["f2"]), q2=float(p["q2"]), cutoff_hz=cutoff_hz)
     return np.asarray(rec.f, float), ""
 
 
-def _system_line(p: dict) -> str:
+def _system_line(p: dict, cutoff_hz: float | None = None) -> str:
     pr, op, su, nu = p["probe"], p["operation"], p["surface"], p["numerics"]
     return (
         f"$f_1$ {pr['f1'] * 1e-3:g} kHz, $f_2$ {pr['f2'] * 1e-3:g} kHz, $k_1$ {pr['k1']:g} N/m, $k_2$ {pr['k2']:g} N/m, "
         f"$A_{{sp}}$ {op['setpoint'] * op['free_amplitude'] * 1e9:g} nm, PS {nu['print_step'] * 1e9:g} ns, "
         f"$k_\\infty$ {su['k_inf']:g} N/m, $k_0$ {su['k0']:g} N/m, $c_d$ {su['cd']:g} kg/s"
+        + (f"; spectral low-pass {cutoff_hz * 1e-6:g} MHz" if cutoff_hz else "")
+        + (
+            f"; noise {nu.get('position_noise', 0) * 1e12:g} pm, {nu.get('force_noise', 0) * 1e9:g} nN RMS"
+            if nu.get("position_noise") or nu.get("force_noise")
+            else ""
+        )
     )
 
 
-def run_figures(df: pd.DataFrame, meta: dict) -> tuple[list, list]:
+def run_figures(df: pd.DataFrame, meta: dict, cutoff_hz: float | None = None) -> tuple[list, list]:
     """[(name, Figure)], [notes] for a simulate run."""
     run = load_run(df, meta)
+    run.cutoff_hz = cutoff_hz
     figs, notes = [], []
+    nu = run.params.get("numerics", {})
+    if cutoff_hz is None and (nu.get("position_noise") or nu.get("force_noise")):
+        notes.append(
+            "the run has detector noise: spectral inversion and the spectral derivative amplify it up to "
+            "Nyquist; pass --cutoff HZ (e.g. a few times the paddle resonance) for readable force curves"
+        )
     figs.append(("fig33_trajectories", fig_trajectories(run)))
     if not run.contact.any():
         notes.append("force-curve figures skipped: no contact in the recorded steady periods")
         return figs, notes
-    f_rec, why = reconstructed_force(run)
+    f_rec, why = reconstructed_force(run, cutoff_hz)
     if why:
         notes.append(why)
     figs.append(("fig28_force_distance", fig_force_distance(run, f_rec)))
@@ -446,7 +492,7 @@ def fig_trajectories(run: RunData) -> Figure:
     return fig
 
 
-def _force_window(run: RunData, sl: slice) -> tuple[float, float]:
+def _force_window(run: RunData, sl: np.ndarray) -> tuple[float, float]:
     """x-limits (nm) of a force-distance plot: the contact excursion plus the attractive tail."""
     z = run.z[sl] * 1e9
     c = run.contact[sl]
@@ -455,7 +501,7 @@ def _force_window(run: RunData, sl: slice) -> tuple[float, float]:
     return float(np.min(z) - 0.1 * span), float(np.max(zc) + max(1.0, 0.6 * span))
 
 
-def _near(run: RunData, sl: slice, zmax_nm: float) -> slice:
+def _near(run: RunData, sl: np.ndarray, zmax_nm: float) -> np.ndarray:
     """The contiguous samples of the tap window around its contact with the tip below ``zmax_nm``
     (what a force-distance plot shows; the rest of the period is far from the surface)."""
     z = run.z[sl] * 1e9
@@ -465,7 +511,7 @@ def _near(run: RunData, sl: slice, zmax_nm: float) -> slice:
     right = np.flatnonzero(above[ic[-1] :])
     a = left[-1] if len(left) else 0
     b = ic[-1] + right[0] + 1 if len(right) else len(z)
-    return slice(sl.start + a, sl.start + b)
+    return sl[a:b]
 
 
 def fig_force_distance(run: RunData, f_rec: np.ndarray | None) -> Figure:
@@ -498,13 +544,13 @@ def fig_force_distance(run: RunData, f_rec: np.ndarray | None) -> Figure:
     if e_kernel is not None:
         text.append(f"$E_{{diss}}$ (run, integrated at dt) = {e_kernel:.4g} eV/cycle")
     on, off = transitions(run)
-    i_on = [i - sl.start for i in on if sl.start <= i < sl.stop]
-    i_off = [i - sl.start for i in off if sl.start <= i < sl.stop]
+    i_on = np.flatnonzero(np.isin(sl, on))
+    i_off = np.flatnonzero(np.isin(sl, off))
     i_pk = int(np.argmax(f_nn))
     marks = [
-        (i_on[0] if i_on else None, "D1 contact", "x"),
+        (i_on[0] if len(i_on) else None, "D1 contact", "x"),
         (i_pk, "D2 peak force", "^"),
-        (i_off[0] if i_off else None, "D3 separation", "+"),
+        (i_off[0] if len(i_off) else None, "D3 separation", "+"),
     ]
     for i, lab, m in marks:
         if i is None:
@@ -517,10 +563,11 @@ def fig_force_distance(run: RunData, f_rec: np.ndarray | None) -> Figure:
     ax.set_ylabel(_label("tip-sample force $F_{ts}$ (repulsive > 0)", "nN"))
     ax.legend(loc="upper right", fontsize=8)
     ax.text(
-        0.02,
-        0.97,
+        0.98,
+        0.5,
         "\n".join(text),
         transform=ax.transAxes,
+        ha="right",
         va="top",
         fontsize=9,
         bbox={"boxstyle": "round", "fc": "white", "ec": "0.7"},
@@ -537,7 +584,7 @@ def fig_force_distance(run: RunData, f_rec: np.ndarray | None) -> Figure:
 def fig_reconstruction(run: RunData, f_rec: np.ndarray) -> Figure:
     """Reconstructed (spectral inversion) against true force over one tap, and their difference."""
     sl = tap_window(run)
-    t_us = (run.t[sl] - run.t[sl.start]) * 1e6
+    t_us = np.arange(len(sl)) * (run.period / run.spp) * 1e6
     ft, fr = run.f[sl] * 1e9, f_rec[sl] * 1e9
     c = run.contact[sl]
     ic = np.flatnonzero(c)
@@ -574,7 +621,7 @@ def fig_reconstruction(run: RunData, f_rec: np.ndarray) -> Figure:
     )
     fig.suptitle(
         "Reconstructed against true tip-sample force over one contact (thesis 2.3, eqs. 17-20)\n"
-        + _system_line(run.params),
+        + _system_line(run.params, run.cutoff_hz),
         fontsize=10,
     )
     return fig
@@ -587,7 +634,7 @@ def fig_force_velocity(run: RunData, f_rec: np.ndarray | None) -> Figure:
     periods (thesis eq. 93); drawn over one tap near the surface.
     """
     dt = float(run.params["numerics"]["print_step"])
-    v_all = spectral_velocity(run.z, dt)
+    v_all = spectral_velocity(run.z, dt, run.cutoff_hz)
     period = tap_window(run)
     _xlo, xhi = _force_window(run, period)
     sl = _near(run, period, xhi)
@@ -628,7 +675,7 @@ def fig_force_velocity(run: RunData, f_rec: np.ndarray | None) -> Figure:
     ax2.grid(alpha=0.3)
     fig.suptitle(
         '"4-D" force curve: force against distance and tip velocity (cf. thesis fig. 62, section 5.3.1)\n'
-        + _system_line(run.params),
+        + _system_line(run.params, run.cutoff_hz),
         fontsize=10,
     )
     return fig
