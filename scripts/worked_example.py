@@ -15,6 +15,7 @@ import math
 import time
 
 import numpy as np
+from scipy.optimize import least_squares
 
 from vetica_cli.config import load
 from vetica_cli.errors import InputError
@@ -32,7 +33,6 @@ from vetica_cli.vetica import (
     stage2_kr,
     theory,
 )
-from scipy.optimize import least_squares
 
 # thesis tables 2-4 (SPEC 9); tau_r from thesis eq. 76 with its own numbers
 THESIS = {"tau_c": 7.6152e-6, "k_g": 131.79, "k_r": 4.0869, "k0": 127.91, "k_inf": 4.0869, "cd": 2.99e-5}
@@ -76,7 +76,9 @@ def main():
         for force in ("true", "reconstructed"):
             res[vdw, force] = extract(df, meta, force=force)
     p("## Worked example: theory | thesis | vetica (error %, signed)\n")
-    p("| quantity | theory | thesis | vdW on, true f | vdW on, reconstructed | vdW off, true f | vdW off, reconstructed |")
+    p(
+        "| quantity | theory | thesis | vdW on, true f | vdW on, reconstructed | vdW off, true f | vdW off, reconstructed |"
+    )
     p("|---|---|---|---|---|---|---|")
     for key, label in ROWS:
         cells = [label, f"{th[key]:.5g}", f"{THESIS[key]:.5g} ({pct(THESIS[key], th[key]):+.2f})"]
@@ -152,7 +154,7 @@ def main():
             kgn.append(f"{n_pts}: {pct(np.nanmean(stage1b_kg(z, f, taps, n_pts)), kg):+.2f} %")
         p(f"  Kg error against the number of fit samples: {', '.join(kgn)}.")
         # stage 2 with exact stage-1 inputs, then with the missing pre-stress term
-        krs, krs_pre, krs_raw = [], [], []
+        krs, krs_pre = [], []
         for j, (c, e) in enumerate(zip(taps.contact, taps.separation)):
             sl = slice(c, e + 1)
             u = t[sl] - t[c]
@@ -161,7 +163,7 @@ def main():
             sup = _Superposition(u, fit)
             fc, fs = f[c], f[sl]
 
-            def res_pre(q, sup=sup, fc=fc, fs=fs, s0=sig0[j], u=u):
+            def res_pre(q, sup=sup, fc=fc, fs=fs, s0=sig0[j], u=u, kg=kg):
                 kr = q[0]
                 tr = th["tau_c"] * kr / kg
                 return (sup.force(kg, kr, tr, fc) + s0 * (1 - np.exp(-u / tr)) - fs) / 1e-9
@@ -189,7 +191,9 @@ def main():
             continue
         e = r["info"]["reconstruction_error"]
         errs = " | ".join(f"{pct(r[k]['value'], th[k]):+.2f}" for k in ("tau_c", "k_g", "k0", "k_inf", "cd"))
-        p(f"| {fc / 1e6:g} MHz | {fc / f1:.0f} | {e['rms_pct']:.2g} | {e['max_pct']:.2g} | {e['peak_pct']:+.2g} | {errs} |")
+        p(
+            f"| {fc / 1e6:g} MHz | {fc / f1:.0f} | {e['rms_pct']:.2g} | {e['max_pct']:.2g} | {e['peak_pct']:+.2g} | {errs} |"
+        )
     p("")
 
     # --- plain FFT without the end correction (leakage)
@@ -225,8 +229,10 @@ def main():
         p(f"| {fc / 1e6:g} MHz | {fc / f1:.0f} | {e['rms_pct']:.3g} | {e['max_pct']:.3g} | {errs} |")
     try:
         r = extract(dfn, metan, force="true")
-        p("\nTrue force, same noisy positions: " + ", ".join(
-            f"{k} {pct(r[k]['value'], th[k]):+.3g} %" for k in ("tau_c", "k_g", "k0", "k_inf", "cd")))
+        p(
+            "\nTrue force, same noisy positions: "
+            + ", ".join(f"{k} {pct(r[k]['value'], th[k]):+.3g} %" for k in ("tau_c", "k_g", "k0", "k_inf", "cd"))
+        )
     except InputError as exc:
         p(f"\nTrue force, same noisy positions: extraction failed: {exc}")
     print("\n".join(out))

@@ -109,7 +109,7 @@ def test_stage2_recovers_kr_from_any_initial_guess(guess):
     th = theory(K0, KINF, CD)
     f = _maxwell_force(U, Z, th["k_g"], KINF, th["tau_r"]) - 8.3e-9  # contact offset -Fa(a0)
     fit = fit_sum_of_sines(U, Z)
-    kr, rms, nfev = stage2_kr(U, f, fit, th["k_g"], th["tau_c"], float(f[0]), kr_guess=guess)
+    kr, _rms, nfev = stage2_kr(U, f, fit, th["k_g"], th["tau_c"], float(f[0]), kr_guess=guess)
     assert kr == pytest.approx(KINF, rel=1e-4)
     assert nfev < 40
 

@@ -205,8 +205,10 @@ def format_table(res: dict, source=None) -> str:
     head = f"VETICA on {source}" if source is not None else "VETICA"
     z1 = info.get("z1")
     lines = [
-        f"{head}: force {res['force']}, {res['taps']} taps, "
-        f"Z1 = {_num(z1 * 1e9 if z1 is not None else None, '.4f')} nm ({info.get('z1_source', '?')})",
+        (
+            f"{head}: force {res['force']}, {res['taps']} taps, "
+            f"Z1 = {_num(z1 * 1e9 if z1 is not None else None, '.4f')} nm ({info.get('z1_source', '?')})"
+        ),
         f"{'quantity':<14}{'value':>13}{'theory':>13}{'error %':>10}   spread over taps (std; min .. max)",
     ]
     for key, label, unit in ROWS:
@@ -223,7 +225,9 @@ def format_table(res: dict, source=None) -> str:
         )
     if "cutoff_hz" in info:
         harm = f" = {info['cutoff_harmonic']:.4g} f1" if "cutoff_harmonic" in info else ""
-        lines.append(f"force reconstruction: spectral inversion of z_paddle, low-pass cut-off {info['cutoff_hz']:.4g} Hz{harm}")
+        lines.append(
+            f"force reconstruction: spectral inversion of z_paddle, low-pass cut-off {info['cutoff_hz']:.4g} Hz{harm}"
+        )
     if "reconstruction_error" in info:
         r = info["reconstruction_error"]
         lines.append(

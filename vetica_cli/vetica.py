@@ -45,6 +45,7 @@ milliseconds per tap.
 
 from __future__ import annotations
 
+import itertools
 import math
 import time
 from dataclasses import dataclass, field
@@ -116,7 +117,7 @@ def find_taps(f: np.ndarray) -> Taps:
     runs = list(zip(starts, ends))
     if len(runs) >= 2:
         # merge runs split inside one contact (paddle ringing): gaps much shorter than the longest one
-        gaps = np.array([a - b for (_, b), (a, _) in zip(runs[:-1], runs[1:])])
+        gaps = np.array([a - b for (_, b), (a, _) in itertools.pairwise(runs)])
         merged = [runs[0]]
         for (a, b), gap in zip(runs[1:], gaps):
             if gap < 0.25 * gaps.max():
@@ -386,7 +387,7 @@ def _spread(values: np.ndarray) -> dict:
     if len(v) == 0:
         return {"n": 0, "mean": None, "std": None, "min": None, "max": None}
     return {
-        "n": int(len(v)),
+        "n": len(v),
         "mean": float(np.mean(v)),
         "std": float(np.std(v, ddof=1)) if len(v) > 1 else 0.0,
         "min": float(np.min(v)),
