@@ -187,7 +187,9 @@ def extract(
         help="Force to analyse: reconstructed (spectral inversion of z_paddle) or true (the f_ts column); "
         "auto = reconstructed when z_paddle is present.",
     ),
-    kg_points: int = typer.Option(10, "--kg-points", help="Samples after the contact minimum in the Kg fit (thesis: 10)."),
+    kg_points: int = typer.Option(
+        10, "--kg-points", help="Samples after the contact minimum in the Kg fit (thesis: 10)."
+    ),
     json_out: bool = typer.Option(False, "--json", help="Print one JSON object instead of the table."),
     k2: Optional[float] = typer.Option(None, "--k2", help="Paddle stiffness [N/m] (data without metadata)."),
     f2: Optional[float] = typer.Option(None, "--f2", help="Paddle resonance [Hz] (data without metadata)."),
@@ -195,7 +197,9 @@ def extract(
     z1: Optional[float] = typer.Option(
         None, "--z1", help="Tip position at the first approach force minimum [m]; default: from the approach segment."
     ),
-    f1: Optional[float] = typer.Option(None, "--f1", help="Drive frequency [Hz]; only labels the cut-off in harmonics."),
+    f1: Optional[float] = typer.Option(
+        None, "--f1", help="Drive frequency [Hz]; only labels the cut-off in harmonics."
+    ),
     cutoff: Optional[float] = typer.Option(
         None, "--cutoff", help="Low-pass cut-off of the force reconstruction [Hz]; default: Nyquist, 1/(2 print step)."
     ),
