@@ -191,17 +191,17 @@ def extract(
         10, "--kg-points", help="Samples after the contact minimum in the Kg fit (thesis: 10)."
     ),
     json_out: bool = typer.Option(False, "--json", help="Print one JSON object instead of the table."),
-    k2: Optional[float] = typer.Option(None, "--k2", help="Paddle stiffness [N/m] (data without metadata)."),
-    f2: Optional[float] = typer.Option(None, "--f2", help="Paddle resonance [Hz] (data without metadata)."),
+    k2: Optional[float] = typer.Option(None, "--k2", help="Paddle stiffness, N/m (data without metadata)."),
+    f2: Optional[float] = typer.Option(None, "--f2", help="Paddle resonance, Hz (data without metadata)."),
     q2: Optional[float] = typer.Option(None, "--q2", help="Paddle quality factor (data without metadata)."),
     z1: Optional[float] = typer.Option(
-        None, "--z1", help="Tip position at the first approach force minimum [m]; default: from the approach segment."
+        None, "--z1", help="Tip position at the first approach force minimum, m; default: from the approach segment."
     ),
     f1: Optional[float] = typer.Option(
-        None, "--f1", help="Drive frequency [Hz]; only labels the cut-off in harmonics."
+        None, "--f1", help="Drive frequency, Hz; only labels the cut-off in harmonics."
     ),
     cutoff: Optional[float] = typer.Option(
-        None, "--cutoff", help="Low-pass cut-off of the force reconstruction [Hz]; default: Nyquist, 1/(2 print step)."
+        None, "--cutoff", help="Low-pass cut-off of the force reconstruction, Hz; default: Nyquist, 1/(2 print step)."
     ),
 ):
     """Extract k0, k_inf, cd (and tau_c, Kg, Kr, tau_r) from a run with VETICA.
