@@ -241,6 +241,19 @@ def test_failed_and_not_steady_points_are_reported_in_the_figure_note(table, tmp
     assert "1 failed point(s) excluded" in texts and "1 not-steady point(s)" in texts
 
 
+def test_a_key_without_effect_on_an_observable_gets_no_lines_of_its_own():
+    # synthetic print-step study: the observables do not depend on the print step (one shared
+    # simulation per cd), so E_diss against cd is one line, and the note says why
+    df, meta = synthetic_sweep("print_step")
+    sw = plots.SweepData(df=df, swept=plots.swept_keys(df, meta), base=BASE)
+    fig = plots.fig_observable_vs_cd(sw, "e_diss_ev", "41")
+    assert len([ln for ln in fig.axes[0].get_lines() if ln.get_linestyle() == "-"]) == 1
+    assert "identical for every print step" in " ".join(t.get_text() for t in fig.texts)
+    # ...while the errors do depend on it: one line per print step and force source
+    fig = plots.fig_acceptance_vs(sw, "numerics.print_step", "61")
+    assert len([ln for ln in fig.axes[0].get_lines() if len(ln.get_xdata()) > 2]) == 2 * 4
+
+
 def test_plot_rejects_corrupt_and_non_vetica_files_with_one_line(tmp_path):
     bad = tmp_path / "junk.parquet"
     bad.write_bytes(b"not parquet at all")

@@ -1193,15 +1193,30 @@ def _err_axes(ax) -> None:
 
 
 def _plain_log_labels(ax) -> None:
-    """On a log y axis spanning less than three decades, label ticks 0.3, 1, 3, 10 instead of 3x10^-1 ..."""
+    """On a log y axis spanning less than three decades, label ticks 0.3, 1, 3, 10 instead of 3x10^-1 ...;
+    below a factor 4, switch to a linear axis."""
     from matplotlib.ticker import FuncFormatter, LogLocator, NullFormatter
 
     lo, hi = ax.get_ylim() if ax.get_yscale() == "log" else (1.0, 1e9)
+    if lo > 0 and hi / lo < 4:  # less than about half a decade: a linear axis reads better
+        ax.set_yscale("linear")
+        ax.relim()
+        ax.autoscale_view()
+        return
     if lo > 0 and hi / lo < 1e3:
         fmt = FuncFormatter(lambda v, _: f"{v:g}")
-        ax.yaxis.set_major_locator(LogLocator(base=10, subs=(1.0, 2.0, 3.0, 5.0)))
+        subs = np.arange(1.0, 10.0) if hi / lo < 30 else (1.0, 2.0, 3.0, 5.0)
+        ax.yaxis.set_major_locator(LogLocator(base=10, subs=subs))
         ax.yaxis.set_major_formatter(fmt)
         ax.yaxis.set_minor_formatter(NullFormatter())
+
+
+def _outside_legend(ax, handles) -> None:
+    """Legend to the right of the axes when it lists several settings (inside it would hide data)."""
+    if len(handles) <= 3:
+        ax.legend(handles=handles, fontsize=8, loc="best")
+        return
+    ax.legend(handles=handles, fontsize=8, loc="upper left", bbox_to_anchor=(1.01, 1.0), borderaxespad=0.0)
 
 
 def _legend_panel(ax, groups, colors, sources, flags, title=None) -> None:
@@ -1272,9 +1287,18 @@ def fig_values_vs_cd(sw: SweepData) -> Figure | None:
 
 
 def fig_observable_vs_cd(sw: SweepData, obs: str, thesis: str) -> Figure | None:
-    """An observable against cd, one line per setting of the other keys (thesis figs. 41, 49, 57)."""
+    """An observable against cd, one line per setting of the other keys (thesis figs. 41, 49, 57).
+
+    A key that does not change the observable (the print step, when the
+    sweep shares one simulation between print steps) gets no lines of its
+    own: they would lie on top of each other.
+    """
     pts = sw.points()
-    groups = _groups(pts, sw.others)
+    keep = [k for k in sw.others if not _no_effect(pts, obs, k, [CD] + [o for o in sw.others if o != k])]
+    dropped = [k for k in sw.others if k not in keep]
+    if dropped:
+        pts = pts.drop_duplicates(subset=[CD] + keep)
+    groups = _groups(pts, keep)
     colors = _colors(len(groups))
     name, unit, scale = OBSERVABLES[obs]
     fig = _figure(9.5, 6)
@@ -1287,6 +1311,12 @@ def fig_observable_vs_cd(sw: SweepData, obs: str, thesis: str) -> Figure | None:
     vals = vals[np.isfinite(vals)]
     if len(vals) and np.all(vals > 0) and vals.max() / vals.min() > 100:
         ax.set_yscale("log")
+    elif len(vals) and np.any(vals < 0) and np.any(vals > 0):
+        big = np.max(np.abs(vals))
+        small = np.min(np.abs(vals[vals != 0]))
+        if big / small > 100:  # both signs over decades (a depth above and below Z1): symmetric log
+            ax.set_yscale("symlog", linthresh=max(small, 1e-3 * big))
+            ax.axhline(0, color="0.5", lw=0.6)
     ax.set_xlabel(_label("dashpot $c_d$", "kg/s"))
     ylabel = {"ss_zero_depth": r"steady-state zero reference depth below $Z_1$"}.get(obs, name)
     ax.set_ylabel(_label(ylabel, unit))
@@ -1294,15 +1324,27 @@ def fig_observable_vs_cd(sw: SweepData, obs: str, thesis: str) -> Figure | None:
     handles, _ = ax.get_legend_handles_labels()
     handles += _extra_handles(flags)
     if handles:
-        ax.legend(handles=handles, fontsize=8, ncol=1 if len(handles) < 10 else 2)
+        _outside_legend(ax, handles)
     what = {
         "e_diss_ev": "Energy dissipated per cycle against the dashpot",
         "paddle_amplitude": "Paddle amplitude against the dashpot for each stiffness ratio",
         "ss_zero_depth": "Steady-state zero reference depth against the dashpot",
     }[obs]
-    _note(fig, _status_note(pts, sw.swept))
+    same = ", ".join(_axis_meta(k)[0] for k in dropped)
+    extra = f"identical for every {same} (one line drawn)" if dropped else ""
+    _note(fig, _status_note(pts, [CD] + keep, extra))
     _title(fig, sw, f"{what} (cf. thesis fig. {thesis})")
     return fig
+
+
+def _no_effect(pts: pd.DataFrame, col: str, key: str, others: list) -> bool:
+    """True when ``col`` is the same (to 1e-9) at every value of ``key`` for each setting of ``others``."""
+    d = pts[pts["status"].astype(str) != "failed"]
+    if d[key].nunique() < 2:
+        return False
+    spread = d.groupby(others)[col].agg(lambda v: np.nanmax(v) - np.nanmin(v) if v.notna().any() else 0.0)
+    scale = np.nanmax(np.abs(d[col].to_numpy(float))) if d[col].notna().any() else 0.0
+    return bool(np.all(spread.to_numpy(float) <= 1e-9 * scale))
 
 
 def _edges(values: np.ndarray, log: bool) -> np.ndarray:
@@ -1711,7 +1753,7 @@ def fig_errors_vs(sw: SweepData, key: str, thesis: str | None) -> Figure | None:
     _set_axis(ax, key, "x", sw.df[key])
     ax.set_ylabel(_label("mean error" + (" within the acceptance regime" if cd_swept else ""), "%"))
     ax.grid(alpha=0.3)
-    ax.legend(fontsize=8, ncol=2)
+    _outside_legend(ax, ax.get_legend_handles_labels()[0])
     name = "stiffness ratio" if key == RATIO else _axis_meta(key)[0]
     ref = f" (cf. thesis fig. {thesis})" if thesis else " (no thesis counterpart)"
     extra = (
@@ -1745,7 +1787,7 @@ def fig_observable_vs(sw: SweepData, key: str, obs: str, thesis: str) -> Figure 
     h, _ = ax.get_legend_handles_labels()
     h += _extra_handles(flags)
     if h:
-        ax.legend(handles=h, fontsize=8)
+        _outside_legend(ax, h)
     _note(fig, _status_note(pts, sw.swept))
     _title(fig, sw, f"{name} against {_axis_meta(key)[0]} (cf. thesis fig. {thesis})")
     return fig
