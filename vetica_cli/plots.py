@@ -608,16 +608,12 @@ def fig_reconstruction(run: RunData, f_rec: np.ndarray) -> Figure:
     ax_err.set_ylabel(_label("reconstructed - true", "nN"))
     ax_err.set_xlabel(_label("time within the drawn period", "µs"))
     ax_err.grid(alpha=0.3)
-    ax.text(
-        0.02,
-        0.95,
-        f"over all {len(run.t) // run.spp} steady periods, relative to the peak force {peak:.3g} nN:\n"
-        f"RMS error {rms:.3g} nN ({100 * rms / peak:.2g} %), largest {worst:.3g} nN ({100 * worst / peak:.2g} %),\n"
-        f"peak force error {dpk:+.3g} nN ({100 * dpk / peak:+.2g} %)",
-        transform=ax.transAxes,
-        va="top",
+    ax_err.set_title(
+        f"difference; over all {len(run.t) // run.spp} steady periods, relative to the peak force {peak:.3g} nN:\n"
+        f"RMS {rms:.3g} nN ({100 * rms / peak:.2g} %), largest {worst:.3g} nN ({100 * worst / peak:.2g} %), "
+        f"peak {dpk:+.3g} nN ({100 * dpk / peak:+.2g} %)",
         fontsize=9,
-        bbox={"boxstyle": "round", "fc": "white", "ec": "0.7"},
+        loc="left",
     )
     fig.suptitle(
         "Reconstructed against true tip-sample force over one contact (thesis 2.3, eqs. 17-20)\n"
