@@ -76,10 +76,12 @@ PARAMS = ("k_inf", "k0", "cd", "hamaker")
 BOUNDS = {"k_inf": (1e-4, 1e6), "k0": (1e-4, 1e6), "cd": (1e-13, 1e6), "hamaker": (1e-24, 1e-14)}
 NEAR_GAP = 5e-9  # [m] residuals densely (and fine steps) where the measured tip is within this of Z1
 FAR_GAP = 5e-9  # [m] model gap above which blocks are advanced in one exact step
-CD_SCAN = np.logspace(-10, 2, 13)  # [kg/s] starting-cd scan
+CD_SCAN = np.logspace(-10, 2, 7)  # [kg/s] starting-cd scan, every two decades
 REL_LIMIT = 1.0  # relative 1-sigma above which a parameter is not identifiable
 START_TAPS = 3  # taps of the record VETICA sees for the starting point
-SUB_PERIODS = 2  # drive periods of the first (coarse) fit stage
+SUB_PERIODS = 1  # drive periods of the first (coarse) fit stage
+FROZEN = 1e-12  # 1 - dXd_end/dXd0 below which the dashpot counts as frozen over the window
+LINEAR_XD0 = 1e-4  # periodic-state Newton steps worth less than this of the peak force: applied to first order
 
 
 def _segment(df, name):
@@ -91,66 +93,93 @@ def _segment(df, name):
     return sel if len(sel) else None
 
 
-class SurfaceFit:
-    """The forward model of one record and its least-squares residuals.
+class _Record:
+    """One record laid out for the kernel: tip positions, the samples whose force
+    enters the residuals, the blocks that may be stepped coarsely, and the
+    measured force at the wanted samples."""
 
-    ``z`` (N,) steady tip positions [m] every ``h`` [s] spanning whole drive
-    periods, ``f`` (N,) measured force [N], ``z1`` [m]; ``za`` the approach
-    tip positions up to (excluding) the first-contact minimum, or None.
-    """
-
-    def __init__(self, z, f, h, z1, za, a0, tip_radius, vdw_on_surface,
-                 near_stride=4, far_stride=256, block=16, near_gap=NEAR_GAP):  # fmt: skip
+    def __init__(self, z, f, z1, near_stride, far_stride, block, near_gap):
         self.z = np.ascontiguousarray(z, dtype=float)
-        self.h = float(h)
-        self.z1 = float(z1)
-        self.za = None if za is None or len(za) < 2 else np.ascontiguousarray(za, dtype=float)
-        self.a0 = float(a0)
-        self.radius = float(tip_radius)
-        self.vdw = bool(vdw_on_surface)
-        self.block = int(block)
         n = len(self.z)
         idx = np.arange(n)
-        near = (self.z - self.z1) < near_gap
+        near = (self.z - z1) < near_gap
         want = np.where(near, idx % near_stride == 0, (idx + 1) % far_stride == 0)
-        nblock = n // self.block
-        near_blocks = near[: nblock * self.block].reshape(nblock, self.block).any(axis=1)
+        nblock = n // block
+        near_blocks = near[: nblock * block].reshape(nblock, block).any(axis=1)
         self.coarse_ok = (~near_blocks).astype(np.uint8)
         self.want = want.astype(np.uint8)
         self.idx = np.flatnonzero(want)
         self.f = np.asarray(f, dtype=float)[self.idx]
+        self.near = int(np.count_nonzero(near))
+        self.out_f = np.empty(len(self.idx))
+        self.out_j = np.empty((len(self.idx), NDIR))
+
+
+class SurfaceFit:
+    """The forward model of one record and its least-squares residuals.
+
+    ``z, f`` (N,) steady tip positions [m] and measured force [N] every ``h``
+    [s], spanning whole drive periods; ``z1`` [m]; ``approach`` = ``(za, fa,
+    i1)`` the approach record's tip positions, force and first-contact index,
+    or None.  With an approach record and ``fit_offset`` the surface height
+    ``s0`` is a fit parameter and the approach samples (the first tap, on a
+    surface undeformed at the record's start) join the residuals; otherwise
+    ``s0`` follows from ``Z1`` (:meth:`z1_offset`).
+    """
+
+    def __init__(self, z, f, h, z1, approach, a0, tip_radius, vdw_on_surface, fit_offset=True,
+                 near_stride=4, far_stride=256, block=16, near_gap=NEAR_GAP, substeps=1):  # fmt: skip
+        self.h = float(h)
+        self.substeps = max(1, int(substeps))
+        self.z1 = float(z1)
+        self.a0 = float(a0)
+        self.radius = float(tip_radius)
+        self.vdw = bool(vdw_on_surface)
+        self.block = int(block)
+        self.steady = _Record(z, f, z1, near_stride, far_stride, block, near_gap)
+        self.approach = None
+        self.za1 = None  # approach tip positions before the first-contact minimum
+        if approach is not None:
+            za, fa, i1 = approach
+            self.za1 = np.ascontiguousarray(za[:i1], dtype=float)
+            self._za1_want = np.zeros(len(self.za1), np.uint8)
+            self._za1_ok = np.ones(len(self.za1) // self.block, np.uint8)
+            if fit_offset:
+                self.approach = _Record(za, fa, z1, near_stride, far_stride, block, near_gap)
+        self.fit_offset = self.approach is not None
+        self.f = self.steady.f if self.approach is None else np.concatenate([self.steady.f, self.approach.f])
         self.scale = float(np.max(f)) or 1.0
-        self.near_samples = int(np.count_nonzero(near))
-        self._out_f = np.empty(len(self.idx))
-        self._out_j = np.empty((len(self.idx), NDIR))
+        self.near_samples = self.steady.near
         self._state = (0.0, False)  # periodic (Xd0, contact0) of the last evaluation: warm start
+        self._last = None
         self._s0 = None
-        if self.za is not None:
-            self._za_want = np.zeros(len(self.za), np.uint8)
-            self._za_ok = np.ones(len(self.za) // self.block, np.uint8)
         self.passes = 0
+        self.frozen = 0
         self.periodic_residual = math.nan
 
-    # -- pieces of the model
-    def offset(self, k_inf, k0, cd, hr6, tangents=True):
-        """Surface height ``s0 = Z1 - a0 - X1`` [m] and ``ds0/d(DIRECTIONS)``.
+    def z1_offset(self, k_inf, k0, cd, hr6, tangents=True):
+        """Surface height from Z1: ``s0 = Z1 - a0 - X1`` [m] and ``ds0/d(DIRECTIONS)``.
 
         ``X1 = (k0 Xd1 + fa_sep)/Kg`` is the pulled-up surface at the first
         contact, ``Xd1`` from the approach record (0 without one); solved
-        with Newton's method since ``Xd1`` depends (weakly) on ``s0``.
+        with Newton's method since ``Xd1`` depends (weakly) on ``s0``.  Exact
+        up to the tip's travel in one sample at the first contact (the force
+        minimum is the last sample out of contact or the first in it).
         """
         c, dc = coefficient_tangents(k_inf, k0, cd, hr6, self.a0, self.vdw, self.h)
         kg_inv, fa_sep = c[C_INVKG], c[C_FASEP]
         s0 = self.z1 - self.a0 - fa_sep * kg_inv
         dxd1 = np.zeros(NDIR)
         xd1 = 0.0
-        if self.za is not None and self.vdw:
+        if self.za1 is not None and len(self.za1) > 1 and self.vdw:
             if self._s0 is not None:
                 s0 = self._s0  # warm start: the last evaluation's surface height
+            empty_f, empty_j = np.empty(0), np.empty((0, NDIR))
             for _ in range(6):
                 xd1, _, _, dxd1, *_ = surface_force(
-                    self.za, s0, k_inf, k0, cd, hr6, self.a0, self.vdw, self.h, self.block, self._za_ok,
-                    self._za_want, FAR_GAP, 0.0, False, NDIR if tangents else 2, self._out_f[:0], self._out_j[:0],
+                    self.za1, s0, k_inf, k0, cd, hr6, self.a0, self.vdw, self.h, self.block, self._za1_ok,
+                    self._za1_want, FAR_GAP, self.substeps, self._sub_gap(k_inf, k0, hr6),
+                    0.0, False, NDIR if tangents else 2, empty_f, empty_j,
                 )  # fmt: skip
                 g = self.z1 - self.a0 - (k0 * xd1 + fa_sep) * kg_inv - s0  # Newton on s0 = z1 - a0 - X1(s0)
                 s0 -= g / (-k0 * kg_inv * dxd1[1] - 1.0)
@@ -163,106 +192,226 @@ class SurfaceFit:
         ds0[0] = ds0[1] = 0.0
         return s0, ds0
 
-    def _pass(self, s0, theta, xd0, contact0, ndir):
+    def _pass(self, rec, s0, theta, xd0, contact0, ndir):
         self.passes += 1
         return surface_force(
-            self.z, s0, theta[0], theta[1], theta[2], theta[3], self.a0, self.vdw, self.h,
-            self.block, self.coarse_ok, self.want, FAR_GAP, xd0, contact0, ndir, self._out_f, self._out_j,
+            rec.z, s0, theta[0], theta[1], theta[2], theta[3], self.a0, self.vdw, self.h,
+            self.block, rec.coarse_ok, rec.want, FAR_GAP, self.substeps, self._sub_gap(theta[0], theta[1], theta[3]),
+            xd0, contact0, ndir, rec.out_f, rec.out_j,
         )  # fmt: skip
 
-    def evaluate(self, theta, ndir=NDIR):
-        """Force at the wanted samples [N] for physical ``theta = (k_inf, k0, cd, hr6)``
-        in the periodic state, and the total derivatives ``dF/d ln theta`` (N_out, 4)
-        through ``s0`` and the periodic ``Xd0`` (None when ``ndir`` = 0)."""
-        s0, ds0 = self.offset(*theta, tangents=ndir > 0)
-        xd0, contact0 = self._state
-        tol = 1e-9 * self.scale / theta[1]  # [m] an Xd0 error worth 1e-9 of the peak force
-        # Newton on the periodic dashpot state Xd_end(Xd0) = Xd0: the map is affine for a
-        # fixed contact schedule, so one cheap pass and one full pass usually settle it
-        xd_end, _, contact_end, dxd, *_ = self._pass(s0, theta, xd0, contact0, 1)
-        step = (xd_end - xd0) / (1.0 - dxd[0])
-        for _ in range(12):
+    def _sub_gap(self, k_inf, k0, hr6):
+        """Gap [m] below which the surface is updated ``substeps`` times per sample: where
+        the attraction's feedback gain ``2 Fa(d)/(d Kg) = 2 H R/(6 d^3 Kg)`` exceeds 1 %."""
+        return max(2.0 * self.a0, (200.0 * hr6 / (k_inf + k0)) ** (1.0 / 3.0))
+
+    def _newton_step(self, res, b):
+        """Newton step of ``Xd_end(Xd0) - Xd0 = res`` with slope ``b = dXd_end/dXd0``.
+        A dashpot that relaxes by less than ``FROZEN`` over the window has no
+        periodic state to speak of: the step is then limited (counted in ``frozen``)."""
+        gap = 1.0 - b
+        if not gap > FROZEN:
+            self.frozen += 1
+            gap = FROZEN
+        return res / gap
+
+    def _predict_xd0(self, theta, s0):
+        """Periodic Xd0 [m] extrapolated from the last evaluation with its derivatives."""
+        if self._last is None:
+            return self._state[0]
+        lnth, s0_last, xd0, dln, ds, s0_free = self._last
+        pred = xd0 + float(np.dot(dln[: NDIR - 2], np.log(theta) - lnth))
+        if s0_free:
+            pred += ds * (s0 - s0_last)
+        return pred if math.isfinite(pred) else self._state[0]
+
+    def reset(self):
+        """Forget the warm start (periodic state of the last evaluation)."""
+        self._state = (0.0, False)
+        self._last = None
+
+    def evaluate(self, theta, s0=None, ndir=NDIR, xd0=None):
+        """Model force at the wanted samples [N] (steady, then approach) for
+        ``theta = (k_inf, k0, cd, hr6)`` [SI] and surface height ``s0`` [m] (None:
+        from Z1), with the steady window in its periodic state, and the total
+        derivatives (N_out, 6): ``dF/d ln theta``, ``dF/ds0`` (through the
+        periodic ``Xd0``; with ``s0`` from Z1 this column is zero and the
+        others include ``ds0/d ln theta``) and ``dF/dXd0`` at fixed parameters.
+        ``xd0``: the dashpot position at the window start [m], None = the
+        periodic state.  Jacobian None when ``ndir`` = 0."""
+        if s0 is None:
+            s0, ds0 = self.z1_offset(*theta, tangents=ndir > 0)
+        else:
+            ds0 = None
+        rec = self.steady
+        periodic = xd0 is None
+        nd = max(ndir, 1)
+        if periodic:
+            contact0 = self._state[1]
+            xd0 = self._predict_xd0(theta, s0)
+            # Newton on the periodic dashpot state Xd_end(Xd0) = Xd0 (affine for a fixed contact
+            # schedule); the last step, when small, is applied to the outputs to first order
+            small = LINEAR_XD0 * self.scale / theta[1]  # [m]
+            step = 0.0
+            for _ in range(12):
+                xd0 += step
+                xd_end, _, contact_end, dxd, k, *_ = self._pass(rec, s0, theta, xd0, contact0, nd)
+                last, step = step, self._newton_step(xd_end - xd0, dxd[0])
+                same = contact_end == contact0
+                contact0 = contact_end
+                # small enough, or no longer contracting (round-off when nothing relaxes in the window)
+                if same and (abs(step) <= small or (last and abs(step) > 0.5 * abs(last))):
+                    break
+            f = rec.out_f[:k] + rec.out_j[:k, 0] * step
             xd0 += step
-            contact0 = contact_end
-            xd_end, _, contact_end, dxd, k, *_ = self._pass(s0, theta, xd0, contact0, max(ndir, 1))
-            last, step = step, (xd_end - xd0) / (1.0 - dxd[0])
-            # converged, or no longer contracting (round-off when nothing relaxes in the window)
-            if contact_end == contact0 and (abs(step) <= tol or abs(step) > 0.5 * abs(last)):
-                break
+            self.periodic_residual = xd_end - xd0 + dxd[0] * step
+        else:  # the state at the window start is a fit parameter
+            contact0 = self._state[1]
+            xd_end, _, contact_end, dxd, k, *_ = self._pass(rec, s0, theta, xd0, contact0, nd)
+            f = rec.out_f[:k].copy()
+            self.periodic_residual = xd_end - xd0
         self._state = (xd0, contact0)
-        self.periodic_residual = xd_end - xd0
-        f = self._out_f[:k].copy()
-        if ndir == 0:
-            return f, None
-        jd = self._out_j[:k]
-        b = dxd[0]
-        # dXd0 along the parameters (periodicity), through s0 too
-        dxd0 = (dxd[2:] + dxd[1] * ds0[2:]) / (1.0 - b)
-        jac = jd[:, 2:] + np.outer(jd[:, 1], ds0[2:]) + np.outer(jd[:, 0], dxd0)
+        jac = None
+        inv = 1.0 / max(1.0 - dxd[0], FROZEN) if periodic else 0.0
+        # derivatives of the periodic Xd0 along (ln theta, s0), for the next evaluation's start
+        self._last = (np.log(theta), s0, xd0, dxd[2:] * inv, dxd[1] * inv, ds0 is None)
+        if ndir > 0:
+            jd = rec.out_j[:k]
+            jac = np.zeros((k, 6))
+            jac[:, 5] = jd[:, 0]  # dF/dXd0 at fixed parameters (periodic: for the conservative covariance)
+            if ds0 is None:  # s0 a parameter: dXd0/d(direction) from periodicity
+                jac[:, :4] = jd[:, 2:] + np.outer(jd[:, 0], dxd[2:] * inv)
+                jac[:, 4] = jd[:, 1] + jd[:, 0] * (dxd[1] * inv)
+            else:  # s0 from Z1: through s0 too
+                dxd0 = (dxd[2:] + dxd[1] * ds0[2:]) * inv
+                jac[:, :4] = jd[:, 2:] + np.outer(jd[:, 1], ds0[2:]) + np.outer(jd[:, 0], dxd0)
+        if self.approach is not None:
+            a = self.approach
+            _, _, _, _, ka, *_ = self._pass(a, s0, theta, 0.0, False, ndir)
+            f = np.concatenate([f, a.out_f[:ka]])
+            if ndir > 0:
+                ja = np.zeros((ka, 6))
+                ja[:, :4] = a.out_j[:ka, 2:]
+                if ds0 is None:
+                    ja[:, 4] = a.out_j[:ka, 1]
+                else:
+                    ja[:, :4] += np.outer(a.out_j[:ka, 1], ds0[2:])
+                jac = np.vstack([jac, ja])
         return f, jac
 
 
-def _full_theta(x, fit_idx, base):
-    theta = np.array(base, dtype=float)
-    theta[fit_idx] = np.exp(x)
-    return theta
+OFFSET_UNIT = 1e-10  # [m] unit of the surface height in the fit vector
+OFFSET_RANGE = 5e-9  # [m] the fitted surface height stays within this of the Z1 value
+XD0_RANGE = 1e-6  # [m] bound of a fitted dashpot start position
 
 
-def fit_surface(model: SurfaceFit, theta0, fit_hamaker=False, scan=True, max_nfev=60, xtol=1e-10) -> dict:
-    """Bounded least squares of the force residuals in log-parameters.
+def fit_surface(
+    model: SurfaceFit, theta0, fit_hamaker=False, scan=True, max_nfev=60, xtol=1e-10, s0=None, xd0=None
+) -> dict:
+    """Bounded least squares of the force residuals (trust-region reflective).
 
+    Fit vector: ``ln k_inf, ln k0, ln cd [, ln(H R/6)] [, s0/OFFSET_UNIT]``.
     ``theta0`` = starting ``(k_inf, k0, cd, hr6)`` [SI; hr6 = H R/6 in J m,
-    held fixed unless ``fit_hamaker``].  ``scan``: first replace the starting
-    cd by the best of ``CD_SCAN`` (and itself) at the starting stiffnesses.
-    Returns the fit (parameters, residuals, Jacobian, counts).
+    held fixed unless ``fit_hamaker``]; ``s0`` the starting surface height
+    (default: from Z1; fitted when the model has an approach record).
+    ``xd0``: None = periodic state at the window start, else the starting
+    dashpot position [m] of a fitted start state (``state='free'``).
+    ``scan``: first replace the starting cd by the best of ``CD_SCAN`` (and
+    itself) at the starting stiffnesses.  Returns the fit (parameters,
+    residuals, Jacobian, counts).
     """
     fit_idx = [0, 1, 2] + ([3] if fit_hamaker else [])
     base = np.array(theta0, dtype=float)
     names = [PARAMS[i] for i in fit_idx]
     r = model.radius
-    lo = np.log([BOUNDS[n][0] * (r / 6 if n == "hamaker" else 1.0) for n in names])
-    hi = np.log([BOUNDS[n][1] * (r / 6 if n == "hamaker" else 1.0) for n in names])
-    x0 = np.clip(np.log(base[fit_idx]), lo + 1e-9, hi - 1e-9)
+    lo = list(np.log([BOUNDS[n][0] * (r / 6 if n == "hamaker" else 1.0) for n in names]))
+    hi = list(np.log([BOUNDS[n][1] * (r / 6 if n == "hamaker" else 1.0) for n in names]))
+    x0 = list(np.log(base[fit_idx]))
+    s0_z1 = model.z1_offset(*base, tangents=False)[0]
+    if model.fit_offset:
+        s0 = s0_z1 if s0 is None else s0
+        names.append("s0")
+        x0.append(s0 / OFFSET_UNIT)
+        lo.append((s0_z1 - OFFSET_RANGE) / OFFSET_UNIT)
+        hi.append((s0_z1 + OFFSET_RANGE) / OFFSET_UNIT)
+    free = xd0 is not None
+    if free:
+        names.append("xd0")
+        x0.append(xd0 / OFFSET_UNIT)
+        lo.append(-XD0_RANGE / OFFSET_UNIT)
+        hi.append(XD0_RANGE / OFFSET_UNIT)
+    lo, hi = np.array(lo), np.array(hi)
+    x0 = np.clip(np.array(x0), lo + 1e-9, hi - 1e-9)
+    cols = fit_idx + ([4] if model.fit_offset else []) + ([5] if free else [])
+    scale = np.ones(len(cols))
+    scale[len(fit_idx) :] = OFFSET_UNIT
+    i_s0 = len(fit_idx)
+
+    def unpack(x):
+        theta = base.copy()
+        theta[fit_idx] = np.exp(x[: len(fit_idx)])
+        return (
+            theta,
+            x[i_s0] * OFFSET_UNIT if model.fit_offset else None,
+            x[-1] * OFFSET_UNIT if free else None,
+        )
+
     cache = {}
 
     def evaluate(x):
         key = x.tobytes()
         if key not in cache:
             cache.clear()
-            f, jac = model.evaluate(_full_theta(x, fit_idx, base))
-            cache[key] = ((f - model.f) / model.scale, jac[:, fit_idx] / model.scale)
+            theta, s0x, xd0x = unpack(x)
+            f, jac = model.evaluate(theta, s0x, ndir=NDIR if fit_hamaker else NDIR - 1, xd0=xd0x)
+            cache[key] = ((f - model.f) / model.scale, jac[:, cols] * scale / model.scale, jac[:, 5] * OFFSET_UNIT / model.scale)
         return cache[key]
 
     scanned = []
-    if scan:  # starting cd: the best of a decade scan at the starting stiffnesses
-        for cd in CD_SCAN:
-            th = base.copy()
-            th[2] = cd
-            f, _ = model.evaluate(th, ndir=0)
-            scanned.append((float(np.sum((f - model.f) ** 2)), cd))
-        f, _ = model.evaluate(base, ndir=0)
-        scanned.append((float(np.sum((f - model.f) ** 2)), base[2]))
-        x0[2] = np.clip(math.log(min(scanned)[1]), lo[2] + 1e-9, hi[2] - 1e-9)
-        model._state = (0.0, False)
+    if scan:
+        # starting cd: scan CD_SCAN (and the start) with one Gauss-Newton step on the other
+        # parameters at each cd (a cheap profile: a wrong starting k_inf must not make the
+        # glassy plateau of large cd look best), then start from the best point
+        n_fit = len(x0)
+        others = [i for i in range(n_fit) if i != 2]
+        for cd in [math.exp(x0[2])] + list(CD_SCAN):
+            x = x0.copy()
+            x[2] = np.clip(math.log(cd), lo[2] + 1e-9, hi[2] - 1e-9)
+            model.reset()
+            res, jac, _ = evaluate(x)
+            a = jac[:, others]
+            step = np.linalg.lstsq(a, -res, rcond=None)[0]
+            step = np.clip(step, -2.0, 2.0)
+            x[others] = np.clip(x[others] + step, lo[others] + 1e-9, hi[others] - 1e-9)
+            theta, s0x, xd0x = unpack(x)
+            f, _ = model.evaluate(theta, s0x, ndir=0, xd0=xd0x)
+            scanned.append((float(np.sum(((f - model.f) / model.scale) ** 2)), x))
+        x0 = min(scanned, key=lambda c: c[0])[1]
+        model.reset()
     sol = least_squares(
         lambda x: evaluate(x)[0], x0, jac=lambda x: evaluate(x)[1], bounds=(lo, hi), method="trf",
-        x_scale=1.0, xtol=xtol, ftol=1e-12, gtol=1e-12, max_nfev=max_nfev,
+        x_scale="jac", xtol=xtol, ftol=1e-12, gtol=1e-12, max_nfev=max_nfev,
     )  # fmt: skip
-    res, jac = evaluate(sol.x)
-    theta = _full_theta(sol.x, fit_idx, base)
+    res, jac, jac_xd0 = evaluate(sol.x)
+    theta, s0_fit, _ = unpack(sol.x)
+    # Jacobian with the window's start state as one more unknown (already so when it is fitted)
+    jac_free = jac if free else np.column_stack([jac, jac_xd0])
     return {
         "names": names,
         "x": sol.x,
         "theta": theta,
+        "s0": s0_fit if s0_fit is not None else model.z1_offset(*theta, tangents=False)[0],
+        "s0_z1": model.z1_offset(*theta, tangents=False)[0],
         "residual": res,
         "jac": jac,
+        "jac_free": jac_free,
         "lo": lo,
         "hi": hi,
         "nfev": int(sol.nfev),
         "njev": int(sol.njev or 0),
         "status": int(sol.status),
         "message": str(sol.message),
-        "scan": scanned,
+        "scan": [(c, float(math.exp(x[2]))) for c, x in scanned],
     }
 
 
@@ -304,24 +453,53 @@ def _vetica_start(t, z, f, z1, taps, kg_points):
     return None
 
 
-def _identifiability(names, rel, at_bound, theta, t_contact, t_free, h):
-    """Per fitted parameter: (identifiable, reason)."""
+def _covariance(res, jac):
+    """``s^2 (J^T J)^-1`` with ``s^2 = |r|^2/(n - p)``, by SVD without truncation
+    (a degenerate direction gives an infinite variance, not a truncated one)."""
+    n, p = jac.shape
+    s2 = float(np.sum(res**2)) / max(n - p, 1)
+    norm = np.sqrt(np.sum(jac**2, axis=0))
+    norm[norm == 0] = 1.0
+    _, sv, vt = np.linalg.svd(jac / norm, full_matrices=False)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        inv_sv2 = np.where(sv > 0, 1.0 / sv**2, np.inf)
+        cov = (vt.T * inv_sv2) @ vt
+    cov = cov / np.outer(norm, norm) * s2
+    return np.where(np.isfinite(cov), cov, np.inf)
+
+
+def _identifiability(names, rel, at_bound, theta, t_contact, t_free, h, sigma_kg):
+    """Per fitted parameter: (identifiable, reason).
+
+    Not identifiable: relative 1-sigma (Jacobian, start state unknown) above
+    ``REL_LIMIT``, or at a bound of the fit range, or -- for cd -- a fitted
+    dashpot that does not act within the record: it relaxes less than 0.1 %
+    during a contact and creeps less than 0.1 % between taps (cd then has only
+    a lower bound, and the surface shows only its glassy stiffness), or it
+    relaxes within one sample (only an upper bound).
+    """
     k_inf, k0, cd = theta[:3]
     th = theory(k0, k_inf, cd)
     relax = -math.expm1(-t_contact / th["tau_r"])  # fraction the dashpot relaxes in one contact
     creep = -math.expm1(-t_free / th["tau_c"])  # fraction it creeps between taps
+    frozen = relax < 1e-3 and creep < 1e-3
+    why_frozen = (
+        f"the dashpot hardly moves within a tap (relaxes {100 * relax:.2g} % in contact, "
+        f"creeps {100 * creep:.2g} % between taps)"
+    )
     out = {}
     for i, name in enumerate(names):
+        extra = ""
+        if frozen and name == "cd":
+            extra = f"; {why_frozen}: cd has only a lower bound"
+        elif frozen and name in ("k0", "k_inf"):
+            extra = f"; {why_frozen}: only k_g = k0 + k_inf is determined (1-sigma {sigma_kg:.2g})"
         if at_bound[i]:
-            out[name] = (False, "at the bound of the fit range")
+            out[name] = (False, "at the bound of the fit range" + extra)
         elif not math.isfinite(rel[i]) or rel[i] > REL_LIMIT:
-            out[name] = (False, f"relative 1-sigma uncertainty {rel[i]:.3g} > {REL_LIMIT:g} (Jacobian)")
-        elif name == "cd" and relax < 1e-3 and creep < 1e-3:
-            out[name] = (
-                False,
-                f"the dashpot hardly moves within a tap (relaxes {100 * relax:.2g} % in contact, creeps "
-                f"{100 * creep:.2g} % between taps): cd has only a lower bound",
-            )
+            out[name] = (False, f"relative 1-sigma uncertainty {rel[i]:.3g} > {REL_LIMIT:g} (Jacobian)" + extra)
+        elif name == "cd" and frozen:
+            out[name] = (False, why_frozen + ": cd has only a lower bound")
         elif name == "cd" and th["tau_r"] < h and th["tau_c"] < h:
             out[name] = (False, "the dashpot relaxes within one sample: cd has only an upper bound")
         else:
@@ -347,6 +525,9 @@ def extract_full(
     near_stride: int = 4,
     far_stride: int = 256,
     scan: bool = True,
+    fit_offset: bool = True,
+    state: str = "periodic",
+    substeps: int | None = None,
     **_unused,
 ) -> dict:
     """Whole-cycle inversion of a run table for ``k_inf, k0, cd`` (module docstring).
@@ -404,6 +585,9 @@ def extract_full(
     radius = float(probe.get("tip_radius", Probe.tip_radius))
     vdw = bool(surface.get("vdw_on_surface", Surface.vdw_on_surface))
     hr6 = hamaker * radius / 6.0
+    if substeps is None:  # the simulator's surface step: dt of the metadata, else one update per sample
+        dt_sim = (params.get("numerics") or {}).get("dt")
+        substeps = max(1, int(round(h / dt_sim))) if dt_sim else 1
     info: dict = {}
     warnings: list = []
 
@@ -432,13 +616,14 @@ def extract_full(
     if "cutoff_hz" in info and drive:
         info["cutoff_harmonic"] = info["cutoff_hz"] / drive
 
-    za = None
+    approach_rec = None
     if approach is not None:
         ta = _column(approach, "t", "the approach segment")
         _check_time(ta, "the approach segment")
-        i1 = first_contact_minimum(force_of(approach, "the approach segment"))
+        fap = force_of(approach, "the approach segment")
+        i1 = first_contact_minimum(fap)
         zap = _column(approach, "z_tip", "the approach segment")
-        za = zap[:i1]
+        approach_rec = (zap, fap, i1)
         z1_value, z1_source = (float(z1), "given") if z1 is not None else (float(zap[i1]), "approach segment")
     elif z1 is not None:
         z1_value, z1_source = float(z1), "given"
@@ -448,7 +633,7 @@ def extract_full(
         raise InputError("Z1 unknown: the table has no 'approach' segment and no metadata; pass --z1")
     info["z1"] = z1_value
     info["z1_source"] = z1_source
-    if za is None:
+    if approach_rec is None:
         warnings.append("no approach record: the dashpot is assumed undeformed at the first contact (Xd1 = 0)")
 
     taps = find_taps(f)
@@ -467,7 +652,8 @@ def extract_full(
     t_start_done = time.perf_counter()
 
     def surface_fit(n):
-        return SurfaceFit(z[:n], f[:n], h, z1_value, za, a0, radius, vdw, near_stride=near_stride, far_stride=far_stride)
+        return SurfaceFit(z[:n], f[:n], h, z1_value, approach_rec, a0, radius, vdw, fit_offset=fit_offset,
+                          near_stride=near_stride, far_stride=far_stride, substeps=substeps)  # fmt: skip
 
     theta0 = [start_values["k_inf"], start_values["k0"], start_values["cd"], hr6]
     model = surface_fit(len(z))
@@ -477,21 +663,32 @@ def extract_full(
     stages = []
     if cycles >= 2 * SUB_PERIODS:
         sub = surface_fit(int(round(len(z) * SUB_PERIODS / cycles)))
-        stages.append(fit_surface(sub, theta0, fit_hamaker=fit_hamaker, scan=scan, xtol=1e-6))
+        stages.append(fit_surface(sub, theta0, fit_hamaker=fit_hamaker, scan=scan, xtol=1e-6, max_nfev=30))
         theta0 = stages[-1]["theta"]
-        model._state = sub._state
-    stages.append(fit_surface(model, theta0, fit_hamaker=fit_hamaker, scan=scan and not stages))
+        model._state, model._last = sub._state, sub._last
+    s0_start = stages[-1]["s0"] if stages else None
+    stages.append(
+        fit_surface(model, theta0, fit_hamaker=fit_hamaker, scan=scan and not stages, s0=s0_start,
+                    xtol=1e-8 if stages else 1e-10, max_nfev=15 if stages else 60)  # fmt: skip
+    )
+    if state == "free":  # release the periodic constraint: the dashpot start position is fitted too
+        stages.append(
+            fit_surface(model, stages[-1]["theta"], fit_hamaker=fit_hamaker, scan=False, s0=stages[-1]["s0"],
+                        xd0=model._state[0])  # fmt: skip
+        )
     fit = stages[-1]
     t_fit = time.perf_counter()
 
     theta = fit["theta"]
     names = fit["names"]
-    res, jac = fit["residual"], fit["jac"]
-    n_res, n_par = jac.shape
-    s2 = float(np.sum(res**2)) / max(n_res - n_par, 1)
-    jtj_inv = np.linalg.pinv(jac.T @ jac)
-    cov = s2 * jtj_inv
-    rel = np.sqrt(np.clip(np.diag(cov), 0.0, None))
+    res = fit["residual"]
+    n_res = len(res)
+    # covariance with the window's start state as an unknown too (conservative: does not lean
+    # on the periodic state, which a record taken before the surface settled does not have)
+    cov = _covariance(res, fit["jac_free"])
+    cov_model = _covariance(res, fit["jac"])
+    n_par = len(names)
+    rel = np.sqrt(np.diag(cov))[:n_par]
     at_bound = (fit["x"] - fit["lo"] < 1e-6) | (fit["hi"] - fit["x"] < 1e-6)
 
     k_inf, k0, cd, hr6_fit = (float(v) for v in theta)
@@ -508,16 +705,20 @@ def extract_full(
         "tau_c": (k_inf / kg - 1.0, k0 / kg - 1.0, 1.0),
     }
     uncertainty = {}
+    uncertainty_model = {}
     for name, g in grads.items():
-        gv = np.zeros(n_par)
-        gv[:3] = g
-        uncertainty[name] = float(math.sqrt(max(gv @ cov @ gv, 0.0)))
+        for c, dest in ((cov, uncertainty), (cov_model, uncertainty_model)):
+            gv = np.zeros(len(c))
+            gv[:3] = g
+            dest[name] = float(math.sqrt(max(gv @ c @ gv, 0.0)))
     if fit_hamaker:
         uncertainty["hamaker"] = float(rel[3])
+        uncertainty_model["hamaker"] = float(math.sqrt(cov_model[3, 3]))
 
     contact_s = float(np.median(taps.separation - taps.contact)) * h
     free_s = float(taps.spacing) * h - contact_s
-    ident = _identifiability(names, rel, at_bound, theta, contact_s, free_s, h)
+    n_phys = sum(n in PARAMS for n in names)  # s0 and xd0 are nuisance parameters, fitted last
+    ident = _identifiability(names[:n_phys], rel, at_bound, theta, contact_s, free_s, h, uncertainty["k_g"])
 
     truth = None
     if all(surface.get(k) is not None for k in ("k0", "k_inf", "cd")):
@@ -545,7 +746,6 @@ def extract_full(
     out["identifiable_reason"] = {k: v[1] for k, v in ident.items()}
 
     rms_pct = 100.0 * math.sqrt(float(np.mean(res**2)))
-    s0, _ = model.offset(*theta, tangents=False)
     info["start"] = {"source": start_source, **start_values}
     info["fit"] = {
         "parameters": names,
@@ -557,8 +757,17 @@ def extract_full(
         "residuals": int(n_res),
         "near_samples": model.near_samples,
         "decimation": {"near_stride": near_stride, "far_stride": far_stride, "block": model.block},
-        "surface_height_m": float(s0),
+        "substeps": model.substeps,
+        "surface_height_m": float(fit["s0"]),
+        "surface_height_sigma_m": float(math.sqrt(cov[names.index("s0")][names.index("s0")]) * OFFSET_UNIT)
+        if "s0" in names
+        else None,
+        "uncertainty_periodic_state": uncertainty_model,
+        "state": state,
+        "surface_height_from_z1_m": float(fit["s0_z1"]),
+        "surface_height_source": "fit (approach tap + steady window)" if model.fit_offset else "Z1",
         "xd0_m": float(model._state[0]),
+        "xd0_sigma_m": float(math.sqrt(cov[-1, -1]) * OFFSET_UNIT),
         "periodic_residual_m": float(model.periodic_residual),
         "model_passes": int(model.passes),
         "stages": len(stages),

@@ -121,10 +121,48 @@ def coefficient_tangents(k_inf, k0, cd, hr6, a0, vdw_on_surface, dt):
     return c, dc
 
 
+@njit(cache=True, inline="always", fastmath={"contract"}, error_model="numpy")
+def _noncontact(d, xd, fa, hr6, ihr6, c, dc, ndir, dxd, dx, dfa, ds0, dlnhr6):
+    """One non-contact update (:func:`.sls.noncontact_update`) at gap ``d`` with the
+    coefficients ``c`` of its step, and its tangent: ``dfa``, ``dx``, ``dxd`` updated
+    in place (``dx`` enters as the derivative of the previous surface position)."""
+    alpha, beta, gamma, ec = c[C_ALPHA], c[C_BETA], c[C_GAMMA], c[C_EC]
+    fa, x, xd_new = noncontact_update(d, xd, fa, hr6, ihr6, alpha, beta, gamma, ec)
+    for j in range(ndir):
+        dfa[j] = fa * dlnhr6[j] + 2.0 * fa / d * (ds0[j] + dx[j])  # d = z - s0 - X_prev
+        dx[j] = dc[C_ALPHA, j] * xd + alpha * dxd[j] + dc[C_BETA, j] * fa + beta * dfa[j]
+        dxd[j] = dc[C_GAMMA, j] * fa + gamma * dfa[j] + dc[C_EC, j] * xd + ec * dxd[j]
+    return fa, x, xd_new
+
+
+@njit(cache=True, inline="always", fastmath={"contract"}, error_model="numpy")
+def _contact(xc, xd, c, dc, ndir, dxd, dx, dfa, ds0):
+    """One contact update (:func:`.sls.contact_update`) with the surface at ``xc``
+    and its tangent; ``dfa`` receives ``d(F_sls + fa_c)``.  On separation
+    (``F_sls > sep_thr``) the surface is released (:func:`.sls.released_position`)
+    and ``dfa`` becomes ``d Fa(a0)``.  Returns ``(fts, f_sls, x, xd, separated)``."""
+    kc, k0er, er = c[C_KC], c[C_K0ER], c[C_ER]
+    f_sls, xd_new = contact_update(xc, xd, kc, k0er, er)
+    for j in range(ndir):
+        dfa[j] = dc[C_KC, j] * xc - kc * ds0[j] - dc[C_K0ER, j] * xd - k0er * dxd[j] + dc[C_FAC, j]
+        dxd[j] = -dc[C_ER, j] * xc - (1.0 - er) * ds0[j] + dc[C_ER, j] * xd + er * dxd[j]
+        dx[j] = -ds0[j]
+    if f_sls > c[C_SEP]:
+        k0, fa_sep, inv_kg = c[C_K0], c[C_FASEP], c[C_INVKG]
+        x = released_position(xd_new, fa_sep, k0, inv_kg)
+        for j in range(ndir):
+            dx[j] = (dc[C_K0, j] * xd_new + k0 * dxd[j] + dc[C_FASEP, j]) * inv_kg + (
+                k0 * xd_new + fa_sep
+            ) * dc[C_INVKG, j]
+            dfa[j] = dc[C_FA0, j]
+        return -c[C_FA0], f_sls, x, xd_new, True
+    return -f_sls - c[C_FAC], f_sls, xc, xd_new, False
+
+
 @njit(cache=True, fastmath={"contract"}, error_model="numpy")
 def surface_force(
     z, s0, k_inf, k0, cd, hr6, a0, vdw_on_surface, h,
-    block, coarse_ok, want, far_gap,
+    block, coarse_ok, want, far_gap, substeps, sub_gap,
     xd0, contact0, ndir, out_f, out_jac,
 ):  # fmt: skip
     """Tip-sample force of the SLS surface under the prescribed tip positions ``z``.
@@ -136,6 +174,12 @@ def surface_force(
     1 where a block may be advanced in one step (if also the gap at both its
     ends exceeds ``far_gap`` [m]); ``want`` (N,) uint8, 1 at the samples whose
     force is written (a coarse block may only want its last sample);
+    ``substeps``: surface updates per sample interval (tip position
+    interpolated linearly) where the tip is out of contact within ``sub_gap``
+    [m] of the surface or separates during the interval: there the lagged
+    gap -> attraction -> surface feedback of the simulator (gain
+    ``2 Fa/(d Kg)``, above 1 near a0) evolves per update, not per second,
+    so the simulator's own step ``dt = h/substeps`` reproduces it;
     ``xd0`` the dashpot position before the first sample [m] and ``contact0``
     whether the tip is then in contact; ``ndir`` the number of leading
     ``DIRECTIONS`` to differentiate along (0 = value only).
@@ -149,9 +193,8 @@ def surface_force(
     n = len(z)
     cf, dcf = coefficient_tangents(k_inf, k0, cd, hr6, a0, vdw_on_surface, h)
     cb, dcb = coefficient_tangents(k_inf, k0, cd, hr6, a0, vdw_on_surface, h * block)
-    ec, er, alpha, beta, gamma = cf[C_EC], cf[C_ER], cf[C_ALPHA], cf[C_BETA], cf[C_GAMMA]
-    kc, k0er, fa0, sep_thr, fa_sep, fa_c, inv_kg = cf[C_KC], cf[C_K0ER], cf[C_FA0], cf[C_SEP], cf[C_FASEP], cf[C_FAC], cf[C_INVKG]
-    ecb, alphab, betab, gammab = cb[C_EC], cb[C_ALPHA], cb[C_BETA], cb[C_GAMMA]
+    cs, dcs = coefficient_tangents(k_inf, k0, cd, hr6, a0, vdw_on_surface, h / substeps)
+    inv_kg = cf[C_INVKG]
     ihr6 = 1.0 / hr6 if hr6 > 0.0 else 0.0
 
     dxd = np.zeros(NDIR)  # derivatives of Xd
@@ -160,7 +203,7 @@ def surface_force(
     ds0[1] = 1.0
     dlnhr6 = np.zeros(NDIR)
     dlnhr6[5] = 1.0
-    dfa = np.zeros(NDIR)
+    dfa = np.zeros(NDIR)  # derivatives of -Fts
 
     xd = xd0
     dxd[0] = 1.0
@@ -172,7 +215,7 @@ def surface_force(
         d = z[0] - s0 - x
         if d > a0:
             fa = hr6 / (d * d)
-            x += beta * fa
+            x += cf[C_BETA] * fa
     dx[0] = k0 * inv_kg
 
     k = 0  # next output row
@@ -180,6 +223,7 @@ def surface_force(
     separations = 0
     coarse_steps = 0
     nblock = n // block
+    fts = 0.0
     i = 0
     while i < n:
         b = i // block
@@ -192,20 +236,9 @@ def surface_force(
         # ---- one exact step over a whole far block
         if (not contact) and i % block == 0 and b < nblock and coarse_ok[b]:
             i_end = i + block - 1
-            d0 = z[i] - s0 - x
             d = z[i_end] - s0 - x
-            if d0 > far_gap and d > far_gap:
-                for j in range(ndir):
-                    ddj = -ds0[j] - dx[j]
-                    dfa[j] = 0.0  # filled below
-                    dx[j] = ddj  # temporarily hold d(gap)
-                fa, x_new, xd_new = noncontact_update(d, xd, fa, hr6, ihr6, alphab, betab, gammab, ecb)
-                for j in range(ndir):
-                    dfa[j] = fa * dlnhr6[j] - 2.0 * fa / d * dx[j]
-                    dx[j] = dcb[C_ALPHA, j] * xd + alphab * dxd[j] + dcb[C_BETA, j] * fa + betab * dfa[j]
-                    dxd[j] = dcb[C_GAMMA, j] * fa + gammab * dfa[j] + dcb[C_EC, j] * xd + ecb * dxd[j]
-                x = x_new
-                xd = xd_new
+            if z[i] - s0 - x > far_gap and d > far_gap:
+                fa, x, xd = _noncontact(d, xd, fa, hr6, ihr6, cb, dcb, ndir, dxd, dx, dfa, ds0, dlnhr6)
                 coarse_steps += 1
                 if want[i_end]:
                     out_f[k] = -fa
@@ -216,52 +249,42 @@ def surface_force(
                 continue
         # ---- one sample
         zz = z[i] - s0
-        if not contact:
-            d = zz - x
-            if d > a0:
-                fa, x_new, xd_new = noncontact_update(d, xd, fa, hr6, ihr6, alpha, beta, gamma, ec)
-                for j in range(ndir):
-                    dfa[j] = fa * dlnhr6[j] + 2.0 * fa / d * (ds0[j] + dx[j])
-                    dx[j] = dcf[C_ALPHA, j] * xd + alpha * dxd[j] + dcf[C_BETA, j] * fa + beta * dfa[j]
-                    dxd[j] = dcf[C_GAMMA, j] * fa + gamma * dfa[j] + dcf[C_EC, j] * xd + ec * dxd[j]
-                x = x_new
-                xd = xd_new
-                fts = -fa
-                if want[i]:
-                    out_f[k] = fts
-                    for j in range(ndir):
-                        out_jac[k, j] = -dfa[j]
-                    k += 1
-                i += 1
-                continue
-            contact = True
-            contacts += 1
-        # contact: X = z - s0 - a0, exact dashpot relaxation
-        xc = zz - a0
-        f_sls, xd_new = contact_update(xc, xd, kc, k0er, er)
-        if f_sls > sep_thr:
-            # separation: the surface is released, held by the adhesion only
-            contact = False
-            separations += 1
-            x = released_position(xd_new, fa_sep, k0, inv_kg)
-            for j in range(ndir):
-                dxd[j] = -dcf[C_ER, j] * xc - (1.0 - er) * ds0[j] + dcf[C_ER, j] * xd + er * dxd[j]
-                dx[j] = (dcf[C_K0, j] * xd_new + k0 * dxd[j] + dcf[C_FASEP, j]) * inv_kg + (
-                    k0 * xd_new + fa_sep
-                ) * dcf[C_INVKG, j]
-                dfa[j] = dcf[C_FA0, j]
-            fa = fa0
-            fts = -fa0
+        sub = False
+        if substeps > 1:
+            if contact:  # does the tip separate during this interval?
+                sub = cf[C_KC] * (zz - a0) - cf[C_K0ER] * xd > cf[C_SEP]
+            else:
+                sub = zz - x < sub_gap
+        if sub:
+            # the simulator's own steps across the interval, tip interpolated linearly
+            zp = (z[i - 1] if i > 0 else z[0]) - s0
+            for m in range(1, substeps + 1):
+                zm = zp + (zz - zp) * (m / substeps)
+                if not contact:
+                    d = zm - x
+                    if d > a0:
+                        fa, x, xd = _noncontact(d, xd, fa, hr6, ihr6, cs, dcs, ndir, dxd, dx, dfa, ds0, dlnhr6)
+                        fts = -fa
+                        continue
+                    contact = True
+                    contacts += 1
+                fts, _, x, xd, sep = _contact(zm - a0, xd, cs, dcs, ndir, dxd, dx, dfa, ds0)
+                if sep:
+                    contact = False
+                    separations += 1
+                    fa = cs[C_FA0]
+        elif not contact and zz - x > a0:
+            fa, x, xd = _noncontact(zz - x, xd, fa, hr6, ihr6, cf, dcf, ndir, dxd, dx, dfa, ds0, dlnhr6)
+            fts = -fa
         else:
-            for j in range(ndir):
-                dfa[j] = (  # here: d(F_sls + fa_c)
-                    dcf[C_KC, j] * xc - kc * ds0[j] - dcf[C_K0ER, j] * xd - k0er * dxd[j] + dcf[C_FAC, j]
-                )
-                dxd[j] = -dcf[C_ER, j] * xc - (1.0 - er) * ds0[j] + dcf[C_ER, j] * xd + er * dxd[j]
-                dx[j] = -ds0[j]
-            x = xc
-            fts = -f_sls - fa_c
-        xd = xd_new
+            if not contact:
+                contact = True
+                contacts += 1
+            fts, _, x, xd, sep = _contact(zz - a0, xd, cf, dcf, ndir, dxd, dx, dfa, ds0)
+            if sep:
+                contact = False
+                separations += 1
+                fa = cf[C_FA0]
         if want[i]:
             out_f[k] = fts
             for j in range(ndir):
