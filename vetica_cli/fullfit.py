@@ -72,12 +72,15 @@ from .spectral import reconstruct_force, reconstruction_error
 from .vetica import NAMES, first_contact_minimum, theory
 
 PARAMS = ("k_inf", "k0", "cd", "hamaker")
+STATES = ("auto", "periodic", "free")  # dashpot state at the window start
 # fit bounds (SI)
 BOUNDS = {"k_inf": (1e-4, 1e6), "k0": (1e-4, 1e6), "cd": (1e-13, 1e6), "hamaker": (1e-24, 1e-14)}
 NEAR_GAP = 5e-9  # [m] residuals densely (and fine steps) where the measured tip is within this of Z1
 FAR_GAP = 5e-9  # [m] model gap above which blocks are advanced in one exact step
 CD_SCAN = np.logspace(-10, 2, 7)  # [kg/s] starting-cd scan, every two decades
 REL_LIMIT = 1.0  # relative 1-sigma above which a parameter is not identifiable
+FREE_NFEV = 25  # evaluation budget of the free-start-state stage (whole window)
+SIGNATURE = 10.0  # dashpot force signature / RMS residual below which cd is not identifiable
 START_TAPS = 3  # taps of the record VETICA sees for the starting point
 SUB_PERIODS = 1  # drive periods of the first (coarse) fit stage
 FROZEN = 1e-12  # 1 - dXd_end/dXd0 below which the dashpot counts as frozen over the window
@@ -403,6 +406,8 @@ def fit_surface(
         "s0": s0_fit if s0_fit is not None else model.z1_offset(*theta, tangents=False)[0],
         "s0_z1": model.z1_offset(*theta, tangents=False)[0],
         "residual": res,
+        "xd0": float(model._state[0]),
+        "periodic_residual": float(model.periodic_residual),
         "jac": jac,
         "jac_free": jac_free,
         "lo": lo,
@@ -423,9 +428,9 @@ def _spread_none() -> dict:
     return {"n": 0, "mean": None, "std": None, "min": None, "max": None}
 
 
-def _generic_start(z: np.ndarray, f: np.ndarray, taps) -> dict:
-    """Stiffnesses from the loading slope of the first tap, ``Kg ~ -dF/dz``
-    between 20 % and 80 % of its peak force; ``k0 = 0.9 Kg``, ``k_inf = 0.1 Kg``."""
+def _loading_slope(z: np.ndarray, f: np.ndarray, taps) -> float:
+    """Contact stiffness of the first tap [N/m]: ``-dF/dz`` fitted between 20 % and
+    80 % of its peak force on loading (between Kr and Kg of an SLS)."""
     ic, ip = int(taps.contact[0]), int(taps.peak[0])
     seg = slice(ic, ip + 1)
     fp = f[ip]
@@ -436,6 +441,12 @@ def _generic_start(z: np.ndarray, f: np.ndarray, taps) -> dict:
     if not (math.isfinite(kg) and kg > 0):
         depth = float(z[ic] - np.min(z[seg]))
         kg = fp / depth if depth > 0 else 1.0
+    return kg
+
+
+def _generic_start(z: np.ndarray, f: np.ndarray, taps) -> dict:
+    """``k0 = 0.9 Kg``, ``k_inf = 0.1 Kg`` with Kg from the loading slope; cd from the scan."""
+    kg = _loading_slope(z, f, taps)
     return {"k_inf": 0.1 * kg, "k0": 0.9 * kg, "cd": 1e-5}
 
 
@@ -448,9 +459,21 @@ def _vetica_start(t, z, f, z1, taps, kg_points):
         stop = int(taps.peak[START_TAPS + 1] + 0.5 * taps.spacing)
     ex = vetica(t[:stop], z[:stop], f[:stop], z1, kg_points=kg_points)
     v = {k: ex.values.get(k) for k in ("k_inf", "k0", "cd")}
-    if all(x is not None and math.isfinite(x) and x > 0 for x in v.values()):
-        return {k: float(x) for k, x in v.items()}
-    return None
+    if not all(x is not None and math.isfinite(x) and x > 0 for x in v.values()):
+        return None
+    split = v["k0"] / (v["k0"] + v["k_inf"])
+    if not 1e-3 < split < 1.0 - 1e-4:  # VETICA's Kr fit ran into a bound: no start
+        return None
+    return {k: float(x) for k, x in v.items()}
+
+
+def _gn_gain(res, jac) -> float:
+    """Fraction of the squared residual that one more Gauss-Newton step of the
+    linearised model would remove (at a periodic fit with the window's start state
+    as a free column: what releasing the periodic state could gain)."""
+    step = np.linalg.lstsq(jac, -res, rcond=None)[0]
+    r0 = float(res @ res)
+    return 1.0 - float(np.sum((res + jac @ step) ** 2)) / r0 if r0 > 0 else 0.0
 
 
 def _covariance(res, jac):
@@ -468,38 +491,43 @@ def _covariance(res, jac):
     return np.where(np.isfinite(cov), cov, np.inf)
 
 
-def _identifiability(names, rel, at_bound, theta, t_contact, t_free, h, sigma_kg):
+def _identifiability(names, rel, at_bound, theta, t_contact, t_free, h, sigma_kg, rms):
     """Per fitted parameter: (identifiable, reason).
 
     Not identifiable: relative 1-sigma (Jacobian, start state unknown) above
-    ``REL_LIMIT``, or at a bound of the fit range, or -- for cd -- a fitted
-    dashpot that does not act within the record: it relaxes less than 0.1 %
-    during a contact and creeps less than 0.1 % between taps (cd then has only
-    a lower bound, and the surface shows only its glassy stiffness), or it
-    relaxes within one sample (only an upper bound).
+    ``REL_LIMIT``, or at a bound of the fit range, or when the fitted dashpot
+    does not act within the record: its signature in the force within a tap,
+    ``(k0/Kg) max(relaxation in a contact, creep between taps)`` relative to
+    the peak force, is below ``SIGNATURE`` times the relative RMS residual
+    (cd then has only a lower bound and the surface shows only its glassy
+    stiffness ``Kg = k0 + k_inf``), or it relaxes within one sample (cd has
+    only an upper bound).
     """
     k_inf, k0, cd = theta[:3]
     th = theory(k0, k_inf, cd)
     relax = -math.expm1(-t_contact / th["tau_r"])  # fraction the dashpot relaxes in one contact
     creep = -math.expm1(-t_free / th["tau_c"])  # fraction it creeps between taps
-    frozen = relax < 1e-3 and creep < 1e-3
+    signature = k0 / th["k_g"] * max(relax, creep)
+    frozen = signature < SIGNATURE * rms
     why_frozen = (
-        f"the dashpot hardly moves within a tap (relaxes {100 * relax:.2g} % in contact, "
-        f"creeps {100 * creep:.2g} % between taps)"
+        f"the dashpot hardly moves within a tap (relaxes {100 * relax:.2g} % in contact, creeps "
+        f"{100 * creep:.2g} % between taps; force signature {signature:.2g} of the peak < "
+        f"{SIGNATURE:g} x RMS residual {rms:.2g})"
     )
     out = {}
     for i, name in enumerate(names):
-        extra = ""
-        if frozen and name == "cd":
-            extra = f"; {why_frozen}: cd has only a lower bound"
-        elif frozen and name in ("k0", "k_inf"):
-            extra = f"; {why_frozen}: only k_g = k0 + k_inf is determined (1-sigma {sigma_kg:.2g})"
+        if name == "cd":
+            extra = f"; {why_frozen}: cd has only a lower bound" if frozen else ""
+        elif name in ("k0", "k_inf"):
+            extra = f"; {why_frozen}: only k_g = k0 + k_inf is determined (1-sigma {sigma_kg:.2g})" if frozen else ""
+        else:
+            extra = ""
         if at_bound[i]:
             out[name] = (False, "at the bound of the fit range" + extra)
         elif not math.isfinite(rel[i]) or rel[i] > REL_LIMIT:
             out[name] = (False, f"relative 1-sigma uncertainty {rel[i]:.3g} > {REL_LIMIT:g} (Jacobian)" + extra)
-        elif name == "cd" and frozen:
-            out[name] = (False, why_frozen + ": cd has only a lower bound")
+        elif extra:
+            out[name] = (False, extra[2:])
         elif name == "cd" and th["tau_r"] < h and th["tau_c"] < h:
             out[name] = (False, "the dashpot relaxes within one sample: cd has only an upper bound")
         else:
@@ -526,7 +554,7 @@ def extract_full(
     far_stride: int = 256,
     scan: bool = True,
     fit_offset: bool = True,
-    state: str = "periodic",
+    state: str = "auto",
     substeps: int | None = None,
     **_unused,
 ) -> dict:
@@ -552,6 +580,8 @@ def extract_full(
     meta = meta or {}
     if force not in FORCES:
         raise InputError(f"force {force!r} not allowed; choose one of: {', '.join(FORCES)}")
+    if state not in STATES:
+        raise InputError(f"state {state!r} not allowed; choose one of: {', '.join(STATES)}")
     cols = set(df.columns)
     missing = [c for c in ("t", "z_tip") if c not in cols]
     if missing or not ({"f_ts", "z_paddle"} & cols):
@@ -649,6 +679,14 @@ def extract_full(
             start_values = None
         if start_values is None:
             start_values, start_source = _generic_start(z, f, taps), "generic"
+    # the contact force scales with the stiffnesses: a start whose glassy stiffness is off the
+    # loading slope by more than a decade is rescaled onto it (ratio k0/k_inf kept)
+    slope = _loading_slope(z, f, taps)
+    kg_start = start_values["k0"] + start_values["k_inf"]
+    if not 0.1 <= kg_start / slope <= 10.0:
+        factor = slope / kg_start
+        start_values = {**start_values, "k_inf": start_values["k_inf"] * factor, "k0": start_values["k0"] * factor}
+        start_source += f", stiffnesses rescaled x{factor:.3g} onto the loading slope {slope:.4g} N/m"
     t_start_done = time.perf_counter()
 
     def surface_fit(n):
@@ -663,20 +701,27 @@ def extract_full(
     stages = []
     if cycles >= 2 * SUB_PERIODS:
         sub = surface_fit(int(round(len(z) * SUB_PERIODS / cycles)))
-        stages.append(fit_surface(sub, theta0, fit_hamaker=fit_hamaker, scan=scan, xtol=1e-6, max_nfev=30))
+        stages.append(fit_surface(sub, theta0, fit_hamaker=fit_hamaker, scan=scan, xtol=1e-6, max_nfev=25))
         theta0 = stages[-1]["theta"]
         model._state, model._last = sub._state, sub._last
     s0_start = stages[-1]["s0"] if stages else None
     stages.append(
         fit_surface(model, theta0, fit_hamaker=fit_hamaker, scan=scan and not stages, s0=s0_start,
-                    xtol=1e-8 if stages else 1e-10, max_nfev=15 if stages else 60)  # fmt: skip
+                    xtol=1e-8 if stages else 1e-10, max_nfev=8 if stages else 60)  # fmt: skip
     )
-    if state == "free":  # release the periodic constraint: the dashpot start position is fitted too
+    # the periodic state is an assumption (a record taken before the surface settled breaks it):
+    # 'auto' releases it -- fits the dashpot position at the window start too -- when the
+    # linearised model says that would remove more than half the residual; 'free' always does
+    gain = _gn_gain(stages[-1]["residual"], stages[-1]["jac_free"])
+    info["free_state_gain"] = gain
+    if state == "free" or (state == "auto" and gain > 0.5):
+        # on the whole window: one period holds too little of a slow dashpot's creep
         stages.append(
             fit_surface(model, stages[-1]["theta"], fit_hamaker=fit_hamaker, scan=False, s0=stages[-1]["s0"],
-                        xd0=model._state[0])  # fmt: skip
+                        xd0=stages[-1]["xd0"], xtol=1e-8, max_nfev=FREE_NFEV)  # fmt: skip
         )
     fit = stages[-1]
+    state_used = "free" if "xd0" in fit["names"] else "periodic"
     t_fit = time.perf_counter()
 
     theta = fit["theta"]
@@ -718,7 +763,9 @@ def extract_full(
     contact_s = float(np.median(taps.separation - taps.contact)) * h
     free_s = float(taps.spacing) * h - contact_s
     n_phys = sum(n in PARAMS for n in names)  # s0 and xd0 are nuisance parameters, fitted last
-    ident = _identifiability(names[:n_phys], rel, at_bound, theta, contact_s, free_s, h, uncertainty["k_g"])
+    rms_rel = math.sqrt(float(np.mean(res**2)))
+    unconverged = _gn_gain(res, fit["jac"]) if fit["status"] == 0 else 0.0
+    ident = _identifiability(names[:n_phys], rel, at_bound, theta, contact_s, free_s, h, uncertainty["k_g"], rms_rel)
 
     truth = None
     if all(surface.get(k) is not None for k in ("k0", "k_inf", "cd")):
@@ -742,6 +789,9 @@ def extract_full(
     out["taps"] = n_taps
     out["method"] = "full"
     out["uncertainty"] = uncertainty
+    if unconverged > 0.5:  # stopped by the evaluation budget far from the optimum
+        why = f"the fit stopped before converging (one more Gauss-Newton step would remove {100 * unconverged:.0f} % of the residual)"
+        ident = {k: (False, why + ("; " + v[1] if not v[0] else "")) for k, v in ident.items()}
     out["identifiable"] = {k: bool(v[0]) for k, v in ident.items()}
     out["identifiable_reason"] = {k: v[1] for k, v in ident.items()}
 
@@ -763,12 +813,12 @@ def extract_full(
         if "s0" in names
         else None,
         "uncertainty_periodic_state": uncertainty_model,
-        "state": state,
+        "state": state_used,
         "surface_height_from_z1_m": float(fit["s0_z1"]),
         "surface_height_source": "fit (approach tap + steady window)" if model.fit_offset else "Z1",
-        "xd0_m": float(model._state[0]),
+        "xd0_m": fit["xd0"],
         "xd0_sigma_m": float(math.sqrt(cov[-1, -1]) * OFFSET_UNIT),
-        "periodic_residual_m": float(model.periodic_residual),
+        "periodic_residual_m": fit["periodic_residual"],
         "model_passes": int(model.passes),
         "stages": len(stages),
     }

@@ -1,0 +1,186 @@
+"""Whole-cycle model inversion, ``--method full`` (issue 6).
+
+References: finite differences of the kernel itself (its tangent-linear
+Jacobian), the simulator's own force and dashpot state (the prescribed-
+trajectory surface must reproduce them at the true parameters), the true
+surface parameters of simulated runs (k0, k_inf, cd from the metadata; the
+issue's done-when: the worked example within 1 %), and VETICA's errors on the
+same run (thesis 3.3).
+"""
+
+import math
+
+import numpy as np
+import pytest
+
+from vetica_cli.config import load
+from vetica_cli.core.prescribed import NDIR, surface_force
+from vetica_cli.errors import InputError
+from vetica_cli.extract import extract
+from vetica_cli.fullfit import SurfaceFit, _segment, extract_full
+from vetica_cli.simulate import simulate
+from vetica_cli.vetica import first_contact_minimum
+
+K0, KINF, CD = 128.0, 4.0, 3e-5  # worked example (thesis tables 2-4)
+HR6 = 0.2e-18 * 10e-9 / 6  # H R / 6 [J m]
+A0 = 0.2e-9
+
+
+def _taps(n=8000, h=0.1e-9, mean=2e-9, amp=3e-9, period=200e-9):
+    """Synthetic tip trajectory tapping the surface: z = mean + amp cos(2 pi t/period)."""
+    t = np.arange(n) * h
+    return np.ascontiguousarray(mean + amp * np.cos(2 * np.pi * t / period)), h
+
+
+def _run(z, h, theta, s0=0.0, xd0=-1e-10, ndir=0, substeps=1, block=16, coarse=False, far_gap=5e-9):
+    n = len(z)
+    want = np.ones(n, np.uint8) if not coarse else ((np.arange(n) + 1) % block == 0).astype(np.uint8)
+    ok = np.full(n // block, 1 if coarse else 0, np.uint8)
+    out_f = np.empty(int(want.sum()))
+    out_j = np.empty((len(out_f), NDIR))
+    res = surface_force(z, s0, *theta, A0, True, h, block, ok, want, far_gap, substeps, 1e-9,
+                        xd0, False, ndir, out_f, out_j)  # fmt: skip
+    return out_f, out_j, res
+
+
+@pytest.mark.parametrize("substeps", [1, 5])
+def test_tangent_linear_kernel_matches_finite_differences(substeps):
+    """dFts/d(Xd0, s0, ln k_inf, ln k0, ln cd, ln HR/6) against central differences
+    of the kernel itself; rtol 1e-5 on the column norm (contact schedule fixed)."""
+    z, h = _taps()
+    theta = np.array([KINF, K0, CD, HR6])
+    f, jac, _ = _run(z, h, theta, ndir=NDIR, substeps=substeps)
+    assert np.max(f) > 1e-8 and np.min(f) < -5e-9  # the trajectory taps the surface
+    steps = (1e-15, 1e-15, 1e-6, 1e-6, 1e-6, 1e-6)
+    for j, eps in enumerate(steps):
+        def g(sign):
+            th, s0, xd0 = theta.copy(), 0.0, -1e-10
+            if j == 0:
+                xd0 += sign * eps
+            elif j == 1:
+                s0 += sign * eps
+            else:
+                th[j - 2] *= math.exp(sign * eps)
+            return _run(z, h, th, s0=s0, xd0=xd0, substeps=substeps)[0]
+
+        fd = (g(1) - g(-1)) / (2 * eps)
+        assert np.linalg.norm(fd - jac[:, j]) <= 1e-5 * np.linalg.norm(jac[:, j]), j
+
+
+def test_far_field_coarse_steps_do_not_change_the_force():
+    """Blocks of 16 samples advanced in one exact step where the gap exceeds 5 nm give
+    the force of the sample-by-sample update to 1e-6 of the peak force."""
+    z, h = _taps(n=32000, mean=20e-9, amp=22e-9, period=800e-9)
+    theta = (KINF, K0, CD, HR6)
+    fine, _, res_fine = _run(z, h, theta, coarse=False)
+    coarse, _, res_coarse = _run(z, h, theta, coarse=True)
+    assert res_coarse[7] > 1000 and res_fine[7] == 0  # coarse steps were taken
+    want = (np.arange(len(z)) + 1) % 16 == 0
+    np.testing.assert_allclose(coarse, fine[want], rtol=0, atol=1e-6 * np.max(fine))
+
+
+# ----------------------------------------------------------------------------- worked example
+
+
+@pytest.fixture(scope="module")
+def worked():
+    """The worked example at the defaults (PS 0.125 ns, 10 recorded periods): one simulate call."""
+    run = simulate(load(None))
+    return run.frame(), run.metadata()
+
+
+def test_prescribed_surface_reproduces_the_simulator_at_the_true_parameters(worked):
+    """Driven by the simulator's own z_tip with the true k_inf, k0, cd and s0 = 0, the
+    periodic model gives f_ts to 2e-4 of the peak force (RMS; measured 8.9e-5: in contact
+    the model updates the dashpot once per 0.125 ns sample, the simulator every 0.025 ns,
+    so its relaxation leads by (h - dt)/2, ~4 pN) and the dashpot position at the window
+    start to 1e-4 (simulator: x_dashpot of the last sample, one period on)."""
+    df, meta = worked
+    st, ap = _segment(df, "steady"), _segment(df, "approach")
+    t, z, f = st["t"].to_numpy(), st["z_tip"].to_numpy(), st["f_ts"].to_numpy()
+    i1 = first_contact_minimum(ap["f_ts"].to_numpy())
+    h = (t[-1] - t[0]) / (len(t) - 1)
+    model = SurfaceFit(z, f, h, ap["z_tip"].to_numpy()[i1], (ap["z_tip"].to_numpy(), ap["f_ts"].to_numpy(), i1),
+                       A0, 10e-9, True, near_stride=1, substeps=5)  # fmt: skip
+    fm, _ = model.evaluate(np.array([KINF, K0, CD, HR6]), 0.0, ndir=0)
+    rms = np.sqrt(np.mean((fm - model.f) ** 2)) / np.max(f)
+    assert rms < 2e-4
+    assert model._state[0] == pytest.approx(st["x_dashpot"].to_numpy()[-1], rel=1e-4)
+
+
+@pytest.mark.parametrize("force", ["true", "reconstructed"])
+def test_full_method_recovers_the_worked_example_within_1_percent(worked, force):
+    """Issue 6 done-when: k0, k_inf, cd within 1 % of the run's truth (measured: 0.02 %),
+    every parameter identifiable, the same keys as VETICA's extract()."""
+    df, meta = worked
+    res = extract_full(df, meta, force=force)
+    for name in ("k0", "k_inf", "cd", "tau_c", "k_g"):
+        assert res[name]["error_pct"] < 1.0, name
+    assert res["identifiable"] == {"k_inf": True, "k0": True, "cd": True}
+    assert all(0 < res["uncertainty"][k] < 0.01 for k in ("k0", "k_inf", "cd"))
+    ref = extract(df, meta, force=force)
+    assert set(ref) - {"info"} <= set(res) - {"info"}
+    assert res["method"] == "full" and res["force"] == force and res["taps"] == ref["taps"]
+
+
+@pytest.mark.parametrize(
+    "start", [{"k_inf": 0.04, "k0": 1.28, "cd": 3e-8}, {"k_inf": 400.0, "k0": 12800.0, "cd": 3e-2}]
+)
+def test_converges_from_starts_decades_away(worked, start):
+    """Starting stiffnesses 100x off and cd 1000x off (both ways): still within 1 %."""
+    df, meta = worked
+    res = extract_full(df, meta, force="true", start=start)
+    for name in ("k0", "k_inf", "cd"):
+        assert res[name]["error_pct"] < 1.0, name
+
+
+def test_offset_of_the_tip_coordinate_only_moves_the_surface_height(worked):
+    """Adding 3 nm to z_tip (an instrument's unknown offset) changes neither k0, k_inf nor
+    cd (rtol 1e-4); the fitted surface height moves by the 3 nm (to 1 pm)."""
+    df, meta = worked
+    shifted = df.copy()
+    shifted["z_tip"] = shifted["z_tip"] + 3e-9
+    a = extract_full(df, meta, force="true")
+    b = extract_full(shifted, meta, force="true")
+    for name in ("k0", "k_inf", "cd"):
+        assert b[name]["value"] == pytest.approx(a[name]["value"], rel=1e-4), name
+    ha, hb = a["info"]["fit"]["surface_height_m"], b["info"]["fit"]["surface_height_m"]
+    assert hb - ha == pytest.approx(3e-9, abs=1e-12)
+
+
+@pytest.mark.parametrize("kw, fragment", [({"force": "model"}, "force"), ({"state": "steady"}, "state")])
+def test_bad_options_raise_one_line_input_errors(worked, kw, fragment):
+    df, meta = worked
+    with pytest.raises(InputError, match=fragment):
+        extract_full(df.iloc[:10], meta, **kw)
+
+
+# ----------------------------------------------------------------------------- beyond VETICA
+
+
+@pytest.mark.slow
+def test_recovers_cd_1e2_ratio_16_where_vetica_fails():
+    """cd = 1e-2 kg/s, k0:k_inf = 16:1 (outside VETICA's acceptance regime, thesis fig. 52):
+    VETICA's k_inf and cd errors exceed 30 %; the full method is within 1 % on the true and
+    the reconstructed force (measured: <= 0.03 %)."""
+    run = simulate(load(None, {"surface.k0": 64.0, "surface.cd": 1e-2}))
+    df, meta = run.frame(), run.metadata()
+    ref = extract(df, meta, force="true")
+    assert ref["k_inf"]["error_pct"] > 30 and ref["cd"]["error_pct"] > 30
+    for force in ("true", "reconstructed"):
+        res = extract_full(df, meta, force=force)
+        for name in ("k0", "k_inf", "cd"):
+            assert res[name]["error_pct"] < 1.0, (force, name)
+            assert res["identifiable"][name], (force, name)
+
+
+@pytest.mark.slow
+def test_frozen_dashpot_is_flagged_not_identifiable():
+    """cd = 1e2 kg/s (tau_c ~ 27 s): nothing relaxes or creeps within a tap.  The fit must
+    say so -- cd, k0 and k_inf not identifiable -- while Kg = k0 + k_inf, the only
+    stiffness such a surface shows, is recovered within 1 %."""
+    run = simulate(load(None, {"surface.k0": 64.0, "surface.cd": 100.0, "numerics.max_time": 0.004}))
+    res = extract_full(run.frame(), run.metadata(), force="true")
+    assert res["identifiable"] == {"k_inf": False, "k0": False, "cd": False}
+    assert res["k_g"]["error_pct"] < 1.0
+    assert res["uncertainty"]["k_g"] < 0.01
