@@ -53,7 +53,8 @@ def test_tangent_linear_kernel_matches_finite_differences(substeps):
     assert np.max(f) > 1e-8 and np.min(f) < -5e-9  # the trajectory taps the surface
     steps = (1e-15, 1e-15, 1e-6, 1e-6, 1e-6, 1e-6)
     for j, eps in enumerate(steps):
-        def g(sign):
+
+        def g(sign, j=j, eps=eps):
             th, s0, xd0 = theta.copy(), 0.0, -1e-10
             if j == 0:
                 xd0 += sign * eps
@@ -95,7 +96,7 @@ def test_prescribed_surface_reproduces_the_simulator_at_the_true_parameters(work
     the model updates the dashpot once per 0.125 ns sample, the simulator every 0.025 ns,
     so its relaxation leads by (h - dt)/2, ~4 pN) and the dashpot position at the window
     start to 1e-4 (simulator: x_dashpot of the last sample, one period on)."""
-    df, meta = worked
+    df, _ = worked
     st, ap = _segment(df, "steady"), _segment(df, "approach")
     t, z, f = st["t"].to_numpy(), st["z_tip"].to_numpy(), st["f_ts"].to_numpy()
     i1 = first_contact_minimum(ap["f_ts"].to_numpy())
@@ -159,7 +160,7 @@ def test_bad_options_raise_one_line_input_errors(worked, kw, fragment):
 
 
 @pytest.mark.slow
-def test_recovers_cd_1e2_ratio_16_where_vetica_fails():
+def test_recovers_cd_0p01_ratio_16_where_vetica_fails():
     """cd = 1e-2 kg/s, k0:k_inf = 16:1 (outside VETICA's acceptance regime, thesis fig. 52):
     VETICA's k_inf and cd errors exceed 30 %; the full method is within 1 % on the true and
     the reconstructed force (measured: <= 0.03 %)."""

@@ -64,8 +64,7 @@ import time
 import numpy as np
 from scipy.optimize import least_squares
 
-from .core.prescribed import NDIR, coefficient_tangents, surface_force
-from .core.prescribed import C_FASEP, C_INVKG, C_K0
+from .core.prescribed import C_FASEP, C_INVKG, C_K0, NDIR, coefficient_tangents, surface_force
 from .errors import InputError
 from .extract import FORCES, _check_time, _column, _finite_or_none
 from .spectral import reconstruct_force, reconstruction_error
@@ -367,7 +366,11 @@ def fit_surface(
             cache.clear()
             theta, s0x, xd0x = unpack(x)
             f, jac = model.evaluate(theta, s0x, ndir=NDIR if fit_hamaker else NDIR - 1, xd0=xd0x)
-            cache[key] = ((f - model.f) / model.scale, jac[:, cols] * scale / model.scale, jac[:, 5] * OFFSET_UNIT / model.scale)
+            cache[key] = (
+                (f - model.f) / model.scale,
+                jac[:, cols] * scale / model.scale,
+                jac[:, 5] * OFFSET_UNIT / model.scale,
+            )
         return cache[key]
 
     scanned = []
@@ -617,7 +620,7 @@ def extract_full(
     hr6 = hamaker * radius / 6.0
     if substeps is None:  # the simulator's surface step: dt of the metadata, else one update per sample
         dt_sim = (params.get("numerics") or {}).get("dt")
-        substeps = max(1, int(round(h / dt_sim))) if dt_sim else 1
+        substeps = max(1, round(h / dt_sim)) if dt_sim else 1
     info: dict = {}
     warnings: list = []
 
@@ -697,17 +700,24 @@ def extract_full(
     model = surface_fit(len(z))
     # coarse to fine: scan and fit on the first SUB_PERIODS drive periods (the periodic state of
     # a whole number of periods is the window's), then refine on the whole window
-    cycles = int(round(len(z) / taps.spacing)) if taps.spacing > 0 else 0
+    cycles = round(len(z) / taps.spacing) if taps.spacing > 0 else 0
     stages = []
     if cycles >= 2 * SUB_PERIODS:
-        sub = surface_fit(int(round(len(z) * SUB_PERIODS / cycles)))
+        sub = surface_fit(round(len(z) * SUB_PERIODS / cycles))
         stages.append(fit_surface(sub, theta0, fit_hamaker=fit_hamaker, scan=scan, xtol=1e-6, max_nfev=25))
         theta0 = stages[-1]["theta"]
         model._state, model._last = sub._state, sub._last
     s0_start = stages[-1]["s0"] if stages else None
     stages.append(
-        fit_surface(model, theta0, fit_hamaker=fit_hamaker, scan=scan and not stages, s0=s0_start,
-                    xtol=1e-8 if stages else 1e-10, max_nfev=8 if stages else 60)  # fmt: skip
+        fit_surface(
+            model,
+            theta0,
+            fit_hamaker=fit_hamaker,
+            scan=scan and not stages,
+            s0=s0_start,
+            xtol=1e-8 if stages else 1e-10,
+            max_nfev=8 if stages else 60,
+        )
     )
     # the periodic state is an assumption (a record taken before the surface settled breaks it):
     # 'auto' releases it -- fits the dashpot position at the window start too -- when the
@@ -717,8 +727,16 @@ def extract_full(
     if state == "free" or (state == "auto" and gain > 0.5):
         # on the whole window: one period holds too little of a slow dashpot's creep
         stages.append(
-            fit_surface(model, stages[-1]["theta"], fit_hamaker=fit_hamaker, scan=False, s0=stages[-1]["s0"],
-                        xd0=stages[-1]["xd0"], xtol=1e-8, max_nfev=FREE_NFEV)  # fmt: skip
+            fit_surface(
+                model,
+                stages[-1]["theta"],
+                fit_hamaker=fit_hamaker,
+                scan=False,
+                s0=stages[-1]["s0"],
+                xd0=stages[-1]["xd0"],
+                xtol=1e-8,
+                max_nfev=FREE_NFEV,
+            )
         )
     fit = stages[-1]
     state_used = "free" if "xd0" in fit["names"] else "periodic"

@@ -40,7 +40,7 @@ import math
 import numpy as np
 from numba import njit
 
-from .sls import contact_update, noncontact_update, released_position, sls_coefficients, vdw_force
+from .sls import contact_update, noncontact_update, released_position, sls_coefficients
 
 DIRECTIONS = ("xd0", "s0", "ln_k_inf", "ln_k0", "ln_cd", "ln_hr6")
 NDIR = len(DIRECTIONS)
@@ -151,9 +151,9 @@ def _contact(xc, xd, c, dc, ndir, dxd, dx, dfa, ds0):
         k0, fa_sep, inv_kg = c[C_K0], c[C_FASEP], c[C_INVKG]
         x = released_position(xd_new, fa_sep, k0, inv_kg)
         for j in range(ndir):
-            dx[j] = (dc[C_K0, j] * xd_new + k0 * dxd[j] + dc[C_FASEP, j]) * inv_kg + (
-                k0 * xd_new + fa_sep
-            ) * dc[C_INVKG, j]
+            dx[j] = (dc[C_K0, j] * xd_new + k0 * dxd[j] + dc[C_FASEP, j]) * inv_kg + (k0 * xd_new + fa_sep) * dc[
+                C_INVKG, j
+            ]
             dfa[j] = dc[C_FA0, j]
         return -c[C_FA0], f_sls, x, xd_new, True
     return -f_sls - c[C_FAC], f_sls, xc, xd_new, False
