@@ -14,46 +14,68 @@ measured one::
 
 Choices (see the module functions for details):
 
-* **Surface height.**  The record's tip coordinate has an unknown offset, so
-  the undeformed surface is placed with ``Z1``, the tip position at the
-  first force minimum of the approach (thesis eq. 84): at that instant the
-  gap is ``a0`` and the surface is pulled up to
-  ``X1 = (k0 Xd1 + Fa(a0))/Kg`` (``vdw_on_surface``; ``X1 = k0 Xd1/Kg``
-  without the surface pull), so ``s0 = Z1 - a0 - X1``.  ``Xd1``, the creep
-  of the dashpot under the attraction during the approach, comes from
-  running the same surface model over the recorded approach up to ``Z1``
-  (surface undeformed at the start of the approach record; ~15 pm on the
-  worked example).  ``s0`` then depends on the parameters; the fit
-  differentiates through it.
-* **State at the window start: periodic.**  The steady window spans whole
-  drive periods with the base fixed, so the surface state at its start
-  equals the state at its end.  The dashpot position ``Xd0`` at the start is
-  solved for with Newton's method on ``Xd_end(Xd0) = Xd0`` (the derivative
-  ``dXd_end/dXd0`` comes from the tangent-linear kernel; the map is affine
-  for a fixed contact schedule, so it converges in one or two passes even
-  when nothing relaxes within the window, where iterating the window would
-  need ~tau/window repetitions).  The periodicity residual after the fit is
-  reported.  Its limit: a record taken before the surface has settled (a
-  dashpot that has not reached its periodic state in the run's time, e.g.
-  tau_c of seconds in a 30 ms run) is not periodic; the fit then cannot
-  match it, which shows as a large residual and a warning.
-* **Decimation.**  The forward model runs over every sample of the record
-  (one surface update per print step); far from the surface (gap > 5 nm,
-  attraction < 0.2 % of Fa(a0)) it advances in exact steps of ``block``
-  samples.  Residuals are taken at every ``near_stride``-th sample where the
-  measured tip is within ``near_gap`` of Z1 (contact and the van der Waals
-  range) and at every ``far_stride``-th sample elsewhere.
-* **Start.**  VETICA's answer on the first taps of the record when it has
-  one, else a generic start (glassy stiffness from the contact slope); then
-  a short scan of ``cd`` over ten decades at those stiffnesses picks the
-  starting ``cd``, so the fit converges from starting guesses decades away.
+* **Forward model** (:mod:`.core.prescribed`): the simulator's own surface
+  updates (:mod:`.core.sls`), once per sample of the record, with their
+  exact tangent-linear derivatives (the Jacobian of the fit comes out of the
+  same pass).  Where the simulator's lagged gap -> attraction -> surface
+  feedback matters (out of contact within ~1 nm, and across a separation)
+  the sample interval is split into the simulator's own steps
+  (``substeps = print_step/dt`` from the metadata, else 1), the tip
+  interpolated linearly: without this the snap-off transients differ by up
+  to 2.6 % of the peak force over a few samples and bias cd by ~6 % at
+  cd = 1e-2 kg/s.  Elsewhere in contact the dashpot is updated once per
+  sample, so its relaxation leads the simulator's by ``(h - dt)/2`` (a
+  ~4 pN offset on the worked example, 5e-5 of the peak force).
+* **Surface height** ``s0`` (the undeformed surface in the record's tip
+  coordinate, which for an instrument has an unknown offset).  Start value
+  from ``Z1``, the tip position at the first force minimum of the approach
+  (thesis eq. 84): there the gap is ``a0`` and the surface is pulled up to
+  ``X1 = (k0 Xd1 + Fa(a0))/Kg`` (``vdw_on_surface``; ``k0 Xd1/Kg`` without
+  the pull), so ``s0 = Z1 - a0 - X1``, with ``Xd1`` (the dashpot's creep
+  under the attraction during the approach, ~15 pm on the worked example)
+  from the same model run over the approach record (surface undeformed at
+  its start).  ``Z1`` is only known to within the tip's travel in one
+  sample (the minimum is the last sample out of contact or the first in
+  it): 2.8 pm at cd = 1e-2, which alone gives a 0.1 % RMS force misfit.
+  So, when the record has its approach segment, ``s0`` is fitted too, with
+  the approach samples (the first tap, on an undeformed surface) added to
+  the residuals; without one it stays at the ``Z1`` value.
+* **State at the window start.**  The steady window spans whole drive
+  periods with the base fixed, so the surface state at its start equals the
+  state at its end.  The dashpot position ``Xd0`` there is solved for with
+  Newton's method on ``Xd_end(Xd0) = Xd0`` (``dXd_end/dXd0`` from the
+  tangent-linear kernel; the map is affine for a fixed contact schedule, so
+  one or two passes do even when nothing relaxes within the window, where
+  iterating the window would need ~tau/window repetitions); the periodicity
+  residual is reported.  A record taken before the surface settled (tau_c
+  comparable to the run's 3-30 ms) is not periodic: ``state='auto'`` (the
+  default) then frees ``Xd0`` as one more fit parameter when a linearised
+  step says that removes more than half the residual; ``'periodic'`` and
+  ``'free'`` force either.
+* **Decimation.**  The forward model runs over every sample; far from the
+  surface (gap > 5 nm, attraction < 0.2 % of Fa(a0)) it advances in exact
+  steps of ``block`` samples.  Residuals are taken at every
+  ``near_stride``-th sample (4) where the measured tip is within 5 nm of Z1
+  (contact and the van der Waals range) and every ``far_stride``-th (256)
+  elsewhere: ~66 000 residuals for 1.6e6 samples.  Coarse to fine: the
+  start scan and a first fit use the first drive period only (its periodic
+  state is the window's), then the whole window refines it.
+* **Start.**  VETICA's answer on the first 3 taps when it has a plausible
+  one, else ``k0 = 0.9 Kg``, ``k_inf = 0.1 Kg`` from the loading slope; a
+  start whose Kg is more than a decade off that slope is rescaled onto it.
+  Then a scan of cd over 1e-10 .. 1e2 kg/s (every two decades) with one
+  Gauss-Newton step on the other parameters at each cd picks the start.
 * **Uncertainty.**  ``cov = s^2 (J^T J)^-1`` with ``s^2`` the residual
-  variance (J in log-parameters: the square roots of its diagonal are
-  relative 1-sigma uncertainties).  A parameter is flagged not identifiable
-  when that exceeds 100 %, when it sits at a bound, or when the fitted
-  dashpot does not act within the record (nothing creeps or relaxes during
-  a tap: cd has only a lower bound; or it relaxes within one sample: only
-  an upper bound).
+  variance, J in log-parameters (square roots of the diagonal = relative
+  1-sigma), with ``Xd0`` counted as unknown (conservative: it does not lean
+  on the periodic state; the periodic-state values are in ``info``).  For
+  noise-free simulations ``s`` is model mismatch, and the actual errors are
+  ~10x the 1-sigma values.  A parameter is flagged not identifiable when
+  its 1-sigma exceeds 100 %, when it sits at a bound, when the fit stopped
+  far from converged, or when the fitted dashpot does not act within the
+  record (its force signature within a tap is below 10x the RMS residual:
+  cd has only a lower bound and only Kg = k0 + k_inf is determined; or it
+  relaxes within one sample: cd has only an upper bound).
 """
 
 from __future__ import annotations
@@ -806,7 +828,7 @@ def extract_full(
     out["force"] = force
     out["taps"] = n_taps
     out["method"] = "full"
-    out["uncertainty"] = uncertainty
+    out["uncertainty"] = {k: _finite_or_none(v) for k, v in uncertainty.items()}  # None = unbounded
     if unconverged > 0.5:  # stopped by the evaluation budget far from the optimum
         why = f"the fit stopped before converging (one more Gauss-Newton step would remove {100 * unconverged:.0f} % of the residual)"
         ident = {k: (False, why + ("; " + v[1] if not v[0] else "")) for k, v in ident.items()}
@@ -827,15 +849,15 @@ def extract_full(
         "decimation": {"near_stride": near_stride, "far_stride": far_stride, "block": model.block},
         "substeps": model.substeps,
         "surface_height_m": float(fit["s0"]),
-        "surface_height_sigma_m": float(math.sqrt(cov[names.index("s0")][names.index("s0")]) * OFFSET_UNIT)
+        "surface_height_sigma_m": _finite_or_none(math.sqrt(cov[names.index("s0"), names.index("s0")]) * OFFSET_UNIT)
         if "s0" in names
         else None,
-        "uncertainty_periodic_state": uncertainty_model,
+        "uncertainty_periodic_state": {k: _finite_or_none(v) for k, v in uncertainty_model.items()},
         "state": state_used,
         "surface_height_from_z1_m": float(fit["s0_z1"]),
         "surface_height_source": "fit (approach tap + steady window)" if model.fit_offset else "Z1",
         "xd0_m": fit["xd0"],
-        "xd0_sigma_m": float(math.sqrt(cov[-1, -1]) * OFFSET_UNIT),
+        "xd0_sigma_m": _finite_or_none(math.sqrt(cov[-1, -1]) * OFFSET_UNIT),
         "periodic_residual_m": fit["periodic_residual"],
         "model_passes": int(model.passes),
         "stages": len(stages),
