@@ -69,8 +69,10 @@ Choices (see the module functions for details):
   variance, J in log-parameters (square roots of the diagonal = relative
   1-sigma), with ``Xd0`` counted as unknown (conservative: it does not lean
   on the periodic state; the periodic-state values are in ``info``).  For
-  noise-free simulations ``s`` is model mismatch, and the actual errors are
-  ~10x the 1-sigma values.  A parameter is flagged not identifiable when
+  noise-free simulations ``s`` is systematic model mismatch, and the actual
+  errors exceed the 1-sigma values by ~10x (cd = 1e-2 kg/s; 1 pm position
+  noise) up to ~5000x (worked example: 1-sigma 4e-8, error 2e-4 from the
+  contact-step lead above).  A parameter is flagged not identifiable when
   its 1-sigma exceeds 100 %, when it sits at a bound, when the fit stopped
   far from converged, or when the fitted dashpot does not act within the
   record (its force signature within a tap is below 10x the RMS residual:
