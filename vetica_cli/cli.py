@@ -190,6 +190,9 @@ def extract(
     kg_points: int = typer.Option(
         10, "--kg-points", help="Samples after the contact minimum in the Kg fit (thesis: 10)."
     ),
+    method: str = typer.Option(
+        "vetica", "--method", help="vetica (thesis 3.3) or full (whole-cycle SLS model inversion)."
+    ),
     json_out: bool = typer.Option(False, "--json", help="Print one JSON object instead of the table."),
     k2: Optional[float] = typer.Option(None, "--k2", help="Paddle stiffness, N/m (data without metadata)."),
     f2: Optional[float] = typer.Option(None, "--f2", help="Paddle resonance, Hz (data without metadata)."),
@@ -204,7 +207,8 @@ def extract(
         None, "--cutoff", help="Low-pass cut-off of the force reconstruction, Hz; default: Nyquist, 1/(2 print step)."
     ),
 ):
-    """Extract k0, k_inf, cd (and tau_c, Kg, Kr, tau_r) from a run with VETICA.
+    """Extract k0, k_inf, cd (and tau_c, Kg, Kr, tau_r) from a run with VETICA
+    (or, with --method full, by fitting the SLS surface model to every sample).
 
     Prints value, theory and error % (theory known only when the file's
     metadata holds the surface parameters), the spread over taps, the
@@ -218,7 +222,7 @@ def extract(
     from .io import read_table
 
     df, meta = read_table(run)
-    res = _extract(df, meta, force=force, kg_points=kg_points,
+    res = _extract(df, meta, force=force, kg_points=kg_points, method=method,
                    k2=k2, f2=f2, q2=q2, z1=z1, f1=f1, cutoff_hz=cutoff)  # fmt: skip
     if json_out:
         typer.echo(json.dumps(res, allow_nan=False))

@@ -21,7 +21,7 @@ from .spectral import reconstruct_force, reconstruction_error
 from .vetica import NAMES, first_contact_minimum, theory, vetica
 
 FORCES = ("auto", "true", "reconstructed")
-METHODS = ("vetica",)
+METHODS = ("vetica", "full")
 
 
 def _finite_or_none(v):
@@ -34,7 +34,9 @@ def _finite_or_none(v):
 def _segment(df, name):
     if "segment" not in df.columns:
         return None
-    sel = df[df["segment"].astype(str) == name]
+    seg = df["segment"]
+    # compare the categorical's codes, not a 1e6-row string copy of the column
+    sel = df[(seg == name).to_numpy()] if not hasattr(seg, "cat") or name in seg.cat.categories else df.iloc[:0]
     return sel if len(sel) else None
 
 
@@ -75,7 +77,8 @@ def extract(
     is present.  ``Z1`` comes from ``z1`` if given, else from the first force
     minimum of the 'approach' segment (with the chosen force), else from the
     metadata.  ``f1`` (drive frequency, Hz) only labels the cut-off in drive
-    harmonics.  ``method``: only 'vetica' (thesis 3.3) for now.
+    harmonics.  ``method``: 'vetica' (thesis 3.3) or 'full' (whole-cycle SLS
+    model inversion, :func:`vetica_cli.fullfit.extract_full`, issue 6).
 
     Returns ``{name: {"value", "theory", "error_pct", "spread"}, ...,
     "force", "taps", "method", "info"}``; theory and error_pct are None when
@@ -90,6 +93,11 @@ def extract(
         raise InputError(f"method {method!r} not available; choose one of: {', '.join(METHODS)}")
     if isinstance(kg_points, bool) or not isinstance(kg_points, (int, np.integer)) or kg_points < 2:
         raise InputError(f"kg_points {kg_points!r} not allowed; expected an integer >= 2")
+    if method == "full":  # whole-cycle model inversion (issue 6); fullfit imports this module
+        from .fullfit import extract_full
+
+        return extract_full(df, meta, force=force, kg_points=kg_points, k2=k2, f2=f2, q2=q2, z1=z1, f1=f1,
+                            cutoff_hz=cutoff_hz, taper=taper)  # fmt: skip
     cols = set(df.columns)
     missing = [c for c in ("t", "z_tip") if c not in cols]
     if missing or not ({"f_ts", "z_paddle"} & cols):
@@ -202,14 +210,16 @@ def format_table(res: dict, source=None) -> str:
     """Plain-text table of an :func:`extract` result (value, theory, error %,
     spread over taps) plus the reconstruction error, Z1 and timing."""
     info = res.get("info", {})
-    head = f"VETICA on {source}" if source is not None else "VETICA"
+    name = "whole-cycle fit" if res.get("method") == "full" else "VETICA"
+    head = f"{name} on {source}" if source is not None else name
     z1 = info.get("z1")
     lines = [
         (
             f"{head}: force {res['force']}, {res['taps']} taps, "
             f"Z1 = {_num(z1 * 1e9 if z1 is not None else None, '.4f')} nm ({info.get('z1_source', '?')})"
         ),
-        f"{'quantity':<14}{'value':>13}{'theory':>13}{'error %':>10}   spread over taps (std; min .. max)",
+        f"{'quantity':<14}{'value':>13}{'theory':>13}{'error %':>10}   "
+        + ("fit uncertainty" if res.get("method") == "full" else "spread over taps (std; min .. max)"),
     ]
     for key, label, unit in ROWS:
         e = res[key]
@@ -219,6 +229,12 @@ def format_table(res: dict, source=None) -> str:
             if sp.get("n")
             else "-"
         )
+        if res.get("method") == "full":  # one fit over the record: 1-sigma and identifiability instead
+            u = (res.get("uncertainty") or {}).get(key)
+            ok = (res.get("identifiable") or {}).get(key)
+            spread = f"1-sigma {_num(u * 100 if u is not None else None, '.2g')} %" + (
+                "" if ok is None else ("" if ok else "  NOT IDENTIFIABLE")
+            )
         lines.append(
             f"{label + ' [' + unit + ']':<14}{_num(e['value']):>13}{_num(e['theory']):>13}"
             f"{_num(e['error_pct'], '.2f'):>10}   {spread}"
@@ -235,7 +251,14 @@ def format_table(res: dict, source=None) -> str:
             f"peak {r['peak_pct']:+.2g}"
         )
     tm = info.get("timing_s", {})
-    if tm:
+    if res.get("method") == "full":
+        ident = res.get("identifiable") or {}
+        for k, why in (res.get("identifiable_reason") or {}).items():
+            if why and not ident.get(k, True):
+                lines.append(f"{k} not identifiable: {why}")
+        if tm:
+            lines.append("time: " + ", ".join(f"{k} {v:.2f} s" for k, v in tm.items() if isinstance(v, (int, float))))
+    elif tm:
         lines.append(
             f"time: reconstruction {tm.get('reconstruction', 0):.2f} s, stage 1 {tm.get('stage1', 0):.3f} s, "
             f"stage 2 {tm.get('stage2', 0):.3f} s ({tm.get('stage2_per_tap', 0) * 1e3:.0f} ms per tap)"

@@ -35,7 +35,6 @@ from . import __version__
 from .config import Config
 from .core import thc
 
-EV = 1.602176634e-19  # J per eV
 
 UNITS = {
     "t": "s",
