@@ -84,7 +84,7 @@ class Numerics:
     warm_start: bool = True  # start oscillating at A_sp just above the surface
     approach_gap: float = 0.5e-9  # initial clearance of the lowest tip point [m]
     approach_rate: float = 0.0  # base descent before the first contact [m/s]
-    approach_cycles: float = 1.0  # length of the recorded first-approach window [periods]
+    approach_cycles: float = 2.0  # length of the recorded first-approach window [periods]
     position_noise: float = 0.0  # RMS detector noise on z_cantilever, z_paddle (and so z_tip) [m]
     force_noise: float = 0.0  # RMS noise on the recorded f_ts [N]
     noise_seed: int = 0  # seed of the noise generator (same seed -> same noise)

@@ -11,6 +11,7 @@ from __future__ import annotations
 import json
 import os
 import tempfile
+from contextlib import contextmanager
 from pathlib import Path
 
 import pandas as pd
@@ -29,22 +30,38 @@ def _json_default(o):
         return str(o)
 
 
-def write_table(df: pd.DataFrame, path: str | Path, meta: dict) -> Path:
-    """Write ``df`` to ``path`` atomically with ``meta`` as JSON metadata."""
+def _umask() -> int:
+    mask = os.umask(0)
+    os.umask(mask)
+    return mask
+
+
+@contextmanager
+def atomic_path(path: str | Path):
+    """Yield a temporary path next to ``path``; when the block succeeds it is
+    renamed over ``path`` (atomic on one file system) with normal permissions,
+    when it fails it is removed.  A reader never sees half a file."""
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
-    table = pa.Table.from_pandas(df, preserve_index=False)
-    md = dict(table.schema.metadata or {})
-    md[META_KEY] = json.dumps(meta, default=_json_default, allow_nan=False).encode()
-    table = table.replace_schema_metadata(md)
     fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
     os.close(fd)
     try:
-        pq.write_table(table, tmp)
+        yield Path(tmp)
+        os.chmod(tmp, 0o666 & ~_umask())  # mkstemp makes 0600
         os.replace(tmp, path)
     except BaseException:
         Path(tmp).unlink(missing_ok=True)
         raise
+
+
+def write_table(df: pd.DataFrame, path: str | Path, meta: dict) -> Path:
+    """Write ``df`` to ``path`` atomically with ``meta`` as JSON metadata."""
+    table = pa.Table.from_pandas(df, preserve_index=False)
+    md = dict(table.schema.metadata or {})
+    md[META_KEY] = json.dumps(meta, default=_json_default, allow_nan=False).encode()
+    table = table.replace_schema_metadata(md)
+    with atomic_path(path) as tmp:
+        pq.write_table(table, tmp)
     return path
 
 

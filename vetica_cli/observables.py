@@ -30,22 +30,19 @@ OBSERVABLE_UNITS = {
 
 
 def first_force_minimum(t: np.ndarray, z_tip: np.ndarray, f_ts: np.ndarray) -> tuple[float, float, int]:
-    """Tip position and time at the first force minimum of an approach record.
-
-    The minimum of ``f_ts`` over the samples before the first repulsive
-    (``f_ts >= 0``) sample: the attractive well at the first contact
-    (thesis 3.3.1, eq. 84).  Returns ``(z1, t1, index)``; nan, -1 if no
-    repulsive sample is found.
+    """Tip position and time at the first force minimum of an approach record:
+    the first adhesion well, as VETICA finds it (:func:`vetica_cli.vetica.first_contact_minimum`,
+    thesis 3.3.1, eq. 84).  Returns ``(z1, t1, index)``; nan, -1 if there is no contact.
     """
+    from .errors import InputError
+    from .vetica import first_contact_minimum
+
     if len(f_ts) == 0:
         return math.nan, math.nan, -1
-    rep = np.flatnonzero(f_ts >= 0)
-    if len(rep) == 0:
+    try:
+        i = first_contact_minimum(f_ts)
+    except InputError:
         return math.nan, math.nan, -1
-    stop = rep[0]
-    if stop == 0:
-        return math.nan, math.nan, -1
-    i = int(np.argmin(f_ts[:stop]))
     return float(z_tip[i]), float(t[i]), i
 
 

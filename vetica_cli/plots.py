@@ -24,8 +24,6 @@ excluded and counted in the note at the bottom of the figure.
 from __future__ import annotations
 
 import math
-import os
-import tempfile
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -163,17 +161,12 @@ def table_kind(df: pd.DataFrame, meta: dict, path: Path | str = "table") -> str:
 
 
 def _save(fig: Figure, target: Path) -> Path:
-    target.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{target.name}.", suffix=".tmp", dir=target.parent)
-    os.close(fd)
-    try:
+    from .io import atomic_path
+
+    with atomic_path(target) as tmp:
         FigureCanvasAgg(fig)
         _lean_log_axes(fig)
         fig.savefig(tmp, format="png", dpi=130)
-        os.replace(tmp, target)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
     return target
 
 

@@ -233,8 +233,9 @@ def _subsample(fine, cfg_f, cfg_c):
 
     The kernel stores a sample at every step index ``j * stride`` (``j >= 1``):
     the approach ring keeps the last ``n_ring`` samples up to the
-    ``n_ring // 2``-th sample at or after the first-contact step (or up to the
-    start of the recorded window), and the steady window holds ``n_steady``
+    ``n_ring // 2``-th sample counted from the first sample at or after the
+    first-contact step whose force is repulsive (or up to the start of the
+    recorded window), and the steady window holds ``n_steady``
     samples after the recording-start step.  Both are rebuilt here from step
     indices.
     """
@@ -249,14 +250,18 @@ def _subsample(fine, cfg_f, cfg_c):
     n_rec = round(info["t_record_start"] / dt)
     t_fc = info["t_first_contact"]
     j_rec = n_rec // s
-    if t_fc is None or math.isnan(t_fc):
-        j_end = j_rec
-    else:
-        n_fc = round(t_fc / dt)
-        j_end = min(-(-n_fc // s) + dc.n_ring // 2 - 1, j_rec)
-    j_start = max(1, j_end - dc.n_ring + 1)
     a_idx = np.rint(fine.approach[:, 0] / dt).astype(np.int64)
     pos = {int(v): i for i, v in enumerate(a_idx)}
+    j_end = j_rec
+    if t_fc is not None and not math.isnan(t_fc):
+        n_fc = round(t_fc / dt)
+        # first coarse sample after the first contact with a repulsive force
+        rep = [int(v) // s for v, f in zip(a_idx, fine.approach[:, 5]) if v % s == 0 and v >= n_fc and f > 0.0]
+        if rep:
+            j_end = min(rep[0] + dc.n_ring // 2 - 1, j_rec)
+        elif a_idx[-1] < n_rec - s:  # the fine window ended before any repulsive coarse sample
+            return None
+    j_start = max(1, j_end - dc.n_ring + 1)
     want = [j * s for j in range(j_start, j_end + 1)]
     if any(w not in pos for w in want):
         return None
@@ -286,6 +291,9 @@ def share_group_key(cfg) -> str | None:
 
     from .simulate import derive
 
+    n = cfg.numerics
+    if n.position_noise or n.force_noise or n.detector_bandwidth:
+        return None  # the instrument model acts on each record: no sharing
     d = cfg.to_dict()
     d["numerics"].pop("print_step")
     d["numerics"].pop("approach_cycles")
@@ -656,17 +664,10 @@ def _run(study, output, runner, resume, share_print_step, progress, console, t_s
 
 
 def _write_text_atomic(path: Path, text: str) -> None:
-    import tempfile
+    from .io import atomic_path
 
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
-    try:
-        with os.fdopen(fd, "w") as fh:
-            fh.write(text)
-        os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
+    with atomic_path(path) as tmp:
+        tmp.write_text(text)
 
 
 def assemble(study: Study, done: dict) -> pd.DataFrame:

@@ -160,15 +160,22 @@ def _repulsive(f: np.ndarray, where: str) -> np.ndarray:
 def first_contact_minimum(f: np.ndarray) -> int:
     """Index of the force minimum at the first contact of an approach record.
 
-    The smallest force before the first sample above half the peak
-    repulsive force; Z1 is the tip position there (thesis 3.3.1, eq. 84).
+    Z1 is the tip position at the very first adhesion well (thesis 3.3.1,
+    eq. 84).  Before the first sample above half the peak repulsive force,
+    the first run of samples within 10 % of the deepest attraction is the first
+    well (a first contact can be a graze that never turns repulsive, and then
+    the next tap's well is as deep); its smallest sample is the minimum.
     Raises InputError when no contact is found.
     """
     f = np.asarray(f, dtype=float)
     first = int(np.argmax(_repulsive(f, "the approach segment")))
     if first == 0:
         raise InputError("the approach segment starts in contact: cannot measure Z1")
-    return int(np.argmin(f[:first]))
+    before = f[:first]
+    deep = before <= before.min() + 0.10 * abs(before.min())
+    start = int(np.argmax(deep))
+    stop = start + (int(np.argmin(deep[start:])) if not deep[start:].all() else len(deep) - start)
+    return start + int(np.argmin(before[start:stop]))
 
 
 # ----------------------------------------------------------------------------- stage 1

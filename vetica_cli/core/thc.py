@@ -192,7 +192,8 @@ def integrate(
     vb_dt = -approach_rate * dt  # base increment per step before first contact
     first_contact = False
     ring_written = 0
-    ring_left = n_ring // 2  # samples still to write after first contact
+    ring_left = n_ring // 2  # samples still to write after the first repulsive contact
+    repulsive_seen = False  # a first contact can be a graze that never turns repulsive
     ring_active = n_ring > 0
     e_prev = 0.0
     amp_prev = -1.0
@@ -313,7 +314,9 @@ def integrate(
             elif ring_active:
                 _store(ring, ring_written % n_ring, n * dt, z_tip, zc, zp, zb, fts, xbase - beta * fts, xd)
                 ring_written += 1
-                if first_contact:
+                if first_contact and not repulsive_seen and fts > 0.0:
+                    repulsive_seen = True
+                if repulsive_seen:
                     ring_left -= 1
                     if ring_left <= 0:
                         ring_active = False
