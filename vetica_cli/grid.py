@@ -29,6 +29,17 @@ A value in the sweep block overrides the base; a derived key and its target
 Logspace/linspace values are rounded to 12 significant digits so that the
 table shows ``1e-05``, not ``1.0000000000000001e-05``.
 
+Extraction keys (issue 6) name how each point is analysed, not what is
+simulated; they may be swept or set in an ``extract:`` section of the base:
+
+* ``extract.method``: ``vetica`` (thesis 3.3, the default) or ``full`` (the
+  whole-cycle model inversion of :mod:`vetica_cli.fullfit`).  Points that
+  differ only in the method share one simulation (see :mod:`vetica_cli.sweep`).
+* ``extract.force``: ``both`` (the default: the simulator's true force and the
+  force reconstructed from the paddle signal, one row each), ``true`` or
+  ``reconstructed`` (one row).  E.g. with detector noise the reconstruction at
+  the Nyquist cut-off is hopeless and costly; zip it with the noise key.
+
 Every problem raises :class:`ConfigError` with one line before any job starts:
 unknown key, bad range, empty grid, an invalid point (with the point named),
 duplicate points.
@@ -53,6 +64,12 @@ DERIVED = {
     "probe.f2_ratio": ("probe.f2", "probe.f1"),
 }
 META_KEYS = ("name", "description")
+# extraction keys: not part of the simulated config; key -> (allowed values, default)
+EXTRACT_KEYS = {
+    "extract.method": (("vetica", "full"), "vetica"),
+    "extract.force": (("both", "true", "reconstructed"), "both"),
+}
+EXTRACT_SECTION = "extract"
 RANGE_FORMS = ("logspace", "linspace")
 
 
@@ -62,8 +79,18 @@ def config_keys() -> list[str]:
 
 
 def sweepable_keys() -> list[str]:
-    """Keys allowed in a ``sweep:`` block: the schema keys plus derived keys."""
-    return config_keys() + list(DERIVED)
+    """Keys allowed in a ``sweep:`` block: the schema keys, derived keys and extraction keys."""
+    return config_keys() + list(DERIVED) + list(EXTRACT_KEYS)
+
+
+def check_extract_value(key: str, value: Any, where: str) -> str:
+    """An extraction key's value, or a one-line ConfigError listing the allowed values."""
+    allowed = EXTRACT_KEYS[key][0]
+    if isinstance(value, bool):  # YAML 1.1 reads a bare `true` (extract.force) as a boolean
+        value = str(value).lower()
+    if not isinstance(value, str) or value not in allowed:
+        raise ConfigError(f"{where}: {value!r} is not allowed; expected one of: {', '.join(allowed)}")
+    return value
 
 
 @dataclass(frozen=True)
@@ -73,7 +100,9 @@ class Point:
     index: int  # position in the grid (cartesian order)
     values: dict  # swept key -> value, in column order
     config: Config
-    key: str  # hash of the resolved config (names the persisted part)
+    key: str  # hash of the resolved config and the extraction method (names the persisted part)
+    method: str = "vetica"  # extract.method: how the point's run is analysed
+    force: str = "both"  # extract.force: which force sources are extracted
 
     def label(self) -> str:
         return ", ".join(f"{k}={v!r}" for k, v in self.values.items())
@@ -87,6 +116,7 @@ class Study:
     points: tuple  # of Point
     base: dict  # base sections as given (after overrides), derived keys included
     sweep: dict  # the sweep block as given
+    extract: dict = None  # the base 'extract:' section as given (after overrides), e.g. {"method": "full"}
 
     def resolved(self) -> dict:
         """A re-runnable study config: every base key resolved, sweep block as given."""
@@ -105,13 +135,22 @@ class Study:
         if self.description:
             out["description"] = self.description
         out.update(base)
+        if self.extract:
+            out[EXTRACT_SECTION] = dict(self.extract)
         out["sweep"] = self.sweep
         return out
 
 
-def point_key(cfg: Config) -> str:
-    """Stable 16-hex hash of a resolved point config (and the package version)."""
-    blob = json.dumps({"version": __version__, "config": cfg.to_dict()}, sort_keys=True)
+def point_key(cfg: Config, method: str = "vetica", force: str = "both") -> str:
+    """Stable 16-hex hash of a resolved point config (and the package version),
+    and of the extraction keys that are not the default (so points with the
+    default extraction keep the keys they had before extraction keys existed)."""
+    d = {"version": __version__, "config": cfg.to_dict()}
+    if method != EXTRACT_KEYS["extract.method"][1]:
+        d["method"] = method
+    if force != EXTRACT_KEYS["extract.force"][1]:
+        d["force"] = force
+    blob = json.dumps(d, sort_keys=True)
     return hashlib.sha256(blob.encode()).hexdigest()[:16]
 
 
@@ -221,6 +260,11 @@ def _factors(sweep: Any) -> tuple[list[str], list[list[dict]]]:
         else:
             add_key(_check_key(key))
             factors.append([{key: v} for v in parse_values(key, spec)])
+    for factor in factors:  # extraction keys take names, not numbers: check them here
+        for assign in factor:
+            for k, v in assign.items():
+                if k in EXTRACT_KEYS:
+                    assign[k] = check_extract_value(k, v, f"sweep.{k}")
     for dkey, (target, _) in DERIVED.items():
         if dkey in keys and target in keys:
             raise ConfigError(f"sweep: {dkey} and {target} are both swept; sweep one of them")
@@ -286,14 +330,16 @@ def expand(raw: dict, name: str = "study", overrides: dict | None = None) -> Stu
     """Study config mapping -> :class:`Study` with every point resolved and validated."""
     if not isinstance(raw, dict):
         raise ConfigError(f"a study config must be a mapping, got {type(raw).__name__}")
-    allowed_top = set(SECTIONS) | {"sweep", *META_KEYS}
+    allowed_top = set(SECTIONS) | {EXTRACT_SECTION, "sweep", *META_KEYS}
     for k in raw:
         if k not in allowed_top:
-            raise ConfigError(f"unknown top-level key {k!r}; allowed: {', '.join([*SECTIONS, 'sweep', *META_KEYS])}")
+            allowed = ", ".join([*SECTIONS, EXTRACT_SECTION, "sweep", *META_KEYS])
+            raise ConfigError(f"unknown top-level key {k!r}; allowed: {allowed}")
     name = str(raw.get("name") or name)
     description = str(raw.get("description") or "")
     sweep = raw.get("sweep")
     base = {k: (dict(v) if isinstance(v, dict) else v) for k, v in raw.items() if k in SECTIONS}
+    extract = _extract_section(raw.get(EXTRACT_SECTION))
     keys, factors = _factors(sweep)
     for key, value in (overrides or {}).items():
         if key in keys:
@@ -301,6 +347,9 @@ def expand(raw: dict, name: str = "study", overrides: dict | None = None) -> Stu
         if key not in sweepable_keys():
             raise ConfigError(f"unknown key {key!r}; allowed: {', '.join(sweepable_keys())}")
         sec, kname = key.split(".")
+        if key in EXTRACT_KEYS:
+            extract[kname] = check_extract_value(key, value, f"--set {key}")
+            continue
         base.setdefault(sec, {})
         if not isinstance(base[sec], dict):
             raise ConfigError(f"section {sec!r} must be a mapping, got {base[sec]!r}")
@@ -314,11 +363,15 @@ def expand(raw: dict, name: str = "study", overrides: dict | None = None) -> Stu
             assign.update(part)
         values = {k: assign[k] for k in keys}
         label = ", ".join(f"{k}={v!r}" for k, v in values.items())
+        ext = {**{k: extract.get(k.split(".")[1], d) for k, (_, d) in EXTRACT_KEYS.items()},
+               **{k: v for k, v in assign.items() if k in EXTRACT_KEYS}}  # fmt: skip
+        assign = {k: v for k, v in assign.items() if k not in EXTRACT_KEYS}
         try:
             cfg = from_dict(_resolve(base_clean, base_derived, assign))
         except ConfigError as exc:
             raise ConfigError(f"point {i} ({label}): {exc}") from None
-        key = point_key(cfg)
+        method, force = ext["extract.method"], ext["extract.force"]
+        key = point_key(cfg, method, force)
         if key in seen:
             raise ConfigError(f"points {seen[key]} and {i} ({label}) resolve to the same config; remove the duplicate")
         seen[key] = i
@@ -327,11 +380,29 @@ def expand(raw: dict, name: str = "study", overrides: dict | None = None) -> Stu
         for k in keys:
             if k in DERIVED:
                 resolved[k] = _num(k, values[k], "value")
+            elif k in EXTRACT_KEYS:
+                resolved[k] = values[k]
             else:
                 sec, nm = k.split(".")
                 resolved[k] = getattr(getattr(cfg, sec), nm)
-        points.append(Point(index=i, values=resolved, config=cfg, key=key))
-    return Study(name=name, description=description, keys=tuple(keys), points=tuple(points), base=base, sweep=sweep)
+        points.append(Point(index=i, values=resolved, config=cfg, key=key, method=method, force=force))
+    return Study(name=name, description=description, keys=tuple(keys), points=tuple(points), base=base, sweep=sweep,
+                 extract=extract)  # fmt: skip
+
+
+def _extract_section(body: Any) -> dict:
+    """The base ``extract:`` section, checked: {name: value} for keys of EXTRACT_KEYS."""
+    if body is None:
+        return {}
+    if not isinstance(body, dict):
+        raise ConfigError(f"section {EXTRACT_SECTION!r} must be a mapping, got {body!r}")
+    out = {}
+    for name, value in body.items():
+        key = f"{EXTRACT_SECTION}.{name}"
+        if key not in EXTRACT_KEYS:
+            raise ConfigError(f"unknown key {key!r}; allowed: {', '.join(EXTRACT_KEYS)}")
+        out[name] = check_extract_value(key, value, key)
+    return out
 
 
 def load_study(path: str | Path, overrides: dict | None = None) -> Study:

@@ -3,7 +3,10 @@
 One *point* of a study (see :mod:`vetica_cli.grid`) is simulated once and then
 extracted twice, with the simulator's true force and with the force
 reconstructed from the paddle signal (SPEC 6-7), giving two rows of a tidy
-table.  Points fan out to joblib workers (loky by default, or a Dask cluster
+table.  The point's ``extract.method`` (``vetica``, the default, or ``full``,
+the whole-cycle inversion of :mod:`vetica_cli.fullfit`) chooses the
+extraction; the table's ``method`` column records it.  ``extract.force``
+(``both``, ``true`` or ``reconstructed``) restricts the force sources.  Points fan out to joblib workers (loky by default, or a Dask cluster
 through joblib's dask backend); inner numba/BLAS threads are capped at one per
 worker so two workers use two cores.
 
@@ -21,6 +24,16 @@ Nothing is lost:
   atomically, with the units, the resolved study config and the acceptance
   regime in its Parquet metadata; the config is also saved as
   ``<output stem>.config.yaml``.
+
+Simulation sharing.  Points that differ only in ``extract.method`` or in the
+instrument keys ``numerics.position_noise``, ``force_noise``, ``noise_seed``
+and ``detector_bandwidth`` share one noise-free simulation: the method only
+reads the record, and the instrument model
+(:func:`vetica_cli.simulate.apply_instrument`) post-processes the recorded
+signals after the kernel (the amplitude controller sees the noise-free
+signal), so each point's record is the shared record with its own instrument
+model applied: bit-identical to a separate simulation of that point.  This
+is always on.
 
 Print-step sharing (thesis 4.5.4: "all simulations use the same time step and
 the resolution is altered by changing the print step"): points that differ
@@ -52,9 +65,12 @@ import yaml
 from . import __version__
 from .config import from_dict
 from .errors import InputError
-from .grid import Point, Study
+from .grid import EXTRACT_KEYS, Point, Study
 
 SOURCES = ("true", "reconstructed")
+METHODS = ("vetica", "full")  # extract.method: thesis 3.3 / whole-cycle inversion (vetica_cli.fullfit)
+FITTED = ("k0", "k_inf", "cd")  # parameters the full method reports uncertainties and identifiability for
+INSTRUMENT_KEYS = ("position_noise", "force_noise", "noise_seed", "detector_bandwidth")  # numerics, post-kernel
 ESTIMATES = ("tau_c", "k_g", "k_r", "tau_r", "k0", "k_inf", "cd")
 OBSERVABLES = (
     "e_diss_ev",
@@ -86,10 +102,11 @@ ESTIMATE_UNITS = {
 
 def result_columns() -> list[str]:
     """Columns a job fills for each (point, force source), in table order."""
-    cols = ["force_source"]
+    cols = ["method", "force_source"]
     for name in ESTIMATES:
         cols += [name, f"{name}_theory", f"{name}_err_pct"]
-    cols += ["taps", *OBSERVABLES, "stop_reason", "sim_time", "status", "error", "wall_s"]
+    cols += [f"{name}_sigma_pct" for name in FITTED]
+    cols += ["unidentified", "taps", *OBSERVABLES, "stop_reason", "sim_time", "status", "error", "wall_s"]
     return cols
 
 
@@ -98,13 +115,22 @@ def column_units(study: Study) -> dict:
 
     units = {"point": "hash of the resolved point config (names its part file)"}
     for k in study.keys:
-        units[k] = "swept key (SI, as in the config schema)"
+        if k not in EXTRACT_KEYS:
+            units[k] = "swept key (SI, as in the config schema)"
+    units["method"] = "extraction: vetica (thesis 3.3) | full (whole-cycle SLS inversion, issue 6); extract.method"
     units["force_source"] = "true = simulator f_ts; reconstructed = spectral inversion of the paddle signal"
     for name in ESTIMATES:
         u = ESTIMATE_UNITS[name]
         units[name] = f"{u}: VETICA estimate"
         units[f"{name}_theory"] = f"{u}: SLS theory value (SPEC 7)"
         units[f"{name}_err_pct"] = "%: 100 |estimate - theory| / theory"
+    for name in FITTED:
+        units[f"{name}_sigma_pct"] = (
+            "%: relative 1-sigma of the full method's estimate (Jacobian; NaN for vetica or unbounded)"
+        )
+    units["unidentified"] = (
+        "full method: fitted parameters flagged not identifiable, comma-separated ('' = none); always '' for vetica"
+    )
     units["taps"] = "taps used by stage 1a"
     for name in OBSERVABLES:
         units[name] = OBSERVABLE_UNITS.get(name, "")
@@ -136,11 +162,12 @@ def theory(cfg) -> dict:
     }
 
 
-def _extract(df, meta, force):
-    """The real VETICA extraction (vetica_cli.extract); tests may replace this."""
+def _extract(df, meta, force, method="vetica"):
+    """The real extraction (vetica_cli.extract; method 'full' = vetica_cli.fullfit);
+    tests may replace this (called without ``method`` for VETICA points)."""
     from .extract import extract
 
-    return extract(df, meta, force=force, kg_points=10)
+    return extract(df, meta, force=force, kg_points=10, method=method)
 
 
 def _simulate(cfg):
@@ -154,13 +181,16 @@ def _err_text(exc: BaseException) -> str:
     return " ".join(text.split())[:500]
 
 
-def _nan_row(cfg, source: str) -> dict:
+def _nan_row(cfg, source: str, method: str = "vetica") -> dict:
     th = theory(cfg)
-    row: dict = {"force_source": source}
+    row: dict = {"method": method, "force_source": source}
     for name in ESTIMATES:
         row[name] = math.nan
         row[f"{name}_theory"] = float(th[name])
         row[f"{name}_err_pct"] = math.nan
+    for name in FITTED:
+        row[f"{name}_sigma_pct"] = math.nan
+    row["unidentified"] = ""
     row["taps"] = -1
     for name in OBSERVABLES:
         row[name] = math.nan
@@ -168,13 +198,18 @@ def _nan_row(cfg, source: str) -> dict:
     return row
 
 
-def _rows_for_run(cfg, run, sim_wall: float) -> list[dict]:
-    """Extract a finished run with both force sources -> two rows."""
+def point_sources(force: str = "both") -> tuple:
+    """Force sources extracted for a point with ``extract.force = force``, in table order."""
+    return SOURCES if force == "both" else (force,)
+
+
+def _rows_for_run(cfg, run, sim_wall: float, method: str = "vetica", force: str = "both") -> list[dict]:
+    """Extract a finished run with each force source -> one row each."""
     df = run.frame()
     meta = run.metadata()
     rows = []
-    for source in SOURCES:
-        row = _nan_row(cfg, source)
+    for source in point_sources(force):
+        row = _nan_row(cfg, source, method)
         for name in OBSERVABLES:
             v = run.observables.get(name)
             row[name] = math.nan if v is None else float(v)
@@ -182,19 +217,25 @@ def _rows_for_run(cfg, run, sim_wall: float) -> list[dict]:
         row["sim_time"] = float(run.info["t_end"])
         t0 = time.perf_counter()
         try:
-            res = _extract(df, meta, source)
+            res = _extract(df, meta, source) if method == "vetica" else _extract(df, meta, source, method=method)
             for name in ESTIMATES:
                 r = res.get(name) or {}
                 row[name] = _float(r.get("value"))
                 if r.get("theory") is not None:
                     row[f"{name}_theory"] = _float(r.get("theory"))
                 row[f"{name}_err_pct"] = _float(r.get("error_pct"))
+            unc = res.get("uncertainty") or {}
+            for name in FITTED:
+                row[f"{name}_sigma_pct"] = 100.0 * _float(unc.get(name))
+            ident = res.get("identifiable") or {}
+            row["unidentified"] = ",".join(k for k in FITTED if ident.get(k) is False)
             row["taps"] = int(res.get("taps", -1) if res.get("taps") is not None else -1)
             row["status"] = "ok" if run.stop_reason == "steady" else "not_steady"
             row["error"] = ""
         except Exception as exc:  # noqa: BLE001 - a failed point becomes a row
             row["status"] = "failed"
-            row["error"] = f"extract({source}): {_err_text(exc)}"
+            where = source if method == "vetica" else f"{source}, {method}"
+            row["error"] = f"extract({where}): {_err_text(exc)}"
         row["wall_s"] = sim_wall + (time.perf_counter() - t0)
         rows.append(row)
     return rows
@@ -207,23 +248,23 @@ def _float(v) -> float:
         return math.nan
 
 
-def _failed_rows(cfg, exc: BaseException, where: str, wall: float) -> list[dict]:
+def _failed_rows(cfg, exc: BaseException, where: str, wall: float, method: str = "vetica", force="both") -> list[dict]:
     rows = []
-    for source in SOURCES:
-        row = _nan_row(cfg, source)
+    for source in point_sources(force):
+        row = _nan_row(cfg, source, method)
         row["error"] = f"{where}: {_err_text(exc)}"
         row["wall_s"] = wall
         rows.append(row)
     return rows
 
 
-def _simulate_point(cfg) -> list[dict]:
+def _simulate_point(cfg, method: str = "vetica", force: str = "both") -> list[dict]:
     t0 = time.perf_counter()
     try:
         run = _simulate(cfg)
     except Exception as exc:  # noqa: BLE001
-        return _failed_rows(cfg, exc, "simulate", time.perf_counter() - t0)
-    return _rows_for_run(cfg, run, time.perf_counter() - t0)
+        return _failed_rows(cfg, exc, "simulate", time.perf_counter() - t0, method, force)
+    return _rows_for_run(cfg, run, time.perf_counter() - t0, method, force)
 
 
 def _subsample(fine, cfg_f, cfg_c):
@@ -284,16 +325,35 @@ def _subsample(fine, cfg_f, cfg_c):
     return run
 
 
+def noise_free(cfg):
+    """``cfg`` without the instrument model (the config the kernel sees: the
+    instrument keys act only after it, in :func:`vetica_cli.simulate.apply_instrument`)."""
+    n = cfg.numerics
+    if not any(getattr(n, k) for k in INSTRUMENT_KEYS):
+        return cfg
+    d = cfg.to_dict()
+    for k in INSTRUMENT_KEYS:
+        d["numerics"][k] = 0
+    return from_dict(d)
+
+
+def simulation_key(cfg) -> str:
+    """Points with equal keys need the same simulation (they differ at most in the
+    extraction method and the instrument keys)."""
+    import json
+
+    return json.dumps(noise_free(cfg).to_dict(), sort_keys=True)
+
+
 def share_group_key(cfg) -> str | None:
     """Points with equal keys may share one simulation (they differ only in
-    print step, and their controller period is the same number of steps)."""
+    print step, extraction method and instrument keys, and their controller
+    period is the same number of steps)."""
     import json
 
     from .simulate import derive
 
-    n = cfg.numerics
-    if n.position_noise or n.force_noise or n.detector_bandwidth:
-        return None  # the instrument model acts on each record: no sharing
+    cfg = noise_free(cfg)
     d = cfg.to_dict()
     d["numerics"].pop("print_step")
     d["numerics"].pop("approach_cycles")
@@ -308,8 +368,13 @@ def share_group_key(cfg) -> str | None:
 
 
 def fine_config(cfgs):
-    """Config of the shared simulation: the finest print step of the group, and an
-    approach window two drive periods longer so it covers every coarser window."""
+    """Config of the shared simulation, noise-free: the finest print step of the
+    group, and an approach window two drive periods longer so it covers every
+    coarser window; or, when every point has the same simulation
+    (:func:`simulation_key`), exactly that simulation."""
+    cfgs = [noise_free(c) for c in cfgs]
+    if len({simulation_key(c) for c in cfgs}) == 1:
+        return cfgs[0]
     finest = min(cfgs, key=lambda c: c.numerics.print_step)
     ps = [c.numerics.print_step for c in cfgs]
     for p in ps:
@@ -321,18 +386,46 @@ def fine_config(cfgs):
     return from_dict(d)
 
 
-def run_task(items: list[tuple[str, dict]], share: bool = True) -> list[tuple[str, list[dict], float]]:
-    """Joblib job: simulate and extract one point, or one print-step group.
+def point_run(shared, scfg, cfg):
+    """The Run a separate simulation of ``cfg`` would give, taken from ``shared``
+    (the noise-free simulation of ``scfg``), or None if the shared record does not
+    hold it: a copy when the simulations are the same, else the print-step
+    subsample (:func:`_subsample`); then ``cfg``'s instrument model."""
+    import copy
 
-    ``items`` are ``(point key, resolved config dict)``.  Returns
-    ``[(point key, rows, print step simulated at), ...]``.  Never raises for a
-    point: errors become rows with status 'failed'.
+    from .simulate import apply_instrument
+
+    if simulation_key(cfg) == simulation_key(scfg):
+        run = copy.deepcopy(shared)
+        run.params = cfg.to_dict()
+    else:
+        run = _subsample(shared, scfg, noise_free(cfg))
+        if run is None:
+            return None
+        run.params = cfg.to_dict()
+    apply_instrument(run, cfg)  # on the recorded signals, after the kernel, as simulate() does
+    return run
+
+
+def _item(item) -> tuple[str, dict, str, str]:
+    key, d, *rest = item
+    rest = list(rest) + ["vetica", "both"][len(rest) :]
+    return key, d, rest[0], rest[1]
+
+
+def run_task(items: list[tuple], share: bool = True) -> list[tuple[str, list[dict], float]]:
+    """Joblib job: simulate and extract one point, or one group sharing a simulation.
+
+    ``items`` are ``(point key, resolved config dict[, extract.method[, extract.force]])``.
+    Returns ``[(point key, rows, print step simulated at), ...]``.  Never
+    raises for a point: errors become rows with status 'failed'.
     """
-    cfgs = [from_dict(d) for _, d in items]
+    items = [_item(it) for it in items]
+    cfgs = [from_dict(d) for _, d, _, _ in items]
     out = []
     if len(items) == 1 or not share:
-        for (key, _), cfg in zip(items, cfgs):
-            out.append((key, _simulate_point(cfg), cfg.numerics.print_step))
+        for (key, _, method, force), cfg in zip(items, cfgs):
+            out.append((key, _simulate_point(cfg, method, force), cfg.numerics.print_step))
         return out
     fcfg = fine_config(cfgs)
     t0 = time.perf_counter()
@@ -343,15 +436,16 @@ def run_task(items: list[tuple[str, dict]], share: bool = True) -> list[tuple[st
         except Exception as exc:  # noqa: BLE001
             fine_exc = exc
     sim_wall = time.perf_counter() - t0
-    for (key, _), cfg in zip(items, cfgs):
+    for (key, _, method, force), cfg in zip(items, cfgs):
+        ps = fcfg.numerics.print_step if fcfg is not None else cfg.numerics.print_step
         if fine_exc is not None:
-            out.append((key, _failed_rows(cfg, fine_exc, "simulate", sim_wall), fcfg.numerics.print_step))
+            out.append((key, _failed_rows(cfg, fine_exc, "simulate", sim_wall, method, force), ps))
             continue
-        run = _subsample(fine, fcfg, cfg) if fine is not None else None
+        run = point_run(fine, fcfg, cfg) if fine is not None else None
         if run is None:  # the shared record does not cover this point: run it alone
-            out.append((key, _simulate_point(cfg), cfg.numerics.print_step))
+            out.append((key, _simulate_point(cfg, method, force), cfg.numerics.print_step))
         else:
-            out.append((key, _rows_for_run(cfg, run, sim_wall), fcfg.numerics.print_step))
+            out.append((key, _rows_for_run(cfg, run, sim_wall, method, force), ps))
     return out
 
 
@@ -365,13 +459,16 @@ class Task:
 
 
 def plan(study: Study, share_print_step: bool = True) -> list[Task]:
-    """Group points into jobs: print-step groups when sharing, else one point a job."""
-    if not share_print_step:
-        return [Task([p], p.config.numerics.print_step) for p in study.points]
+    """Group points into jobs that share one simulation: points differing only in
+    extraction method and instrument keys always, and print-step groups when
+    ``share_print_step``; every other point is a job of its own."""
     groups: dict = defaultdict(list)
     order = []
     for p in study.points:
-        gk = share_group_key(p.config) or f"alone:{p.key}"
+        if share_print_step:
+            gk = share_group_key(p.config) or f"alone:{simulation_key(p.config)}"
+        else:
+            gk = f"alone:{simulation_key(p.config)}"
         if gk not in groups:
             order.append(gk)
         groups[gk].append(p)
@@ -450,7 +547,9 @@ def _part_path(pdir: Path, key: str) -> Path:
     return pdir / f"{key}.parquet"
 
 
-def read_part(path: Path, key: str, sim_print_step: float) -> pd.DataFrame | None:
+def read_part(
+    path: Path, key: str, sim_print_step: float, method: str = "vetica", force: str = "both"
+) -> pd.DataFrame | None:
     """A persisted point, or None if absent, unreadable or made differently."""
     from .io import read_table
 
@@ -464,7 +563,9 @@ def read_part(path: Path, key: str, sim_print_step: float) -> pd.DataFrame | Non
         return None
     if not math.isclose(float(meta.get("sim_print_step", -1)), sim_print_step, rel_tol=1e-12):
         return None
-    if list(df["force_source"]) != list(SOURCES):
+    if list(df["force_source"]) != list(point_sources(force)):
+        return None
+    if "method" not in df.columns or set(df["method"]) != {method}:
         return None
     return df
 
@@ -478,6 +579,8 @@ def write_part(pdir: Path, point: Point, rows: list[dict], sim_print_step: float
         "index": point.index,
         "values": point.values,
         "params": point.config.to_dict(),
+        "method": point.method,
+        "force": point.force,
         "sim_print_step": sim_print_step,
         "version": __version__,
         "code": code_fingerprint(),
@@ -545,7 +648,10 @@ class _Backend:
 
         if not tasks:
             return
-        calls = [delayed(run_task)([(p.key, p.config.to_dict()) for p in t.points], share) for t in tasks]
+        # plan() decided which points share a simulation: a multi-point task always shares
+        calls = [
+            delayed(run_task)([(p.key, p.config.to_dict(), p.method, p.force) for p in t.points], True) for t in tasks
+        ]
         # results come back unordered; the first point key of a result names its task
         by_first = {t.points[0].key: t for t in tasks}
         if self.backend == "loky" and self.jobs == 1:
@@ -601,7 +707,9 @@ def _run(study, output, runner, resume, share_print_step, progress, console, t_s
     todo = []
     for t in tasks:
         if resume:
-            got = {p.key: read_part(_part_path(pdir, p.key), p.key, t.sim_print_step) for p in t.points}
+            got = {
+                p.key: read_part(_part_path(pdir, p.key), p.key, t.sim_print_step, p.method, p.force) for p in t.points
+            }
             for k, df in got.items():
                 if df is not None:
                     done[k] = df
@@ -678,7 +786,8 @@ def assemble(study: Study, done: dict) -> pd.DataFrame:
         df = df[result_columns()]
         lead = pd.DataFrame({"point": [p.key] * len(df)})
         for k in study.keys:
-            lead[k] = [p.values[k]] * len(df)
+            if k not in EXTRACT_KEYS:  # extract.method is the 'method' column
+                lead[k] = [p.values[k]] * len(df)
         frames.append(pd.concat([lead, df.reset_index(drop=True)], axis=1))
     table = pd.concat(frames, ignore_index=True)
     order = {s: i for i, s in enumerate(SOURCES)}
@@ -690,22 +799,30 @@ def assemble(study: Study, done: dict) -> pd.DataFrame:
         .reset_index(drop=True)
     )
     table["error"] = table["error"].fillna("").astype(str)
+    table["unidentified"] = table["unidentified"].fillna("").astype(str)
+    table["method"] = table["method"].astype(str)
     table["stop_reason"] = table["stop_reason"].fillna("").astype(str)
     table["taps"] = table["taps"].astype("int64")
     return table
 
 
-def acceptance_regime(table: pd.DataFrame, keys, cd_key: str = "surface.cd") -> list[dict]:
-    """For every combination of the other swept keys and each force source: the
-    range of cd with status 'ok' and tau_c error < 30 % (thesis fig. 52)."""
+def acceptance_regime(
+    table: pd.DataFrame, keys, cd_key: str = "surface.cd", err_col: str = "tau_c_err_pct"
+) -> list[dict]:
+    """For every combination of the other swept keys (the extraction method is
+    the 'method' column) and each force source: the range of cd with status
+    'ok' and ``err_col`` below 30 % (tau_c error: thesis fig. 52)."""
     if cd_key not in keys:
         return []
-    others = [k for k in keys if k != cd_key]
+    # extraction keys are columns of their own: extract.method -> 'method', extract.force -> 'force_source'
+    others = ["method" if k == "extract.method" else k for k in keys if k != cd_key and k != "extract.force"]
+    if "method" not in others and "method" in table.columns and table["method"].nunique() > 1:
+        others.append("method")
     out = []
     group_cols = [*others, "force_source"]
     for combo, g in table.groupby(group_cols, sort=False, dropna=False):
         combo = combo if isinstance(combo, tuple) else (combo,)
-        ok = g[(g["status"] == "ok") & (g["tau_c_err_pct"] < ACCEPT_ERR_PCT)]
+        ok = g[(g["status"] == "ok") & (g[err_col] < ACCEPT_ERR_PCT)]
         cds = sorted(ok[cd_key].astype(float))
         all_cd = sorted(g[cd_key].astype(float))
         entry = {k: _plain(v) for k, v in zip(group_cols, combo)}
@@ -832,6 +949,10 @@ class _Progress:
 # Used only for the --dry-run estimate.
 NS_PER_STEP = 14.0
 EXTRACT_S_PER_POINT = 1.4
+# method 'full' (whole-cycle inversion), both force sources, 10 recorded periods at PS 0.125 ns,
+# cd = 1e-3 kg/s at 16:1: 1.2 s (true force) + 1.8 s (reconstructed), measured while the
+# other core was busy.  A noisy reconstructed force can take far longer with VETICA (~35 s at 10 pm).
+EXTRACT_FULL_S_PER_POINT = 3.0
 
 
 def dry_run_text(study: Study, output: Path, jobs: int, share_print_step: bool = True) -> str:
@@ -840,17 +961,21 @@ def dry_run_text(study: Study, output: Path, jobs: int, share_print_step: bool =
     tasks = plan(study, share_print_step)
     kernel = sum(t.points[0].config.numerics.max_time / t.points[0].config.numerics.dt for t in tasks)
     kernel *= NS_PER_STEP * 1e-9
-    extract = EXTRACT_S_PER_POINT * len(study.points)
+    extract = sum(
+        (EXTRACT_FULL_S_PER_POINT if p.method == "full" else EXTRACT_S_PER_POINT) * len(point_sources(p.force)) / 2
+        for p in study.points
+    )
     total = kernel + extract
     lines = [
         (
             f"study {study.name}: {len(study.points)} points over {', '.join(study.keys)}; "
-            f"{len(tasks)} simulations ({'print-step groups shared' if share_print_step else 'no sharing'})"
+            f"{len(tasks)} simulations ({'print-step groups shared' if share_print_step else 'no print-step sharing'})"
         ),
         (
             f"cost at most {total:.0f} core-s = {total / max(jobs, 1) / 60:.1f} min wall on {jobs} workers: "
             f"kernel {kernel:.0f} core-s if every simulation runs to numerics.max_time ({NS_PER_STEP:g} ns/step), "
-            f"extraction ~{extract:.0f} core-s ({EXTRACT_S_PER_POINT:g} s a point); steady points cost less"
+            f"extraction ~{extract:.0f} core-s ({EXTRACT_S_PER_POINT:g} s a vetica point, "
+            f"{EXTRACT_FULL_S_PER_POINT:g} s a full one); steady points cost less"
         ),
         f"output: {output} (parts in {parts_dir(output)}/)",
     ]
