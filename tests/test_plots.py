@@ -254,6 +254,25 @@ def test_a_key_without_effect_on_an_observable_gets_no_lines_of_its_own():
     assert len([ln for ln in fig.axes[0].get_lines() if len(ln.get_xdata()) > 2]) == 2 * 4
 
 
+def test_means_against_a_setting_use_only_the_cd_values_ok_at_every_setting():
+    # hand-made: setting 0.4 has cd 3 not steady, so the mean at every set point is over cd 1 and 2;
+    # averaging over each setting's own ok points would mix in cd 3 at 0.25 only (mean 20, not 15)
+    df = pd.DataFrame(
+        {
+            "operation.setpoint": [0.25, 0.25, 0.25, 0.4, 0.4, 0.4],
+            "surface.cd": [1.0, 2.0, 3.0, 1.0, 2.0, 3.0],
+            "status": ["ok", "ok", "ok", "ok", "ok", "not_steady"],
+            "peak_force": [10.0, 20.0, 30.0, 10.0, 20.0, 90.0],
+        }
+    )
+    mean, _lo, hi, n = plots._mean_band(df, "operation.setpoint", "peak_force", ["surface.cd"])
+    assert mean.tolist() == [15.0, 15.0] and n.tolist() == [2, 2] and hi.tolist() == [20.0, 20.0]
+    # no common value: fall back to every ok point
+    df.loc[df["surface.cd"] < 3, "status"] = ["not_steady", "not_steady", "ok", "ok"]
+    mean, *_ = plots._mean_band(df, "operation.setpoint", "peak_force", ["surface.cd"])
+    assert mean.tolist() == [30.0, 15.0]
+
+
 def test_plot_rejects_corrupt_and_non_vetica_files_with_one_line(tmp_path):
     bad = tmp_path / "junk.parquet"
     bad.write_bytes(b"not parquet at all")

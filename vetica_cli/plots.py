@@ -1620,9 +1620,28 @@ def fig_acceptance_vs(sw: SweepData, key: str, thesis: str) -> Figure | None:
     return fig
 
 
-def _mean_band(pts: pd.DataFrame, key: str, col: str):
-    """Mean, min and max of ``col`` over the ok points at each value of ``key`` (other keys averaged)."""
+def _common_ok(pts: pd.DataFrame, key: str, rest: list) -> tuple[pd.DataFrame, bool]:
+    """The ok points whose values of the other keys ``rest`` are ok at every value of ``key``.
+
+    Averaging over a different set of cd values at each setting would draw the change of
+    sample, not the effect of ``key``; (ok points, False) when no such common set exists.
+    """
     ok = pts[pts["status"].astype(str) == "ok"]
+    if not rest:
+        return ok, True
+    n_key = pts[key].nunique()
+    counts = ok.groupby(rest)[key].nunique()
+    common = counts[counts == n_key].index
+    if len(common) == 0:
+        return ok, False
+    sel = ok.set_index(rest).index.isin(common)
+    return ok[sel], True
+
+
+def _mean_band(pts: pd.DataFrame, key: str, col: str, rest: list | None = None):
+    """Mean, min and max of ``col`` at each value of ``key`` over the ok points of the other keys
+    ``rest`` that are ok at every value of ``key`` (all ok points if there are none)."""
+    ok, _ = _common_ok(pts, key, rest or [])
     g = ok.groupby(key)[col]
     return g.mean(), g.min(), g.max(), g.count()
 
@@ -1637,7 +1656,7 @@ def _twin_plot(sw: SweepData, key: str, left: str, right: str, styles, title: st
     for ax, col, (color, ls, mk) in ((ax_l, left, styles[0]), (ax_r, right, styles[1])):
         name, unit, scale = OBSERVABLES[col]
         if averaged:
-            mean, lo, hi, _n = _mean_band(pts, key, col)
+            mean, lo, hi, _n = _mean_band(pts, key, col, [k for k in sw.swept if k != key])
             x = _disp(key, mean.index)
             ax.fill_between(x, lo * scale, hi * scale, color=color, alpha=0.15, lw=0)
             (ln,) = ax.plot(x, mean * scale, ls=ls, marker=mk, color=color, lw=1.6, ms=7, label=f"{name} (mean)")
@@ -1655,8 +1674,16 @@ def _twin_plot(sw: SweepData, key: str, left: str, right: str, styles, title: st
     ax_l.legend(handles=lines, fontsize=9, loc="lower center", bbox_to_anchor=(0.5, 1.0), ncol=2, frameon=False)
     extra = ""
     if averaged:
-        over = ", ".join(k for k in sw.swept if k != key)
-        extra = f"lines: mean over the ok points of the other swept keys ({over}); bands: their min-max range"
+        rest = [k for k in sw.swept if k != key]
+        over = ", ".join(rest)
+        sub, common = _common_ok(pts, key, rest)
+        n = len(sub.drop_duplicates(subset=rest))
+        which = (
+            f"the {n} values of {over} that are ok at every {_axis_meta(key)[0]}"
+            if common
+            else f"the ok points of {over}"
+        )
+        extra = f"lines: mean over {which}; bands: their min-max range"
     _note(fig, _status_note(pts, sw.swept, extra, marked=not averaged))
     _title(fig, sw, title)
     return fig
