@@ -1,0 +1,340 @@
+"""Summary tables quoted in results/README.md, computed from the study tables.
+
+    python scripts/results_tables.py            # markdown on stdout, ~5 s
+
+Reads results/<study>.parquet (written by `vetica sweep configs/<study>.yaml`).
+The acceptance regime is the one `vetica sweep` and `vetica plot` use
+(vetica_cli.plots.acceptance: status ok and tau_c error < 30 %, thesis fig. 52).
+"""
+
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from vetica_cli.plots import _common_ok, acceptance
+
+RES = Path(__file__).resolve().parent.parent / "results"
+STUDIES = ["dashpot", "dashpot_vdw_off", "print_step", "paddle_stiffness", "setpoint", "stiffness_ratio", "frequency"]
+CD = "surface.cd"
+Q = ["tau_c", "k_g", "k0", "k_inf", "cd"]
+QL = {"tau_c": "τc", "k_g": "Kg", "k0": "k0", "k_inf": "k_inf", "cd": "cd"}
+
+
+def load(name: str) -> pd.DataFrame:
+    df = pd.read_parquet(RES / f"{name}.parquet")
+    df["force_source"] = df["force_source"].astype(str)
+    df["status"] = df["status"].astype(str)
+    return df
+
+
+def md(df: pd.DataFrame, floatfmt: str = ".3g") -> str:
+    cols = list(df.columns)
+    out = ["| " + " | ".join(str(c) for c in cols) + " |", "|" + "---|" * len(cols)]
+    for _, r in df.iterrows():
+        cells = []
+        for c in cols:
+            v = r[c]
+            if isinstance(v, (float, np.floating)):
+                cells.append("–" if not np.isfinite(v) else format(v, floatfmt))
+            else:
+                cells.append(str(v))
+        out.append("| " + " | ".join(cells) + " |")
+    return "\n".join(out)
+
+
+def regime_str(d: pd.DataFrame) -> tuple[str, float]:
+    r = acceptance(d)
+    if r is None:
+        return "none", np.nan
+    dec = np.log10(r.hi / r.lo)
+    return f"{r.lo:.2g} – {r.hi:.2g}{'' if r.contiguous else ' (broken)'}", dec
+
+
+def overview() -> str:
+    rows = []
+    for n in STUDIES:
+        df = load(n)
+        pts = df[df.force_source == "true"]
+        st = pts["status"].value_counts()
+        rows.append(
+            {
+                "study": n,
+                "points": len(pts),
+                "ok": int(st.get("ok", 0)),
+                "not_steady": int(st.get("not_steady", 0)),
+                "failed": int(st.get("failed", 0)),
+                "simulated time [s]": float(pts["sim_time"].sum()),
+            }
+        )
+    return md(pd.DataFrame(rows))
+
+
+def dashpot_tables() -> str:
+    parts = []
+    on, off = load("dashpot"), load("dashpot_vdw_off")
+    rows = []
+    for lab, df in (("vdW on (default)", on), ("vdW off", off)):
+        for src in ("true", "reconstructed"):
+            d = df[df.force_source == src]
+            s, dec = regime_str(d)
+            r = acceptance(d)
+            inside = d[(d[CD] >= r.lo) & (d[CD] <= r.hi) & (d.status == "ok")] if r else d.iloc[:0]
+            row = {"surface": lab, "force": src, "acceptance regime cd [kg/s]": s, "decades": dec}
+            for q in Q:
+                row[f"{QL[q]} err %: mean / max"] = (
+                    f"{inside[f'{q}_err_pct'].mean():.3g} / {inside[f'{q}_err_pct'].max():.3g}"
+                )
+            rows.append(row)
+    parts.append(
+        "Acceptance regime and the mean / largest errors inside it (f1 50 kHz, 16:1, PS 0.5 ns):\n\n"
+        + md(pd.DataFrame(rows))
+    )
+    # per-cd table, true force, both surfaces
+    a = on[on.force_source == "true"].set_index(CD)
+    b = off[off.force_source == "true"].set_index(CD)
+    t = pd.DataFrame(
+        {
+            "cd [kg/s]": a.index,
+            "τc theory [µs]": a["tau_c_theory"].to_numpy() * 1e6,
+            "status on": a["status"].to_numpy(),
+            "τc err % on": a["tau_c_err_pct"].to_numpy(),
+            "Kg err % on": a["k_g_err_pct"].to_numpy(),
+            "k0 err % on": a["k0_err_pct"].to_numpy(),
+            "k_inf err % on": a["k_inf_err_pct"].to_numpy(),
+            "cd err % on": a["cd_err_pct"].to_numpy(),
+            "status off": b.reindex(a.index)["status"].to_numpy(),
+            "τc err % off": b.reindex(a.index)["tau_c_err_pct"].to_numpy(),
+            "k_inf err % off": b.reindex(a.index)["k_inf_err_pct"].to_numpy(),
+            "cd err % off": b.reindex(a.index)["cd_err_pct"].to_numpy(),
+        }
+    )
+    parts.append("Per point, true force (`on` = dashpot.parquet, `off` = dashpot_vdw_off.parquet):\n\n" + md(t))
+    # absolute stiffness deviations across all ok points (thesis: k0 within ±4 N/m, k_inf within ±2 N/m)
+    rows = []
+    for lab, df in (("vdW on", on), ("vdW off", off)):
+        for src in ("true", "reconstructed"):
+            d = df[(df.force_source == src) & (df.status == "ok")]
+            r = acceptance(d)
+            ins = d[(d[CD] >= r.lo) & (d[CD] <= r.hi)] if r else d.iloc[:0]
+            rows.append(
+                {
+                    "surface": lab,
+                    "force": src,
+                    "max Δk0 in regime [N/m]": (ins["k0"] - ins["k0_theory"]).abs().max(),
+                    "max Δk_inf in regime [N/m]": (ins["k_inf"] - ins["k_inf_theory"]).abs().max(),
+                    "max Δk0, all ok [N/m]": (d["k0"] - d["k0_theory"]).abs().max(),
+                    "max Δk_inf, all ok [N/m]": (d["k_inf"] - d["k_inf_theory"]).abs().max(),
+                    "max Kg err % all ok": d["k_g_err_pct"].max(),
+                    "ok points without τc": int(d["tau_c"].isna().sum()),
+                }
+            )
+    parts.append(
+        "Absolute stiffness deviations Δ = abs(extracted − theory) (thesis fig. 45: k0 within ±4 N/m, k_inf within ±2 N/m):\n\n"
+        + md(pd.DataFrame(rows))
+    )
+    # E_diss and zero depth
+    t = a[["e_diss_ev", "ss_zero_depth", "max_penetration", "peak_force"]].copy()
+    t = pd.DataFrame(
+        {
+            "cd [kg/s]": a.index,
+            "status on": a["status"].to_numpy(),
+            "status off": b.reindex(a.index)["status"].to_numpy(),
+            "E_diss on [eV]": a["e_diss_ev"].to_numpy(),
+            "E_diss off [eV]": b.reindex(a.index)["e_diss_ev"].to_numpy(),
+            "zero depth on [nm]": a["ss_zero_depth"].to_numpy() * 1e9,
+            "zero depth off [nm]": b.reindex(a.index)["ss_zero_depth"].to_numpy() * 1e9,
+        }
+    )
+    parts.append("Dissipation and steady-state zero reference depth against cd (figs. 41, 57):\n\n" + md(t.iloc[::2]))
+    return "\n\n".join(parts)
+
+
+def regime_by(name: str, key: str, scale: float, unit: str) -> str:
+    df = load(name)
+    rows = []
+    for kv, g in df.groupby(key):
+        row = {f"{key} [{unit}]": kv * scale}
+        for src in ("true", "reconstructed"):
+            s, dec = regime_str(g[g.force_source == src])
+            row[f"regime, {src}"] = s
+            row[f"decades, {src}"] = dec
+        gt = g[g.force_source == "true"]
+        row["not_steady"] = int((gt.status == "not_steady").sum())
+        row["failed"] = int((gt.status == "failed").sum())
+        row["min τc err % (true)"] = gt.loc[gt.status == "ok", "tau_c_err_pct"].min()
+        rows.append(row)
+    return md(pd.DataFrame(rows))
+
+
+def frequency_tables() -> str:
+    df = load("frequency")
+    parts = [regime_by("frequency", "probe.f1", 1e-3, "kHz")]
+    pts = _common_ok(df[df.force_source == "true"], "probe.f1", [CD])[0]
+    g = pts.groupby("probe.f1")
+    t = pd.DataFrame(
+        {
+            "f1 [kHz]": g.size().index * 1e-3,
+            "period [µs]": 1e6 / g.size().index,
+            "contact [µs]": g["contact_time"].mean().to_numpy() * 1e6,
+            "non-contact [µs]": g["noncontact_time"].mean().to_numpy() * 1e6,
+            "contact fraction %": (
+                g["contact_time"].mean() / (g["contact_time"].mean() + g["noncontact_time"].mean())
+            ).to_numpy()
+            * 100,
+            "max_time [ms]": g["numerics.max_time"].first().to_numpy() * 1e3,
+        }
+    )
+    parts.append(
+        "Contact and non-contact time per cycle (mean over the cd values that are ok at every f1, as the figure averages, fig. 51):\n\n"
+        + md(t)
+    )
+    return "\n\n".join(parts)
+
+
+def mean_err_in_regime(df: pd.DataFrame, key: str, src: str = "true") -> pd.DataFrame:
+    rows = []
+    for kv, g in df[df.force_source == src].groupby(key):
+        r = acceptance(g)
+        row = {key: kv, "n in regime": 0}
+        if r is not None:
+            ins = g[(g[CD] >= r.lo) & (g[CD] <= r.hi) & (g.status == "ok")]
+            row["n in regime"] = len(ins)
+            for q in Q:
+                row[f"{QL[q]} %"] = ins[f"{q}_err_pct"].mean()
+        else:
+            for q in Q:
+                row[f"{QL[q]} %"] = np.nan
+        rows.append(row)
+    return pd.DataFrame(rows)
+
+
+def ratio_tables() -> str:
+    df = load("stiffness_ratio")
+    parts = [regime_by("stiffness_ratio", "surface.stiffness_ratio", 1.0, "k0:k_inf")]
+    for src in ("true", "reconstructed"):
+        parts.append(
+            f"Mean error within each ratio's acceptance regime, {src} force (fig. 47):\n\n"
+            + md(mean_err_in_regime(df, "surface.stiffness_ratio", src))
+        )
+    pts = _common_ok(df[df.force_source == "true"], "surface.stiffness_ratio", [CD])[0]
+    g = pts.groupby("surface.stiffness_ratio")
+    lo_cd, hi_cd = df[CD].min(), df[CD].max()
+    t = pd.DataFrame(
+        {
+            "k0:k_inf": g.size().index,
+            "peak force [nN]": g["peak_force"].mean().to_numpy() * 1e9,
+            "max penetration [nm]": g["max_penetration"].mean().to_numpy() * 1e9,
+            "paddle amplitude [nm]": g["paddle_amplitude"].mean().to_numpy() * 1e9,
+        }
+    )
+    ed = df[df.force_source == "true"].pivot_table(index="surface.stiffness_ratio", columns=CD, values="e_diss_ev")
+    t[f"E_diss at cd {lo_cd:g} [eV]"] = ed[lo_cd].to_numpy()
+    t[f"E_diss at cd {hi_cd:g} [eV]"] = ed[hi_cd].to_numpy()
+    parts.append(
+        "Means over the cd values that are ok at every ratio (figs. 48, 49) and E_diss at the ends of the cd range (fig. 41):\n\n"
+        + md(t)
+    )
+    return "\n\n".join(parts)
+
+
+def setpoint_tables() -> str:
+    df = load("setpoint")
+    parts = [regime_by("setpoint", "operation.setpoint", 100, "% of A0")]
+    for src in ("true",):
+        parts.append(
+            f"Mean error within each set point's acceptance regime, {src} force (fig. 55):\n\n"
+            + md(mean_err_in_regime(df, "operation.setpoint", src))
+        )
+    pts = df[(df.force_source == "true") & (df.status != "failed")]
+    g = _common_ok(pts, "operation.setpoint", [CD])[0].groupby("operation.setpoint")
+    t = pd.DataFrame(
+        {
+            "set point %": g.size().index * 100,
+            "contact [µs]": g["contact_time"].mean().to_numpy() * 1e6,
+            "non-contact [µs]": g["noncontact_time"].mean().to_numpy() * 1e6,
+            "peak force [nN]": g["peak_force"].mean().to_numpy() * 1e9,
+            "max penetration [nm]": g["max_penetration"].mean().to_numpy() * 1e9,
+        }
+    )
+    depth = []
+    for sp, gg in pts.groupby("operation.setpoint"):
+        gg = gg.dropna(subset=["ss_zero_depth"])
+        if len(gg):
+            i = gg["ss_zero_depth"].idxmax()
+            depth.append((gg.loc[i, "ss_zero_depth"] * 1e9, gg.loc[i, CD]))
+        else:
+            depth.append((np.nan, np.nan))
+    t["deepest zero depth [nm]"] = [d[0] for d in depth]
+    t["at cd [kg/s]"] = [d[1] for d in depth]
+    parts.append(
+        "Means over the cd values that are ok at every set point (figs. 54, 56, as the figures average) and the deepest steady-state zero reference over all simulated points (fig. 57):\n\n"
+        + md(t)
+    )
+    fails = df[(df.force_source == "true") & (df.status == "failed")]
+    if len(fails):
+        ft = fails.groupby("operation.setpoint").agg(n=("status", "size"), error=("error", "first")).reset_index()
+        parts.append("Failed points:\n\n" + md(ft))
+    return "\n\n".join(parts)
+
+
+def print_step_tables() -> str:
+    return regime_by("print_step", "numerics.print_step", 1e9, "ns")
+
+
+def paddle_tables() -> str:
+    df = load("paddle_stiffness")
+    d = df[df.force_source == "true"].sort_values("probe.k2")
+    t = pd.DataFrame(
+        {
+            "k2 [N/m]": d["probe.k2"].to_numpy(),
+            "E_diss [eV]": d["e_diss_ev"].to_numpy(),
+            "peak force [nN]": d["peak_force"].to_numpy() * 1e9,
+            "paddle amplitude [nm]": d["paddle_amplitude"].to_numpy() * 1e9,
+            "status": d["status"].to_numpy(),
+        }
+    )
+    return md(t, ".4g")
+
+
+def not_steady_table() -> str:
+    rows = []
+    for n in STUDIES:
+        df = load(n)
+        d = df[(df.force_source == "true") & (df.status == "not_steady")]
+        if not len(d):
+            continue
+        rows.append(
+            {
+                "study": n,
+                "not_steady points": len(d),
+                "cd range [kg/s]": f"{d[CD].min():.2g} – {d[CD].max():.2g}" if CD in d else "–",
+                "τc theory range [ms]": f"{d['tau_c_theory'].min() * 1e3:.2g} – {d['tau_c_theory'].max() * 1e3:.2g}",
+                "max_time [ms]": ", ".join(f"{v * 1e3:g}" for v in sorted(d["sim_time"].unique())),
+            }
+        )
+    return md(pd.DataFrame(rows))
+
+
+def main(argv: list[str]) -> int:
+    sections = {
+        "overview": overview,
+        "not_steady": not_steady_table,
+        "dashpot": dashpot_tables,
+        "frequency": frequency_tables,
+        "print_step": print_step_tables,
+        "stiffness_ratio": ratio_tables,
+        "setpoint": setpoint_tables,
+        "paddle_stiffness": paddle_tables,
+    }
+    want = argv or list(sections)
+    for s in want:
+        print(f"### {s}\n\n{sections[s]()}\n")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main(sys.argv[1:]))
