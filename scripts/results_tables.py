@@ -18,7 +18,16 @@ import pandas as pd
 from vetica_cli.plots import _common_ok, acceptance
 
 RES = Path(__file__).resolve().parent.parent / "results"
-STUDIES = ["dashpot", "dashpot_vdw_off", "print_step", "paddle_stiffness", "setpoint", "stiffness_ratio", "frequency"]
+STUDIES = [
+    "dashpot",
+    "dashpot_vdw_off",
+    "print_step",
+    "paddle_stiffness",
+    "setpoint",
+    "stiffness_ratio",
+    "stiffness_ratio_vdw_off",
+    "frequency",
+]
 CD = "surface.cd"
 Q = ["tau_c", "k_g", "k0", "k_inf", "cd"]
 QL = {"tau_c": "τc", "k_g": "Kg", "k0": "k0", "k_inf": "k_inf", "cd": "cd"}
@@ -241,6 +250,17 @@ def ratio_tables() -> str:
     return "\n\n".join(parts)
 
 
+def ratio_vdw_off_tables() -> str:
+    df = load("stiffness_ratio_vdw_off")
+    parts = [regime_by("stiffness_ratio_vdw_off", "surface.stiffness_ratio", 1.0, "k0:k_inf")]
+    for src in ("true", "reconstructed"):
+        parts.append(
+            f"Mean error within each ratio's acceptance regime, vdW off, {src} force (fig. 47):\n\n"
+            + md(mean_err_in_regime(df, "surface.stiffness_ratio", src))
+        )
+    return "\n\n".join(parts)
+
+
 def setpoint_tables() -> str:
     df = load("setpoint")
     parts = [regime_by("setpoint", "operation.setpoint", 100, "% of A0")]
@@ -327,6 +347,7 @@ def main(argv: list[str]) -> int:
         "frequency": frequency_tables,
         "print_step": print_step_tables,
         "stiffness_ratio": ratio_tables,
+        "stiffness_ratio_vdw_off": ratio_vdw_off_tables,
         "setpoint": setpoint_tables,
         "paddle_stiffness": paddle_tables,
     }
