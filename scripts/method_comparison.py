@@ -1,11 +1,12 @@
 """Evidence for issue 6 item 4: VETICA against the whole-cycle inversion
 (``extract.method full``), without and with detector position noise.
 
-Reads the tables of three sweeps (run them first, ~15 min on 2 cores):
+Reads the tables of four sweeps (run them first, ~15 min on 2 cores):
 
     vetica sweep configs/method_dashpot.yaml              # cd x print step x noise x method, 16:1
     vetica sweep configs/method_stiffness_ratio.yaml      # ratio x cd x noise x method, PS 0.5 ns
     vetica sweep configs/method_noise_reconstructed.yaml  # noisy reconstructed force, a few points
+    vetica sweep configs/method_low_cd.yaml               # cd below the thesis range, 0.125 ns
 
 and prints the Markdown tables of ``results/method_comparison.md``, writing the
 summary tables they are built from (``results/method_comparison_summary.parquet``, one row per setting, noise
@@ -199,6 +200,20 @@ def main() -> None:
         s.insert(0, "study", name)
         summaries.append(s)
         parts.append(f"## {name} ({meta.get('description', '')})\n\n" + markdown_table(s, setting, label))
+    low, dash = RESULTS / "method_low_cd.parquet", RESULTS / "method_dashpot.parquet"
+    if low.is_file() and dash.is_file():
+        # the dashpot grid at 0.125 ns without noise, extended below cd = 1e-5 kg/s
+        d, _ = read_table(dash)
+        d = d[(d["numerics.print_step"] == 0.125e-9) & (d[NOISE] == 0.0)]
+        lo, _ = read_table(low)
+        lo = lo.assign(**{"numerics.print_step": 0.125e-9, NOISE: 0.0})
+        s = summarize(pd.concat([lo, d], ignore_index=True), "numerics.print_step")
+        s.insert(0, "study", "method_dashpot+method_low_cd")
+        summaries.append(s)
+        parts.append(
+            "## cd grid extended down to 1e-7 kg/s (16:1, 0.125 ns, no noise; method_low_cd + method_dashpot)\n\n"
+            + markdown_table(s, "numerics.print_step", "print step")
+        )
     if summaries:
         summ = pd.concat(summaries, ignore_index=True)
         write_table(summ, RESULTS / "method_comparison_summary.parquet", {"source": "scripts/method_comparison.py"})
