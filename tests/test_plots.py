@@ -387,3 +387,20 @@ def test_spectral_velocity_of_the_run_agrees_with_finite_differences(run_file):
     v = plots.spectral_velocity(run.z, dt)
     fd = np.gradient(run.z, dt)
     assert np.max(np.abs(v - fd)[1:-1]) < 0.01 * np.max(np.abs(fd))
+
+
+def test_tables_comparing_methods_get_one_titled_figure_set_per_method():
+    """A sweep over extract.method (issue 6): the figures are drawn per method,
+    named and titled after it, instead of mixing both methods in one series."""
+    from vetica_cli.plots import sweep_figures
+
+    df, meta = synthetic_sweep("dashpot", failed=0, not_steady=0)
+    both = pd.concat([df.assign(method="vetica"), df.assign(method="full")], ignore_index=True)
+    figs, notes = sweep_figures(both, meta)
+    names = [n for n, _ in figs]
+    assert {n.rsplit("_", 1)[1] for n in names} == {"vetica", "full"}
+    assert len(names) == 2 * len(EXPECTED["dashpot"])
+    full = dict(figs)["fig43-46_errors_vs_cd_full"]
+    assert "full extraction" in full._suptitle.get_text()
+    assert "VETICA" in dict(figs)["fig43-46_errors_vs_cd_vetica"]._suptitle.get_text()
+    assert "methods: full, vetica" in notes[-1]

@@ -104,8 +104,11 @@ def sweep(
     quiet: bool = typer.Option(False, "--quiet", "-q", help="No progress bar."),
 ):
     """Run a parametric study: simulate every point of the grid, extract it
-    with the true and the reconstructed force, and write one tidy table
-    (one row per point and force source) plus <name>.config.yaml.
+    with the true and the reconstructed force (extract.force), by VETICA or
+    the whole-cycle fit (extract.method: [vetica, full]), and write one tidy
+    table (one row per point, method and force source) plus <name>.config.yaml.
+    Points differing only in print step, method or instrument noise share one
+    simulation.
 
     Prints the acceptance regime at the end: for every combination of the
     other swept keys, the range of surface.cd where the tau_c error is below

@@ -823,15 +823,26 @@ def sweep_figures(df: pd.DataFrame, meta: dict) -> tuple[list, list]:
     swept = swept_keys(df, meta)
     if not swept:
         raise InputError("the sweep table varies no key: nothing to plot against")
-    sw = SweepData(df=df, swept=swept, base=_base_config(meta))
+    # tables comparing extraction methods (sweep key extract.method): one set of figures per method
+    methods = sorted(set(df["method"].astype(str))) if "method" in df.columns else ["vetica"]
     figs, notes = [], []
-    for name, builder, args in select_sweep_figures(swept):
-        fig = BUILDERS[builder](sw, *args)
-        if fig is None:
-            notes.append(f"{name} skipped: no usable points")
-        else:
-            figs.append((name, fig))
-    notes.append(f"swept keys: {', '.join(swept)}")
+    for method in methods:
+        dm = df[df["method"].astype(str) == method] if len(methods) > 1 else df
+        sw = SweepData(df=dm, swept=swept, base=_base_config(meta))
+        for name, builder, args in select_sweep_figures(swept):
+            label = name if len(methods) == 1 else f"{name}_{method}"
+            try:
+                fig = BUILDERS[builder](sw, *args)
+            except KeyError as exc:  # e.g. no 'ok' point for one force source
+                notes.append(f"{label} skipped: no usable points ({exc})")
+                continue
+            if fig is None:
+                notes.append(f"{label} skipped: no usable points")
+                continue
+            if method != "vetica" and fig._suptitle is not None:  # titles name the method shown
+                fig._suptitle.set_text(fig._suptitle.get_text().replace("VETICA", f"{method} extraction"))
+            figs.append((label, fig))
+    notes.append(f"swept keys: {', '.join(swept)}" + (f"; methods: {', '.join(methods)}" if len(methods) > 1 else ""))
     return figs, notes
 
 
