@@ -52,6 +52,29 @@ def _check_time(t, where):
         raise InputError(f"time column 't' is not strictly increasing in {where}")
 
 
+def force_column(seg, where, force, probe, info, *, k2=None, f2=None, q2=None, cutoff_hz=None, taper=0.0):
+    """The force of a segment: the ``f_ts`` column ('true'), or the spectral
+    inversion of ``z_paddle`` ('reconstructed', thesis eqs. 17-20) with the
+    probe's ``k2, f2, q2`` from the keywords or else the metadata ``probe``
+    section.  Records the cut-off in ``info``; InputError names missing probe
+    parameters."""
+    if force == "true":
+        return _column(seg, "f_ts", where)
+    p = {"k2": k2 if k2 is not None else probe.get("k2"),
+         "f2": f2 if f2 is not None else probe.get("f2"),
+         "q2": q2 if q2 is not None else probe.get("q2")}  # fmt: skip
+    absent = [k for k, v in p.items() if v is None]
+    if absent:
+        raise InputError(
+            f"the force reconstruction needs the probe's {', '.join(absent)} (not in the file's metadata): "
+            f"pass {' '.join('--' + k for k in absent)}, or use --force true"
+        )
+    rec = reconstruct_force(seg["t"].to_numpy(float), _column(seg, "z_paddle", where),
+                            p["k2"], p["f2"], p["q2"], cutoff_hz=cutoff_hz, taper=taper)  # fmt: skip
+    info["cutoff_hz"] = rec.cutoff_hz
+    return rec.f
+
+
 def extract(
     df,
     meta: dict | None = None,
@@ -127,21 +150,7 @@ def extract(
     t_start = time.perf_counter()
 
     def force_of(seg, where):
-        if force == "true":
-            return _column(seg, "f_ts", where)
-        p = {"k2": k2 if k2 is not None else probe.get("k2"),
-             "f2": f2 if f2 is not None else probe.get("f2"),
-             "q2": q2 if q2 is not None else probe.get("q2")}  # fmt: skip
-        absent = [k for k, v in p.items() if v is None]
-        if absent:
-            raise InputError(
-                f"the force reconstruction needs the probe's {', '.join(absent)} (not in the file's metadata): "
-                f"pass {' '.join('--' + k for k in absent)}, or use --force true"
-            )
-        rec = reconstruct_force(seg["t"].to_numpy(float), _column(seg, "z_paddle", where),
-                                p["k2"], p["f2"], p["q2"], cutoff_hz=cutoff_hz, taper=taper)  # fmt: skip
-        info["cutoff_hz"] = rec.cutoff_hz
-        return rec.f
+        return force_column(seg, where, force, probe, info, k2=k2, f2=f2, q2=q2, cutoff_hz=cutoff_hz, taper=taper)
 
     f = force_of(steady, "the steady record")
     t_rec = time.perf_counter()

@@ -90,8 +90,8 @@ from scipy.optimize import least_squares
 
 from .core.prescribed import C_FASEP, C_INVKG, C_K0, NDIR, coefficient_tangents, surface_force
 from .errors import InputError
-from .extract import FORCES, _check_time, _column, _finite_or_none
-from .spectral import reconstruct_force, reconstruction_error
+from .extract import FORCES, _check_time, _column, _finite_or_none, force_column
+from .spectral import reconstruction_error
 from .vetica import NAMES, first_contact_minimum, theory
 
 PARAMS = ("k_inf", "k0", "cd", "hamaker")
@@ -649,21 +649,7 @@ def extract_full(
     warnings: list = []
 
     def force_of(seg, where):
-        if force == "true":
-            return _column(seg, "f_ts", where)
-        p = {"k2": k2 if k2 is not None else probe.get("k2"),
-             "f2": f2 if f2 is not None else probe.get("f2"),
-             "q2": q2 if q2 is not None else probe.get("q2")}  # fmt: skip
-        absent = [k for k, v in p.items() if v is None]
-        if absent:
-            raise InputError(
-                f"the force reconstruction needs the probe's {', '.join(absent)} (not in the file's metadata): "
-                f"pass {' '.join('--' + k for k in absent)}, or use --force true"
-            )
-        rec = reconstruct_force(seg["t"].to_numpy(float), _column(seg, "z_paddle", where),
-                                p["k2"], p["f2"], p["q2"], cutoff_hz=cutoff_hz, taper=taper)  # fmt: skip
-        info["cutoff_hz"] = rec.cutoff_hz
-        return rec.f
+        return force_column(seg, where, force, probe, info, k2=k2, f2=f2, q2=q2, cutoff_hz=cutoff_hz, taper=taper)
 
     f = force_of(steady, "the steady record")
     t_rec = time.perf_counter()
