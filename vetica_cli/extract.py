@@ -52,6 +52,23 @@ def _check_time(t, where):
         raise InputError(f"time column 't' is not strictly increasing in {where}")
 
 
+def resolve_force(df, force: str) -> tuple[str, set]:
+    """Check the columns an extraction needs and resolve ``force='auto'``
+    (reconstructed when ``z_paddle`` is present).  Returns ``(force, columns)``;
+    InputError names what is missing."""
+    cols = set(df.columns)
+    missing = [c for c in ("t", "z_tip") if c not in cols]
+    if missing or not ({"f_ts", "z_paddle"} & cols):
+        need = missing + ([] if {"f_ts", "z_paddle"} & cols else ["f_ts or z_paddle"])
+        raise InputError(f"missing column(s): {', '.join(need)} (need t, z_tip and f_ts or z_paddle)")
+    if force == "auto":
+        force = "reconstructed" if "z_paddle" in cols else "true"
+    fcol = "f_ts" if force == "true" else "z_paddle"
+    if fcol not in cols:
+        raise InputError(f"--force {force} needs the column {fcol!r}, which the table does not have")
+    return force, cols
+
+
 def force_column(seg, where, force, probe, info, *, k2=None, f2=None, q2=None, cutoff_hz=None, taper=0.0):
     """The force of a segment: the ``f_ts`` column ('true'), or the spectral
     inversion of ``z_paddle`` ('reconstructed', thesis eqs. 17-20) with the
@@ -121,16 +138,7 @@ def extract(
 
         return extract_full(df, meta, force=force, kg_points=kg_points, k2=k2, f2=f2, q2=q2, z1=z1, f1=f1,
                             cutoff_hz=cutoff_hz, taper=taper)  # fmt: skip
-    cols = set(df.columns)
-    missing = [c for c in ("t", "z_tip") if c not in cols]
-    if missing or not ({"f_ts", "z_paddle"} & cols):
-        need = missing + ([] if {"f_ts", "z_paddle"} & cols else ["f_ts or z_paddle"])
-        raise InputError(f"missing column(s): {', '.join(need)} (need t, z_tip and f_ts or z_paddle)")
-    if force == "auto":
-        force = "reconstructed" if "z_paddle" in cols else "true"
-    fcol = "f_ts" if force == "true" else "z_paddle"
-    if fcol not in cols:
-        raise InputError(f"--force {force} needs the column {fcol!r}, which the table does not have")
+    force, cols = resolve_force(df, force)
 
     steady = _segment(df, "steady")
     if steady is None:  # measured data: every row not labelled 'approach'

@@ -90,7 +90,7 @@ from scipy.optimize import least_squares
 
 from .core.prescribed import C_FASEP, C_INVKG, C_K0, NDIR, coefficient_tangents, surface_force
 from .errors import InputError
-from .extract import FORCES, _check_time, _column, _finite_or_none, force_column
+from .extract import FORCES, _check_time, _column, _finite_or_none, force_column, resolve_force
 from .spectral import reconstruction_error
 from .vetica import NAMES, first_contact_minimum, theory
 
@@ -609,16 +609,7 @@ def extract_full(
         raise InputError(f"force {force!r} not allowed; choose one of: {', '.join(FORCES)}")
     if state not in STATES:
         raise InputError(f"state {state!r} not allowed; choose one of: {', '.join(STATES)}")
-    cols = set(df.columns)
-    missing = [c for c in ("t", "z_tip") if c not in cols]
-    if missing or not ({"f_ts", "z_paddle"} & cols):
-        need = missing + ([] if {"f_ts", "z_paddle"} & cols else ["f_ts or z_paddle"])
-        raise InputError(f"missing column(s): {', '.join(need)} (need t, z_tip and f_ts or z_paddle)")
-    if force == "auto":
-        force = "reconstructed" if "z_paddle" in cols else "true"
-    fcol = "f_ts" if force == "true" else "z_paddle"
-    if fcol not in cols:
-        raise InputError(f"--force {force} needs the column {fcol!r}, which the table does not have")
+    force, cols = resolve_force(df, force)
     t_start = time.perf_counter()
 
     steady = _segment(df, "steady")
