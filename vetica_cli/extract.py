@@ -92,6 +92,45 @@ def force_column(seg, where, force, probe, info, *, k2=None, f2=None, q2=None, c
     return rec.f
 
 
+def steady_force(steady, force, cols, force_of, probe, f1, info):
+    """The force of the steady record; for a reconstructed force also its error
+    against ``f_ts`` (when present) and the cut-off in drive harmonics, in ``info``."""
+    f = force_of(steady, "the steady record")
+    if force == "reconstructed" and "f_ts" in cols:
+        info["reconstruction_error"] = reconstruction_error(f, _column(steady, "f_ts", "the steady record"))
+    drive = f1 if f1 is not None else probe.get("f1")
+    if "cutoff_hz" in info and drive:
+        info["cutoff_harmonic"] = info["cutoff_hz"] / drive
+    return f
+
+
+def z1_reference(approach, z1, meta, force_of, info, need_approach=False):
+    """Z1, the undeformed-surface reference (thesis eq. 84): ``z1`` if given, else
+    the tip position at the first force minimum of the approach segment, else
+    the metadata's observable.  Returns ``(z1, approach_record)`` where
+    ``approach_record = (z_tip, force, index of Z1)`` when the approach segment
+    was analysed (always with ``need_approach``, else only when Z1 comes from
+    it); records the value and its source in ``info``."""
+    rec = None
+    if approach is not None and (z1 is None or need_approach):
+        ta = _column(approach, "t", "the approach segment")
+        _check_time(ta, "the approach segment")
+        fa = force_of(approach, "the approach segment")
+        i1 = first_contact_minimum(fa)
+        rec = (_column(approach, "z_tip", "the approach segment"), fa, i1)
+    if z1 is not None:
+        value, source = float(z1), "given"
+    elif rec is not None:
+        value, source = float(rec[0][rec[2]]), "approach segment"
+    elif (meta.get("observables") or {}).get("z1") is not None:
+        value, source = float(meta["observables"]["z1"]), "metadata"
+    else:
+        raise InputError("Z1 unknown: the table has no 'approach' segment and no metadata; pass --z1")
+    info["z1"] = value
+    info["z1_source"] = source
+    return value, rec
+
+
 def extract(
     df,
     meta: dict | None = None,
@@ -160,28 +199,9 @@ def extract(
     def force_of(seg, where):
         return force_column(seg, where, force, probe, info, k2=k2, f2=f2, q2=q2, cutoff_hz=cutoff_hz, taper=taper)
 
-    f = force_of(steady, "the steady record")
+    f = steady_force(steady, force, cols, force_of, probe, f1, info)
     t_rec = time.perf_counter()
-    if force == "reconstructed" and "f_ts" in cols:
-        info["reconstruction_error"] = reconstruction_error(f, _column(steady, "f_ts", "the steady record"))
-    drive = f1 if f1 is not None else probe.get("f1")
-    if "cutoff_hz" in info and drive:
-        info["cutoff_harmonic"] = info["cutoff_hz"] / drive
-
-    if z1 is not None:
-        z1_value, z1_source = float(z1), "given"
-    elif approach is not None:
-        ta = _column(approach, "t", "the approach segment")
-        _check_time(ta, "the approach segment")
-        fa = force_of(approach, "the approach segment")
-        i1 = first_contact_minimum(fa)
-        z1_value, z1_source = float(_column(approach, "z_tip", "the approach segment")[i1]), "approach segment"
-    elif (meta.get("observables") or {}).get("z1") is not None:
-        z1_value, z1_source = float(meta["observables"]["z1"]), "metadata"
-    else:
-        raise InputError("Z1 unknown: the table has no 'approach' segment and no metadata; pass --z1")
-    info["z1"] = z1_value
-    info["z1_source"] = z1_source
+    z1_value, _ = z1_reference(approach, z1, meta, force_of, info, need_approach=False)
 
     ex = vetica(t, z, f, z1_value, kg_points=kg_points, kr_guess=kr_guess)
     truth = None

@@ -90,9 +90,8 @@ from scipy.optimize import least_squares
 
 from .core.prescribed import C_FASEP, C_INVKG, C_K0, NDIR, coefficient_tangents, surface_force
 from .errors import InputError
-from .extract import FORCES, _check_time, _column, _finite_or_none, force_column, resolve_force
-from .spectral import reconstruction_error
-from .vetica import NAMES, first_contact_minimum, theory
+from .extract import FORCES, _check_time, _column, _finite_or_none, force_column, resolve_force, steady_force, z1_reference
+from .vetica import NAMES, theory
 
 PARAMS = ("k_inf", "k0", "cd", "hamaker")
 STATES = ("auto", "periodic", "free")  # dashpot state at the window start
@@ -642,31 +641,9 @@ def extract_full(
     def force_of(seg, where):
         return force_column(seg, where, force, probe, info, k2=k2, f2=f2, q2=q2, cutoff_hz=cutoff_hz, taper=taper)
 
-    f = force_of(steady, "the steady record")
+    f = steady_force(steady, force, cols, force_of, probe, f1, info)
     t_rec = time.perf_counter()
-    if force == "reconstructed" and "f_ts" in cols:
-        info["reconstruction_error"] = reconstruction_error(f, _column(steady, "f_ts", "the steady record"))
-    drive = f1 if f1 is not None else probe.get("f1")
-    if "cutoff_hz" in info and drive:
-        info["cutoff_harmonic"] = info["cutoff_hz"] / drive
-
-    approach_rec = None
-    if approach is not None:
-        ta = _column(approach, "t", "the approach segment")
-        _check_time(ta, "the approach segment")
-        fap = force_of(approach, "the approach segment")
-        i1 = first_contact_minimum(fap)
-        zap = _column(approach, "z_tip", "the approach segment")
-        approach_rec = (zap, fap, i1)
-        z1_value, z1_source = (float(z1), "given") if z1 is not None else (float(zap[i1]), "approach segment")
-    elif z1 is not None:
-        z1_value, z1_source = float(z1), "given"
-    elif (meta.get("observables") or {}).get("z1") is not None:
-        z1_value, z1_source = float(meta["observables"]["z1"]), "metadata"
-    else:
-        raise InputError("Z1 unknown: the table has no 'approach' segment and no metadata; pass --z1")
-    info["z1"] = z1_value
-    info["z1_source"] = z1_source
+    z1_value, approach_rec = z1_reference(approach, z1, meta, force_of, info, need_approach=True)
     if approach_rec is None:
         warnings.append("no approach record: the dashpot is assumed undeformed at the first contact (Xd1 = 0)")
 
