@@ -20,12 +20,11 @@ from scipy.optimize import least_squares
 from vetica_cli.config import load
 from vetica_cli.errors import InputError
 from vetica_cli.extract import extract
+from vetica_cli.signals.taps import find_taps, first_contact_minimum
 from vetica_cli.simulate import simulate
-from vetica_cli.spectral import reconstruct_force, reconstruction_error
+from vetica_cli.signals.spectral import reconstruct_force, reconstruction_error
 from vetica_cli.vetica import (
     _Superposition,
-    find_taps,
-    first_contact_minimum,
     fit_sum_of_sines,
     sls_elements,
     stage1a_tau_c,

@@ -19,7 +19,7 @@ from vetica_cli.errors import InputError
 from vetica_cli.extract import extract
 from vetica_cli.fullfit import SurfaceFit, _segment, extract_full
 from vetica_cli.simulate import simulate
-from vetica_cli.vetica import first_contact_minimum
+from vetica_cli.signals.taps import first_contact_minimum
 
 K0, KINF, CD = 128.0, 4.0, 3e-5  # worked example (thesis tables 2-4)
 HR6 = 0.2e-18 * 10e-9 / 6  # H R / 6 [J m]

@@ -10,7 +10,7 @@ to 12 significant digits by design, so comparisons use rel=1e-12.
 import numpy as np
 import pytest
 
-from vetica_cli.config import ConfigError
+from vetica_cli.errors import ConfigError
 from vetica_cli.grid import config_keys, expand, load_study, parse_values, point_key, sweepable_keys
 
 

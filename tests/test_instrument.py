@@ -5,7 +5,8 @@ import math
 import numpy as np
 import pytest
 
-from vetica_cli.config import ConfigError, load
+from vetica_cli.config import load
+from vetica_cli.errors import ConfigError
 from vetica_cli.core.thc import COLUMNS
 from vetica_cli.observables import harmonic
 from vetica_cli.simulate import simulate

@@ -21,6 +21,7 @@ from vetica_cli import plots
 from vetica_cli.cli import app
 from vetica_cli.config import load
 from vetica_cli.io import read_table, write_run, write_table
+from vetica_cli.signals.spectral import spectral_derivative
 from vetica_cli.simulate import simulate
 
 runner = CliRunner()
@@ -317,7 +318,7 @@ def test_plot_writes_the_run_figures(run_file, tmp_path):
 
 def _spectral_available() -> bool:
     try:
-        from vetica_cli import spectral  # noqa: F401
+        from vetica_cli.signals import spectral  # noqa: F401
     except ImportError:
         return False
     return True
@@ -362,7 +363,7 @@ def test_spectral_velocity_matches_the_analytic_derivative_despite_drift():
     drift = 50e-12 / (n_per * periods * dt)
     z = 70e-9 * np.sin(w * t) + 2e-9 * np.cos(3 * w * t) + drift * t
     v = 70e-9 * w * np.cos(w * t) - 6e-9 * w * np.sin(3 * w * t) + drift
-    assert np.allclose(plots.spectral_velocity(z, dt), v, rtol=0, atol=1e-8 * np.max(np.abs(v)))
+    assert np.allclose(spectral_derivative(z, dt), v, rtol=0, atol=1e-8 * np.max(np.abs(v)))
 
 
 def test_spectral_velocity_cutoff_drops_the_band_above_it():
@@ -374,7 +375,7 @@ def test_spectral_velocity_cutoff_drops_the_band_above_it():
     t = np.arange(n_per * periods) * dt
     w = 2 * np.pi * f1
     z = 70e-9 * np.sin(w * t) + 1e-11 * np.sin(40 * w * t)
-    v = plots.spectral_velocity(z, dt, cutoff_hz=10 * f1)
+    v = spectral_derivative(z, dt, cutoff_hz=10 * f1)
     assert np.allclose(v, 70e-9 * w * np.cos(w * t), rtol=0, atol=1e-5 * 70e-9 * w)
 
 
@@ -384,7 +385,7 @@ def test_spectral_velocity_of_the_run_agrees_with_finite_differences(run_file):
     df, meta = read_table(run_file)
     run = plots.load_run(df, meta)
     dt = meta["params"]["numerics"]["print_step"]
-    v = plots.spectral_velocity(run.z, dt)
+    v = spectral_derivative(run.z, dt)
     fd = np.gradient(run.z, dt)
     assert np.max(np.abs(v - fd)[1:-1]) < 0.01 * np.max(np.abs(fd))
 

@@ -18,7 +18,8 @@ from typer.testing import CliRunner
 
 from vetica_cli import sweep
 from vetica_cli.cli import app
-from vetica_cli.config import ConfigError, load
+from vetica_cli.config import load
+from vetica_cli.errors import ConfigError
 from vetica_cli.grid import expand, point_key
 from vetica_cli.io import read_table
 

@@ -16,12 +16,11 @@ from vetica_cli.config import load
 from vetica_cli.errors import InputError
 from vetica_cli.extract import extract
 from vetica_cli.simulate import simulate
+from vetica_cli.signals.taps import Taps, find_taps
 from vetica_cli.vetica import (
     SineFit,
-    Taps,
     _exp_conv_cos,
     boltzmann_force,
-    find_taps,
     fit_sum_of_sines,
     sls_elements,
     stage1a_tau_c,

@@ -17,9 +17,7 @@ from typing import Any
 
 import yaml
 
-
-class ConfigError(ValueError):
-    """A configuration problem; the message is one line for the user."""
+from .errors import ConfigError
 
 
 def _positive(v):

@@ -17,8 +17,9 @@ import time
 import numpy as np
 
 from .errors import InputError
-from .spectral import reconstruct_force, reconstruction_error
-from .vetica import NAMES, first_contact_minimum, theory, vetica
+from .signals.spectral import reconstruct_force, reconstruction_error
+from .signals.taps import first_contact_minimum
+from .vetica import NAMES, theory, vetica
 
 FORCES = ("auto", "true", "reconstructed")
 METHODS = ("vetica", "full")

@@ -601,7 +601,7 @@ def extract_full(
     ``fit_hamaker`` also a ``hamaker`` entry.
     """
     from .config import Probe, Surface
-    from .vetica import find_taps
+    from .signals.taps import find_taps
 
     meta = meta or {}
     if force not in FORCES:

@@ -56,7 +56,8 @@ from pathlib import Path
 from typing import Any
 
 from . import __version__
-from .config import SECTIONS, Config, ConfigError, from_dict, read_yaml
+from .config import SECTIONS, Config, from_dict, read_yaml
+from .errors import ConfigError
 
 # derived key -> (target key, source key): target = value * source
 DERIVED = {

@@ -33,8 +33,11 @@ from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.colors import LogNorm
 from matplotlib.figure import Figure
 
+from .constants import EV
 from .errors import InputError
 from .io import read_table
+from .signals.spectral import reconstruct_force, spectral_derivative
+from .signals.taps import find_taps
 
 # ---------------------------------------------------------------------------
 # display conventions
@@ -99,7 +102,6 @@ SHORT = {CD: "$c_d$", RATIO: r"$k_0:k_\infty$", SETPOINT: "set point", F1: "$f_1
 RUN_COLUMNS = ("t", "z_tip", "f_ts", "x_surface", "segment")
 SWEEP_COLUMNS = ("force_source", "status")
 
-EV = 1.602176634e-19  # J per eV
 
 
 @dataclass
@@ -277,7 +279,7 @@ def find_transitions(z: np.ndarray, x: np.ndarray, f: np.ndarray, a0: float, spp
 
     They are the force minima VETICA reads (thesis 3.3.1 and fig. 32:
     ``F_ts`` is smallest, ``-Fa(a0)``, at contact and at separation), found by
-    ``vetica.find_taps`` so the figures mark the very points the extraction
+    ``signals.taps.find_taps`` so the figures mark the very points the extraction
     uses.  With fewer than two taps in the record (``spp`` samples per drive
     period tell), ``find_taps`` declines or splits a tap at its paddle
     ringing; then the simulator's own contact state is used: in contact the tip and
@@ -285,8 +287,6 @@ def find_transitions(z: np.ndarray, x: np.ndarray, f: np.ndarray, a0: float, spp
     ``z_tip - x_surface <= a0 (1 + 1e-6)`` are the transitions (noise-free
     records only).
     """
-    from .vetica import find_taps
-
     try:
         taps = find_taps(f)
         if taps.spacing >= 0.75 * spp and len(taps.contact):
@@ -308,52 +308,6 @@ def find_transitions(z: np.ndarray, x: np.ndarray, f: np.ndarray, a0: float, spp
 def transitions(run: RunData) -> tuple[np.ndarray, np.ndarray]:
     """(contact, separation) sample indices, one pair per complete tap."""
     return run.on, run.off
-
-
-def spectral_velocity(z: np.ndarray, dt: float, cutoff_hz: float | None = None) -> np.ndarray:
-    """Tip velocity by the spectral derivative ``dz/dt = F^-1[i w Z(w)]`` (thesis eqs. 93-94, 5.3.1).
-
-    ``z`` spans whole drive periods (the steady window does), but a run that
-    is steady to the simulator's tolerance still drifts by picometres per
-    period, and the DFT's periodic extension turns that mismatch into a step
-    whose derivative rings over the window.  The value and slope jumps across
-    the wrap are therefore removed first with Bernoulli polynomials (Eckhoff's
-    end correction: ``b(t) = J0 B1(s) + J1 L B2(s)/2``, ``s = (t - t0)/L``)
-    and ``b'`` is added back analytically.  The Nyquist bin of an even-length
-    signal is dropped (its derivative is not real).  ``cutoff_hz``: bins above
-    it are dropped (brick wall; None keeps the whole band), which noisy
-    records need, since differentiation multiplies noise by ``w``.  Units:
-    m/s for ``z`` in m and ``dt`` in s.
-    """
-    z = np.asarray(z, float)
-    n = len(z)
-    length = n * dt
-    j0, j1 = _wrap_jumps(z, dt)
-    s = np.arange(n) / n
-    b = j0 * (s - 0.5) + j1 * length / 2 * (s * s - s + 1 / 6)
-    db = j0 / length + j1 * (s - 0.5)
-    spec = np.fft.rfft(z - b)
-    w = 2 * np.pi * np.fft.rfftfreq(n, dt)
-    deriv = 1j * w * spec
-    if n % 2 == 0:
-        deriv[-1] = 0.0
-    if cutoff_hz is not None:
-        deriv[w > 2 * np.pi * cutoff_hz] = 0.0
-    return np.fft.irfft(deriv, n) + db
-
-
-def _wrap_jumps(z: np.ndarray, dt: float, points: int = 12, degree: int = 4) -> tuple[float, float]:
-    """Jumps of value and slope across the periodic wrap: ``z(t_last + dt) - z(t_first)`` and the same for dz/dt.
-
-    Each end is a least-squares quartic through ``points`` samples (the last
-    one extrapolated one step beyond the window).
-    """
-    if len(z) < 2 * points:
-        return 0.0, 0.0
-    x = np.arange(points, dtype=float)
-    c0 = np.polynomial.polynomial.polyfit(x, z[:points], degree)
-    c1 = np.polynomial.polynomial.polyfit(x - points, z[-points:], degree)
-    return float(c1[0] - c0[0]), float((c1[1] - c0[1]) / dt)
 
 
 def tap_window(run: RunData) -> np.ndarray:
@@ -380,12 +334,8 @@ def loop_energy_ev(z: np.ndarray, f: np.ndarray) -> float:
 
 
 def reconstructed_force(run: RunData, cutoff_hz: float | None = None) -> tuple[np.ndarray | None, str]:
-    """Force rebuilt from the paddle signal by spectral inversion (``vetica_cli.spectral.reconstruct_force``,
+    """Force rebuilt from the paddle signal by spectral inversion (``vetica_cli.signals.spectral.reconstruct_force``,
     thesis eqs. 17-20; ``cutoff_hz`` None = its default, Nyquist), or (None, why not)."""
-    try:
-        from .spectral import reconstruct_force
-    except ImportError:
-        return None, "reconstructed-force figure skipped: vetica_cli.spectral (spectral inversion) is not available"
     if run.zp is None:
         return None, "reconstructed-force figure skipped: the run has no z_paddle column"
     p = run.params["probe"]
@@ -623,7 +573,7 @@ def fig_force_velocity(run: RunData, f_rec: np.ndarray | None) -> Figure:
     periods (thesis eq. 93); drawn over one tap near the surface.
     """
     dt = float(run.params["numerics"]["print_step"])
-    v_all = spectral_velocity(run.z, dt, run.cutoff_hz)
+    v_all = spectral_derivative(run.z, dt, run.cutoff_hz)
     period = tap_window(run)
     _xlo, xhi = _force_window(run, period)
     sl = _near(run, period, xhi)

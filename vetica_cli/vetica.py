@@ -45,7 +45,6 @@ milliseconds per tap.
 
 from __future__ import annotations
 
-import itertools
 import math
 import time
 from dataclasses import dataclass, field
@@ -54,6 +53,7 @@ import numpy as np
 from scipy.optimize import least_squares
 
 from .errors import InputError
+from .signals.taps import Taps, find_taps
 
 MIN_CONTACT_SAMPLES = 20  # stage 2 needs the contact resolved: 3 sines + constant = 10 parameters
 NAMES = ("tau_c", "k_g", "k_r", "tau_r", "k0", "k_inf", "cd")
@@ -79,103 +79,6 @@ def sls_elements(tau_c: float, k_g: float, k_r: float) -> dict:
     tau_r = tau_c * k_r / k_g
     k0 = k_g - k_r
     return {"tau_c": tau_c, "k_g": k_g, "k_r": k_r, "tau_r": tau_r, "k0": k0, "k_inf": k_r, "cd": tau_r * k0}
-
-
-# ----------------------------------------------------------------------------- taps
-
-
-@dataclass
-class Taps:
-    """Sample indices of the complete taps of a record (one row per tap)."""
-
-    contact: np.ndarray  # force minimum at contact
-    separation: np.ndarray  # force minimum at separation
-    peak: np.ndarray  # largest repulsive force
-    spacing: float  # median number of samples between peaks
-    incomplete: int = 0  # taps cut by the record's ends (dropped)
-
-
-def find_taps(f: np.ndarray) -> Taps:
-    """Locate every tap's contact and separation force minimum (thesis 4.3.1, fig. 32).
-
-    A tap is a run of samples above half the peak repulsive force (runs
-    split by ringing inside one contact are merged); its contact minimum is the smallest force in the half tap-spacing
-    before its peak, its separation minimum the smallest in the half spacing
-    after.  Taps whose search range is cut by the record's ends are dropped.
-    Raises InputError when the force has no repulsive peak or fewer than two taps.
-    """
-    f = np.asarray(f, dtype=float)
-    n = len(f)
-    above = _repulsive(f, "the record")
-    edges = np.flatnonzero(np.diff(above.astype(np.int8)))
-    starts = list(edges[~above[edges]] + 1)
-    ends = list(edges[above[edges]] + 1)
-    if above[0]:
-        starts.insert(0, 0)
-    if above[-1]:
-        ends.append(n)
-    runs = list(zip(starts, ends))
-    if len(runs) >= 2:
-        # merge runs split inside one contact (paddle ringing): gaps much shorter than the longest one
-        gaps = np.array([a - b for (_, b), (a, _) in itertools.pairwise(runs)])
-        merged = [runs[0]]
-        for (a, b), gap in zip(runs[1:], gaps):
-            if gap < 0.25 * gaps.max():
-                merged[-1] = (merged[-1][0], b)
-            else:
-                merged.append((a, b))
-        runs = merged
-    peaks = [a + int(np.argmax(f[a:b])) for a, b in runs]
-    if len(peaks) < 2:
-        raise InputError(f"too few taps: found {len(peaks)} contact(s) in the record, need at least 2")
-    spacing = float(np.median(np.diff(peaks)))
-    half = int(0.5 * spacing)
-    contact, separation, peak = [], [], []
-    incomplete = 0
-    for p in peaks:
-        lo, hi = p - half, p + half
-        if lo < 0 or hi >= n:
-            incomplete += 1
-            continue
-        ic = lo + int(np.argmin(f[lo : p + 1]))
-        isep = p + int(np.argmin(f[p : hi + 1]))
-        if ic == lo or isep == hi:  # minimum at the search edge: not a clean tap
-            incomplete += 1
-            continue
-        contact.append(ic)
-        separation.append(isep)
-        peak.append(p)
-    return Taps(np.array(contact, int), np.array(separation, int), np.array(peak, int), spacing, incomplete)
-
-
-def _repulsive(f: np.ndarray, where: str) -> np.ndarray:
-    """Samples above half the peak repulsive force; InputError if there is no
-    repulsive peak of at least a tenth of the deepest attraction."""
-    fmax, fmin = float(np.max(f)), float(np.min(f))
-    if not (fmax > 0 and fmax > 0.1 * max(-fmin, 0.0)):
-        raise InputError(f"no contact found in {where}: the force has no repulsive peak")
-    return f > 0.5 * fmax
-
-
-def first_contact_minimum(f: np.ndarray) -> int:
-    """Index of the force minimum at the first contact of an approach record.
-
-    Z1 is the tip position at the very first adhesion well (thesis 3.3.1,
-    eq. 84).  Before the first sample above half the peak repulsive force,
-    the first run of samples within 10 % of the deepest attraction is the first
-    well (a first contact can be a graze that never turns repulsive, and then
-    the next tap's well is as deep); its smallest sample is the minimum.
-    Raises InputError when no contact is found.
-    """
-    f = np.asarray(f, dtype=float)
-    first = int(np.argmax(_repulsive(f, "the approach segment")))
-    if first == 0:
-        raise InputError("the approach segment starts in contact: cannot measure Z1")
-    before = f[:first]
-    deep = before <= before.min() + 0.10 * abs(before.min())
-    start = int(np.argmax(deep))
-    stop = start + (int(np.argmin(deep[start:])) if not deep[start:].all() else len(deep) - start)
-    return start + int(np.argmin(before[start:stop]))
 
 
 # ----------------------------------------------------------------------------- stage 1
