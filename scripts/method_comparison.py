@@ -161,9 +161,9 @@ def noisy_reconstructed(df: pd.DataFrame) -> str:
 
 def measure_reconstruction() -> str:
     """RMS error of the reconstructed force (Nyquist cut-off) against f_ts for 0, 1, 10 pm."""
-    from vetica_cli.config import load
-    from vetica_cli.simulate import simulate
     from vetica_cli.signals.spectral import reconstruct_force, reconstruction_error
+    from vetica_cli.simulation.config import load
+    from vetica_cli.simulation.simulate import simulate
     from vetica_cli.sweep import point_run
 
     base = {"surface.k_inf": 4.0, "surface.k0": 64.0, "surface.cd": 1e-3, "numerics.dt": 0.025e-9,

@@ -17,12 +17,12 @@ import time
 import numpy as np
 from scipy.optimize import least_squares
 
-from vetica_cli.config import load
 from vetica_cli.errors import InputError
 from vetica_cli.extract import extract
-from vetica_cli.signals.taps import find_taps, first_contact_minimum
-from vetica_cli.simulate import simulate
 from vetica_cli.signals.spectral import reconstruct_force, reconstruction_error
+from vetica_cli.signals.taps import find_taps, first_contact_minimum
+from vetica_cli.simulation.config import load
+from vetica_cli.simulation.simulate import simulate
 from vetica_cli.vetica import (
     _Superposition,
     fit_sum_of_sines,

@@ -9,9 +9,9 @@ import pytest
 from typer.testing import CliRunner
 
 from vetica_cli.cli import app
-from vetica_cli.config import load
 from vetica_cli.io import write_run
-from vetica_cli.simulate import simulate
+from vetica_cli.simulation.config import load
+from vetica_cli.simulation.simulate import simulate
 
 NAMES = ("tau_c", "k_g", "k_r", "tau_r", "k0", "k_inf", "cd")
 

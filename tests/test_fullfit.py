@@ -13,13 +13,13 @@ import math
 import numpy as np
 import pytest
 
-from vetica_cli.config import load
 from vetica_cli.core.prescribed import NDIR, surface_force
 from vetica_cli.errors import InputError
 from vetica_cli.extract import extract
 from vetica_cli.fullfit import SurfaceFit, _segment, extract_full
-from vetica_cli.simulate import simulate
 from vetica_cli.signals.taps import first_contact_minimum
+from vetica_cli.simulation.config import load
+from vetica_cli.simulation.simulate import simulate
 
 K0, KINF, CD = 128.0, 4.0, 3e-5  # worked example (thesis tables 2-4)
 HR6 = 0.2e-18 * 10e-9 / 6  # H R / 6 [J m]

@@ -19,10 +19,10 @@ from typer.testing import CliRunner
 
 from vetica_cli import plots
 from vetica_cli.cli import app
-from vetica_cli.config import load
 from vetica_cli.io import read_table, write_run, write_table
 from vetica_cli.signals.spectral import spectral_derivative
-from vetica_cli.simulate import simulate
+from vetica_cli.simulation.config import load
+from vetica_cli.simulation.simulate import simulate
 
 runner = CliRunner()
 

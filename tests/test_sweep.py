@@ -24,9 +24,9 @@ from typer.testing import CliRunner
 
 from vetica_cli import sweep
 from vetica_cli.cli import app
-from vetica_cli.config import Config, load
 from vetica_cli.grid import expand, load_study
 from vetica_cli.io import read_table
+from vetica_cli.simulation.config import Config, load
 
 ROOT = Path(__file__).resolve().parents[1]
 CONFIGS = ROOT / "configs"
@@ -269,8 +269,9 @@ def test_parts_made_by_other_code_or_config_are_recomputed(tmp_path, monkeypatch
 
 def test_code_fingerprint_covers_simulation_and_extraction_only():
     names = {f.relative_to(ROOT / "vetica_cli").as_posix() for f in sweep.fingerprint_files()}
-    assert {"simulate.py", "core/thc.py", "core/sls.py", "observables.py", "extract.py", "vetica.py",
-            "spectral.py", "sweep.py", "grid.py", "config.py"} <= names  # fmt: skip
+    assert {"simulation/simulate.py", "core/thc.py", "core/sls.py", "simulation/observables.py", "extract.py",
+            "vetica.py", "signals/spectral.py", "sweep.py", "grid.py", "simulation/config.py", "surfaces/sls.py",
+            "surfaces/base.py", "simulation/instrument.py", "signals/taps.py"} <= names  # fmt: skip
     assert not names & {"cli.py", "plots.py", "report.py", "bench.py"}
 
 
@@ -294,7 +295,7 @@ def test_shared_print_step_simulation_matches_separate_runs():
     exactly the separate runs' sample times; the trajectories differ only through the
     controller's amplitude sampling: by < 1e-12 m (numerics.tol_z, far below the 0.1 nm
     scale of the extraction) and observables by < 1e-4 relative."""
-    from vetica_cli.simulate import simulate
+    from vetica_cli.simulation.simulate import simulate
 
     base = {"surface.k0": 64.0, "surface.cd": 1e-4, "numerics.dt": 0.05e-9, "numerics.record_cycles": 2,
             "numerics.max_time": 0.004, "numerics.kp": 0.05, "numerics.ki": 0.03}  # fmt: skip

@@ -4,7 +4,7 @@ in the instrument keys, and a small end-to-end sweep with both methods.
 
 Reference values: the grammar's definitions (grid.py docstring); for sharing,
 separate simulations of the same points (the instrument model acts after the
-kernel, vetica_cli/simulate.py:apply_instrument, so a shared record with the
+kernel, vetica_cli/simulation/instrument.py:apply_instrument, so a shared record with the
 point's noise applied must equal a separate run bit for bit); for the end to end
 sweep, the SLS theory values of the configured surface.
 """
@@ -18,10 +18,10 @@ from typer.testing import CliRunner
 
 from vetica_cli import sweep
 from vetica_cli.cli import app
-from vetica_cli.config import load
 from vetica_cli.errors import ConfigError
 from vetica_cli.grid import expand, point_key
 from vetica_cli.io import read_table
+from vetica_cli.simulation.config import load
 
 runner = CliRunner()
 
@@ -173,7 +173,7 @@ def test_shared_record_with_noise_equals_a_separate_noisy_simulation():
     the point's noise applied is bit-identical to simulating the noisy point alone;
     also for a coarser print step taken from a finer shared record (same samples as
     a separate run up to the controller's picometre-level difference, test_sweep.py)."""
-    from vetica_cli.simulate import simulate
+    from vetica_cli.simulation.simulate import simulate
 
     base = {"surface.k0": 64.0, "surface.cd": 1e-4, "numerics.dt": 0.05e-9, "numerics.record_cycles": 2,
             "numerics.max_time": 0.002, "numerics.kp": 0.05, "numerics.ki": 0.03}  # fmt: skip

@@ -12,11 +12,11 @@ import numpy as np
 import pytest
 from scipy.integrate import quad
 
-from vetica_cli.config import load
 from vetica_cli.errors import InputError
 from vetica_cli.extract import extract
-from vetica_cli.simulate import simulate
 from vetica_cli.signals.taps import Taps, find_taps
+from vetica_cli.simulation.config import load
+from vetica_cli.simulation.simulate import simulate
 from vetica_cli.vetica import (
     SineFit,
     _exp_conv_cos,

@@ -10,7 +10,7 @@ import os
 import platform
 import statistics
 
-from .simulate import simulate
+from .simulation.simulate import simulate
 
 
 def run_bench(cfg, repeat: int = 3) -> str:

@@ -52,10 +52,10 @@ def simulate(
     x_dashpot, segment (approach | steady); the Parquet metadata key 'vetica'
     holds the resolved params, units, stop_reason and observables.
     """
-    from . import config as cfgmod
     from .io import write_run
     from .report import run_summary
-    from .simulate import simulate as _simulate
+    from .simulation import config as cfgmod
+    from .simulation.simulate import simulate as _simulate
 
     cfg = cfgmod.load(config, cfgmod.parse_set(set_))
     run = _simulate(cfg)
@@ -72,8 +72,8 @@ def bench(
 ):
     """Time the kernel on the worked example: ns per integration step and
     wall seconds to steady state (one core)."""
-    from . import config as cfgmod
     from .bench import run_bench
+    from .simulation import config as cfgmod
 
     cfg = cfgmod.load(None, cfgmod.parse_set(set_))
     typer.echo(run_bench(cfg, repeat))
@@ -114,8 +114,8 @@ def sweep(
     other swept keys, the range of surface.cd where the tau_c error is below
     30 %.  A killed sweep run again computes only the missing points.
     """
-    from . import config as cfgmod
     from .grid import load_study
+    from .simulation import config as cfgmod
     from .sweep import dry_run_text, parts_dir, run_sweep, summary
 
     study = load_study(config, cfgmod.parse_set(set_))

@@ -88,9 +88,20 @@ import time
 import numpy as np
 from scipy.optimize import least_squares
 
+from .constants import TIP_RADIUS
 from .core.prescribed import C_FASEP, C_INVKG, C_K0, NDIR, coefficient_tangents, surface_force
 from .errors import InputError
-from .extract import FORCES, _check_time, _column, _finite_or_none, force_column, resolve_force, steady_force, z1_reference
+from .extract import (
+    FORCES,
+    _check_time,
+    _column,
+    _finite_or_none,
+    force_column,
+    resolve_force,
+    steady_force,
+    z1_reference,
+)
+from .surfaces import COMMON_KEYS
 from .vetica import NAMES, theory
 
 PARAMS = ("k_inf", "k0", "cd", "hamaker")
@@ -600,7 +611,6 @@ def extract_full(
     ({fitted parameter: bool}) and ``identifiable_reason``; with
     ``fit_hamaker`` also a ``hamaker`` entry.
     """
-    from .config import Probe, Surface
     from .signals.taps import find_taps
 
     meta = meta or {}
@@ -627,10 +637,10 @@ def extract_full(
     params = meta.get("params") or {}
     probe = params.get("probe") or {}
     surface = params.get("surface") or {}
-    a0 = float(surface.get("a0", Surface.a0))
-    hamaker = float(surface.get("hamaker", Surface.hamaker))
-    radius = float(probe.get("tip_radius", Probe.tip_radius))
-    vdw = bool(surface.get("vdw_on_surface", Surface.vdw_on_surface))
+    a0 = float(surface.get("a0", COMMON_KEYS["a0"].default))
+    hamaker = float(surface.get("hamaker", COMMON_KEYS["hamaker"].default))
+    radius = float(probe.get("tip_radius", TIP_RADIUS))
+    vdw = bool(surface.get("vdw_on_surface", COMMON_KEYS["vdw_on_surface"].default))
     hr6 = hamaker * radius / 6.0
     if substeps is None:  # the simulator's surface step: dt of the metadata, else one update per sample
         dt_sim = (params.get("numerics") or {}).get("dt")

@@ -1,7 +1,7 @@
 """Expand a study config (single-point schema + ``sweep:`` block) into points.
 
 A study config is a single-point config (sections ``probe``, ``operation``,
-``surface``, ``numerics``; see :mod:`vetica_cli.config`) plus, optionally,
+``surface``, ``numerics``; see :mod:`vetica_cli.simulation.config`) plus, optionally,
 ``name``/``description`` strings and a ``sweep:`` block that maps dotted keys
 to values::
 
@@ -51,19 +51,15 @@ import hashlib
 import itertools
 import json
 import math
-from dataclasses import dataclass, fields
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 from . import __version__
-from .config import SECTIONS, Config, from_dict, read_yaml
 from .errors import ConfigError
+from .simulation.config import DERIVED, SECTIONS, Config, defaults, from_dict, read_yaml, section_names
+from .surfaces import DEFAULT_MODEL, MODELS
 
-# derived key -> (target key, source key): target = value * source
-DERIVED = {
-    "surface.stiffness_ratio": ("surface.k0", "surface.k_inf"),
-    "probe.f2_ratio": ("probe.f2", "probe.f1"),
-}
 META_KEYS = ("name", "description")
 # extraction keys: not part of the simulated config; key -> (allowed values, default)
 EXTRACT_KEYS = {
@@ -76,7 +72,7 @@ RANGE_FORMS = ("logspace", "linspace")
 
 def config_keys() -> list[str]:
     """Every dotted key of the single-point schema, in declaration order."""
-    return [f"{sec}.{f.name}" for sec, cls in SECTIONS.items() for f in fields(cls)]
+    return [f"{sec}.{name}" for sec in SECTIONS for name in section_names(sec)]
 
 
 def sweepable_keys() -> list[str]:
@@ -124,7 +120,7 @@ class Study:
         # defaults filled in without validating the base alone: only the points
         # (base + sweep values) need to be valid configs
         clean, derived = _split_derived(self.base)
-        base = Config().to_dict()
+        base = defaults(_model_of(clean))
         for sec, body in clean.items():
             base[sec].update(body or {})
         for dkey, value in derived.items():
@@ -313,14 +309,14 @@ def _resolve(base_clean: dict, base_derived: dict, assign: dict) -> dict:
                 raise ConfigError(f"section {sec!r} must be a mapping, got {d[sec]!r}")
             d[sec][name] = value
     if derived:
-        defaults = Config().to_dict()
+        dflt = defaults(_model_of(d))
         for dkey, value in derived.items():
             target, source = DERIVED[dkey]
             v = _num(dkey, value, "value")
             if not v > 0:
                 raise ConfigError(f"{dkey}: {value!r} is not allowed; expected a ratio > 0")
             ssec, sname = source.split(".")
-            src = (d.get(ssec) or {}).get(sname, defaults[ssec][sname])
+            src = (d.get(ssec) or {}).get(sname, dflt[ssec][sname])
             src = _num(source, src, "value")
             tsec, tname = target.split(".")
             d.setdefault(tsec, {})[tname] = _clean(v * src)
@@ -389,6 +385,13 @@ def expand(raw: dict, name: str = "study", overrides: dict | None = None) -> Stu
         points.append(Point(index=i, values=resolved, config=cfg, key=key, method=method, force=force))
     return Study(name=name, description=description, keys=tuple(keys), points=tuple(points), base=base, sweep=sweep,
                  extract=extract)  # fmt: skip
+
+
+def _model_of(sections: dict) -> str:
+    """The surface model a study's (base or point) sections name (the default when they name none)."""
+    surface = sections.get("surface")
+    model = surface.get("model") if isinstance(surface, dict) else None
+    return model if isinstance(model, str) and model in MODELS else DEFAULT_MODEL
 
 
 def _extract_section(body: Any) -> dict:

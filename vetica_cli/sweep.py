@@ -29,7 +29,7 @@ Simulation sharing.  Points that differ only in ``extract.method`` or in the
 instrument keys ``numerics.position_noise``, ``force_noise``, ``noise_seed``
 and ``detector_bandwidth`` share one noise-free simulation: the method only
 reads the record, and the instrument model
-(:func:`vetica_cli.simulate.apply_instrument`) post-processes the recorded
+(:func:`vetica_cli.simulation.instrument.apply_instrument`) post-processes the recorded
 signals after the kernel (the amplitude controller sees the noise-free
 signal), so each point's record is the shared record with its own instrument
 model applied: bit-identical to a separate simulation of that point.  This
@@ -63,14 +63,16 @@ import pandas as pd
 import yaml
 
 from . import __version__
-from .config import from_dict
 from .errors import InputError
 from .grid import EXTRACT_KEYS, Point, Study
+from .simulation.config import from_dict
+from .simulation.instrument import apply_instrument, noise_free
+from .simulation.observables import OBSERVABLE_UNITS, compute_observables
+from .simulation.simulate import Run, derive, simulate
 
 SOURCES = ("true", "reconstructed")
 METHODS = ("vetica", "full")  # extract.method: thesis 3.3 / whole-cycle inversion (vetica_cli.fullfit)
 FITTED = ("k0", "k_inf", "cd")  # parameters the full method reports uncertainties and identifiability for
-INSTRUMENT_KEYS = ("position_noise", "force_noise", "noise_seed", "detector_bandwidth")  # numerics, post-kernel
 ESTIMATES = ("tau_c", "k_g", "k_r", "tau_r", "k0", "k_inf", "cd")
 OBSERVABLES = (
     "e_diss_ev",
@@ -111,8 +113,6 @@ def result_columns() -> list[str]:
 
 
 def column_units(study: Study) -> dict:
-    from .observables import OBSERVABLE_UNITS
-
     units = {"point": "hash of the resolved point config (names its part file)"}
     for k in study.keys:
         if k not in EXTRACT_KEYS:
@@ -148,18 +148,8 @@ def column_units(study: Study) -> dict:
 
 
 def theory(cfg) -> dict:
-    """SLS theory values (SPEC 7): Kg = k0 + k_inf, Kr = k_inf, tau_r = cd/k0,
-    tau_c = cd (k0 + k_inf)/(k0 k_inf)  [N/m, s, kg/s]."""
-    s = cfg.surface
-    return {
-        "tau_c": s.cd * (s.k0 + s.k_inf) / (s.k0 * s.k_inf),
-        "k_g": s.k0 + s.k_inf,
-        "k_r": s.k_inf,
-        "tau_r": s.cd / s.k0,
-        "k0": s.k0,
-        "k_inf": s.k_inf,
-        "cd": s.cd,
-    }
+    """Theory values of the point's surface (its model's, e.g. the SLS's of SPEC 7)."""
+    return cfg.surface.surface_model.theory(cfg.surface.params)
 
 
 def _extract(df, meta, force, method="vetica"):
@@ -171,8 +161,6 @@ def _extract(df, meta, force, method="vetica"):
 
 
 def _simulate(cfg):
-    from .simulate import simulate
-
     return simulate(cfg)
 
 
@@ -280,9 +268,6 @@ def _subsample(fine, cfg_f, cfg_c):
     samples after the recording-start step.  Both are rebuilt here from step
     indices.
     """
-    from .observables import compute_observables
-    from .simulate import Run, derive
-
     n = cfg_c.numerics
     dt = n.dt
     dc = derive(cfg_c)
@@ -325,18 +310,6 @@ def _subsample(fine, cfg_f, cfg_c):
     return run
 
 
-def noise_free(cfg):
-    """``cfg`` without the instrument model (the config the kernel sees: the
-    instrument keys act only after it, in :func:`vetica_cli.simulate.apply_instrument`)."""
-    n = cfg.numerics
-    if not any(getattr(n, k) for k in INSTRUMENT_KEYS):
-        return cfg
-    d = cfg.to_dict()
-    for k in INSTRUMENT_KEYS:
-        d["numerics"][k] = 0
-    return from_dict(d)
-
-
 def simulation_key(cfg) -> str:
     """Points with equal keys need the same simulation (they differ at most in the
     extraction method and the instrument keys)."""
@@ -350,8 +323,6 @@ def share_group_key(cfg) -> str | None:
     print step, extraction method and instrument keys, and their controller
     period is the same number of steps)."""
     import json
-
-    from .simulate import derive
 
     cfg = noise_free(cfg)
     d = cfg.to_dict()
@@ -392,8 +363,6 @@ def point_run(shared, scfg, cfg):
     hold it: a copy when the simulations are the same, else the print-step
     subsample (:func:`_subsample`); then ``cfg``'s instrument model."""
     import copy
-
-    from .simulate import apply_instrument
 
     if simulation_key(cfg) == simulation_key(scfg):
         run = copy.deepcopy(shared)
@@ -486,7 +455,7 @@ def plan(study: Study, share_print_step: bool = True) -> list[Task]:
 
 
 # the modules whose import closure computes a point (simulation, extraction, this sweep)
-_FINGERPRINT_ROOTS = ("sweep.py", "grid.py", "simulate.py", "extract.py")
+_FINGERPRINT_ROOTS = ("sweep.py", "grid.py", "simulation/simulate.py", "extract.py")
 
 
 def _local_imports(path: Path, root: Path) -> set[Path]:
@@ -505,6 +474,7 @@ def _local_imports(path: Path, root: Path) -> set[Path]:
             base = base.joinpath(*node.module.split("."))
         candidates = [base.with_suffix(".py"), base / "__init__.py"]
         candidates += [base / f"{a.name}.py" for a in node.names]  # from .core import thc
+        candidates += [base / a.name / "__init__.py" for a in node.names]  # from .. import surfaces
         out.update(c.resolve() for c in candidates if c.is_file() and root in c.resolve().parents)
     return out
 

@@ -10,11 +10,10 @@ import math
 
 import numpy as np
 
-from .constants import EV
-from .core import thc
-from .errors import InputError
-from .signals.taps import first_contact_minimum
-
+from ..constants import EV
+from ..core import thc
+from ..errors import InputError
+from ..signals.taps import first_contact_minimum
 
 OBSERVABLE_UNITS = {
     "e_diss_ev": "eV per drive cycle: -(closed integral of f_ts dz_tip), energy the sample takes",
