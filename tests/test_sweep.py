@@ -22,8 +22,9 @@ import pytest
 import yaml
 from typer.testing import CliRunner
 
-from vetica_cli import sweep
+from vetica_cli import surfaces, sweep
 from vetica_cli.cli import app
+from vetica_cli.extraction import Estimate, ExtractionResult
 from vetica_cli.grid import expand, load_study
 from vetica_cli.io import read_table
 from vetica_cli.simulation.config import Config, load
@@ -67,13 +68,9 @@ def fake_extract(df, meta, force):
     }
     wiggle = float(np.mean(df["z_tip"].to_numpy())) * 1e6  # ~1e-2, from the simulation
     factor = (1.1 if force == "true" else 1.5) + wiggle
-    out = {}
-    for name, t in th.items():
-        v = t * factor
-        out[name] = {"value": v, "theory": t, "error_pct": 100 * abs(v - t) / t}
-    out["force"] = force
-    out["taps"] = 2
-    return out
+    units = {n: q.unit for n, q in surfaces.get("sls").quantities.items()}
+    est = {n: Estimate(t * factor, units[n], t, 100 * abs(t * factor - t) / t) for n, t in th.items()}
+    return ExtractionResult(method="vetica", force=force, taps=2, estimates=est)
 
 
 def numeric_equal(a: pd.DataFrame, b: pd.DataFrame) -> None:
@@ -194,7 +191,7 @@ RESUME_SCRIPT = textwrap.dedent(
     import os, sys, time
     sys.path.insert(0, {tests!r})
     from test_sweep import cheap_study, fake_extract
-    from vetica_cli import sweep
+    from vetica_cli import surfaces, sweep
 
     def slow_extract(df, meta, force):
         time.sleep(float(os.environ.get("FAKE_SLEEP", "0")))
@@ -269,8 +266,9 @@ def test_parts_made_by_other_code_or_config_are_recomputed(tmp_path, monkeypatch
 
 def test_code_fingerprint_covers_simulation_and_extraction_only():
     names = {f.relative_to(ROOT / "vetica_cli").as_posix() for f in sweep.fingerprint_files()}
-    assert {"simulation/simulate.py", "core/thc.py", "core/sls.py", "simulation/observables.py", "extract.py",
-            "vetica.py", "signals/spectral.py", "sweep.py", "grid.py", "simulation/config.py", "surfaces/sls.py",
+    assert {"simulation/simulate.py", "core/thc.py", "core/sls.py", "simulation/observables.py",
+            "extraction/__init__.py", "extraction/vetica.py", "extraction/record.py", "extraction/fullfit/model.py",
+            "extraction/fullfit/method.py", "core/prescribed.py", "signals/spectral.py", "sweep.py", "grid.py", "simulation/config.py", "surfaces/sls.py",
             "surfaces/base.py", "simulation/instrument.py", "signals/taps.py"} <= names  # fmt: skip
     assert not names & {"cli.py", "plots.py", "report.py", "bench.py"}
 

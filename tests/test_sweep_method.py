@@ -16,8 +16,9 @@ import pandas as pd
 import pytest
 from typer.testing import CliRunner
 
-from vetica_cli import sweep
+from vetica_cli import surfaces, sweep
 from vetica_cli.cli import app
+from vetica_cli.extraction import Estimate, ExtractionResult
 from vetica_cli.errors import ConfigError
 from vetica_cli.grid import expand, point_key
 from vetica_cli.io import read_table
@@ -45,12 +46,12 @@ def fake_extract(df, meta, force, method="vetica"):
     th = {"tau_c": s["cd"] * (s["k0"] + s["k_inf"]) / (s["k0"] * s["k_inf"]), "k_g": s["k0"] + s["k_inf"],
           "k_r": s["k_inf"], "tau_r": s["cd"] / s["k0"], "k0": s["k0"], "k_inf": s["k_inf"], "cd": s["cd"]}  # fmt: skip
     f = 1.10 if method == "vetica" else 1.01
-    out = {n: {"value": v * f, "theory": v, "error_pct": 100 * abs(f - 1)} for n, v in th.items()}
-    out.update(force=force, taps=3, method=method)
-    if method == "full":
-        out["uncertainty"] = {"k0": 0.002, "k_inf": 0.003, "cd": 2.0}
-        out["identifiable"] = {"k_inf": True, "k0": True, "cd": False}
-    return out
+    units = {n: q.unit for n, q in surfaces.get("sls").quantities.items()}
+    sigma = {"k0": 0.002, "k_inf": 0.003, "cd": 2.0} if method == "full" else {}
+    ident = {"k_inf": True, "k0": True, "cd": False} if method == "full" else {}
+    est = {n: Estimate(v * f, units[n], v, 100 * abs(f - 1), sigma=sigma.get(n), identifiable=ident.get(n))
+           for n, v in th.items()}  # fmt: skip
+    return ExtractionResult(method=method, force=force, taps=3, estimates=est, fitted=tuple(ident))
 
 
 # --------------------------------------------------------------------- grammar

@@ -32,9 +32,10 @@ table shows ``1e-05``, not ``1.0000000000000001e-05``.
 Extraction keys (issue 6) name how each point is analysed, not what is
 simulated; they may be swept or set in an ``extract:`` section of the base:
 
-* ``extract.method``: ``vetica`` (thesis 3.3, the default) or ``full`` (the
-  whole-cycle model inversion of :mod:`vetica_cli.fullfit`).  Points that
-  differ only in the method share one simulation (see :mod:`vetica_cli.sweep`).
+* ``extract.method``: a registered extraction method (:mod:`vetica_cli.extraction`:
+  ``vetica``, thesis 3.3, the default; ``full``, the whole-cycle model
+  inversion).  Points that differ only in the method share one simulation
+  (see :mod:`vetica_cli.sweep`).
 * ``extract.force``: ``both`` (the default: the simulator's true force and the
   force reconstructed from the paddle signal, one row each), ``true`` or
   ``reconstructed`` (one row).  E.g. with detector noise the reconstruction at
@@ -57,13 +58,14 @@ from typing import Any
 
 from . import __version__
 from .errors import ConfigError
+from .extraction import DEFAULT_METHOD, METHODS
 from .simulation.config import DERIVED, SECTIONS, Config, defaults, from_dict, read_yaml, section_names
 from .surfaces import DEFAULT_MODEL, MODELS
 
 META_KEYS = ("name", "description")
 # extraction keys: not part of the simulated config; key -> (allowed values, default)
 EXTRACT_KEYS = {
-    "extract.method": (("vetica", "full"), "vetica"),
+    "extract.method": (tuple(METHODS), DEFAULT_METHOD),
     "extract.force": (("both", "true", "reconstructed"), "both"),
 }
 EXTRACT_SECTION = "extract"
@@ -98,7 +100,7 @@ class Point:
     values: dict  # swept key -> value, in column order
     config: Config
     key: str  # hash of the resolved config and the extraction method (names the persisted part)
-    method: str = "vetica"  # extract.method: how the point's run is analysed
+    method: str = DEFAULT_METHOD  # extract.method: how the point's run is analysed
     force: str = "both"  # extract.force: which force sources are extracted
 
     def label(self) -> str:
@@ -138,7 +140,7 @@ class Study:
         return out
 
 
-def point_key(cfg: Config, method: str = "vetica", force: str = "both") -> str:
+def point_key(cfg: Config, method: str = DEFAULT_METHOD, force: str = "both") -> str:
     """Stable 16-hex hash of a resolved point config (and the package version),
     and of the extraction keys that are not the default (so points with the
     default extraction keep the keys they had before extraction keys existed)."""

@@ -153,11 +153,10 @@ def theory(cfg) -> dict:
 
 
 def _extract(df, meta, force, method="vetica"):
-    """The real extraction (vetica_cli.extract; method 'full' = vetica_cli.fullfit);
-    tests may replace this (called without ``method`` for VETICA points)."""
-    from .extract import extract
+    """The real extraction (vetica_cli.extraction); tests may replace this."""
+    from .extraction import extract
 
-    return extract(df, meta, force=force, kg_points=10, method=method)
+    return extract(df, meta, force=force, method=method, kg_points=10)
 
 
 def _simulate(cfg):
@@ -207,17 +206,21 @@ def _rows_for_run(cfg, run, sim_wall: float, method: str = "vetica", force: str 
         try:
             res = _extract(df, meta, source) if method == "vetica" else _extract(df, meta, source, method=method)
             for name in ESTIMATES:
-                r = res.get(name) or {}
-                row[name] = _float(r.get("value"))
-                if r.get("theory") is not None:
-                    row[f"{name}_theory"] = _float(r.get("theory"))
-                row[f"{name}_err_pct"] = _float(r.get("error_pct"))
-            unc = res.get("uncertainty") or {}
+                e = res.estimates.get(name)
+                if e is None:
+                    continue
+                row[name] = _float(e.value)
+                if e.theory is not None:
+                    row[f"{name}_theory"] = _float(e.theory)
+                row[f"{name}_err_pct"] = _float(e.error_pct)
             for name in FITTED:
-                row[f"{name}_sigma_pct"] = 100.0 * _float(unc.get(name))
-            ident = res.get("identifiable") or {}
-            row["unidentified"] = ",".join(k for k in FITTED if ident.get(k) is False)
-            row["taps"] = int(res.get("taps", -1) if res.get("taps") is not None else -1)
+                e = res.estimates.get(name)
+                sigma = _float(e.sigma if e is not None else None)
+                row[f"{name}_sigma_pct"] = 100.0 * sigma if math.isfinite(sigma) else math.nan
+            row["unidentified"] = ",".join(
+                k for k in FITTED if k in res.estimates and res.estimates[k].identifiable is False
+            )
+            row["taps"] = int(res.taps if res.taps is not None else -1)
             row["status"] = "ok" if run.stop_reason == "steady" else "not_steady"
             row["error"] = ""
         except Exception as exc:  # noqa: BLE001 - a failed point becomes a row
@@ -455,7 +458,7 @@ def plan(study: Study, share_print_step: bool = True) -> list[Task]:
 
 
 # the modules whose import closure computes a point (simulation, extraction, this sweep)
-_FINGERPRINT_ROOTS = ("sweep.py", "grid.py", "simulation/simulate.py", "extract.py")
+_FINGERPRINT_ROOTS = ("sweep.py", "grid.py", "simulation/simulate.py", "extraction/__init__.py")
 
 
 def _local_imports(path: Path, root: Path) -> set[Path]:
