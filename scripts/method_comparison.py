@@ -26,7 +26,7 @@ Definitions (per setting, noise level, force source and method; cd grid of the s
 * ``W_cd``: the same with the cd error < 30 %;
 * ``W_cd_all``: as ``W_cd`` but points that hit numerics.max_time
   ('not_steady') count too: the extraction is judged on the record it got;
-* medians of the k0, k_inf and cd errors over the points of the ``W_cd`` run
+* medians of the k0, k_inf and cd error magnitudes over the points of the ``W_cd`` run
   (the run of ``W_tau`` for the ``*_tau`` columns).
 """
 
@@ -56,7 +56,7 @@ def longest_run(g: pd.DataFrame, err_col: str, statuses=("ok",)) -> pd.DataFrame
     """Rows of the longest run of consecutive cd grid points with status in
     ``statuses`` and ``err_col`` < 30 % (the lower-cd run wins a tie)."""
     g = g.sort_values(CD)
-    ok = (g["status"].isin(statuses) & (g[err_col] < LIMIT)).to_numpy()
+    ok = (g["status"].isin(statuses) & (g[err_col].abs() < LIMIT)).to_numpy()
     best, start = (0, 0), None
     for i, flag in enumerate([*ok, False]):
         if flag and start is None:
@@ -94,8 +94,8 @@ def summarize(df: pd.DataFrame, setting: str) -> pd.DataFrame:
             cd_hi=float(r_cd[CD].max()) if len(r_cd) else math.nan,
         )
         for q in ("k0", "k_inf", "cd"):
-            r[f"med_{q}"] = float(r_cd[f"{q}_err_pct"].median()) if len(r_cd) else math.nan
-            r[f"med_{q}_tau"] = float(r_tau[f"{q}_err_pct"].median()) if len(r_tau) else math.nan
+            r[f"med_{q}"] = float(r_cd[f"{q}_err_pct"].abs().median()) if len(r_cd) else math.nan
+            r[f"med_{q}_tau"] = float(r_tau[f"{q}_err_pct"].abs().median()) if len(r_tau) else math.nan
         r["flagged"] = int((g["unidentified"] != "").sum())
         r["extract_s_median"] = float(g["wall_s"].median())
         rows.append(r)

@@ -3,6 +3,7 @@
     python scripts/results_tables.py            # markdown on stdout, ~5 s
 
 Reads results/<study>.parquet (written by `vetica sweep configs/<study>.yaml`).
+Errors are summarised by their magnitude (tables from v0.2 on store them signed).
 The acceptance regime is the one `vetica sweep` and `vetica plot` use
 (vetica_cli.plots.acceptance: status ok and tau_c error < 30 %, thesis fig. 52).
 """
@@ -95,7 +96,7 @@ def dashpot_tables() -> str:
             row = {"surface": lab, "force": src, "acceptance regime cd [kg/s]": s, "decades": dec}
             for q in Q:
                 row[f"{QL[q]} err %: mean / max"] = (
-                    f"{inside[f'{q}_err_pct'].mean():.3g} / {inside[f'{q}_err_pct'].max():.3g}"
+                    f"{inside[f'{q}_err_pct'].abs().mean():.3g} / {inside[f'{q}_err_pct'].abs().max():.3g}"
                 )
             rows.append(row)
     parts.append(
@@ -137,7 +138,7 @@ def dashpot_tables() -> str:
                     "max Δk_inf in regime [N/m]": (ins["k_inf"] - ins["k_inf_theory"]).abs().max(),
                     "max Δk0, all ok [N/m]": (d["k0"] - d["k0_theory"]).abs().max(),
                     "max Δk_inf, all ok [N/m]": (d["k_inf"] - d["k_inf_theory"]).abs().max(),
-                    "max Kg err % all ok": d["k_g_err_pct"].max(),
+                    "max Kg err % all ok": d["k_g_err_pct"].abs().max(),
                     "ok points without τc": int(d["tau_c"].isna().sum()),
                 }
             )
@@ -174,7 +175,7 @@ def regime_by(name: str, key: str, scale: float, unit: str) -> str:
         gt = g[g.force_source == "true"]
         row["not_steady"] = int((gt.status == "not_steady").sum())
         row["failed"] = int((gt.status == "failed").sum())
-        row["min τc err % (true)"] = gt.loc[gt.status == "ok", "tau_c_err_pct"].min()
+        row["min τc err % (true)"] = gt.loc[gt.status == "ok", "tau_c_err_pct"].abs().min()
         rows.append(row)
     return md(pd.DataFrame(rows))
 
@@ -213,7 +214,7 @@ def mean_err_in_regime(df: pd.DataFrame, key: str, src: str = "true") -> pd.Data
             ins = g[(g[CD] >= r.lo) & (g[CD] <= r.hi) & (g.status == "ok")]
             row["n in regime"] = len(ins)
             for q in Q:
-                row[f"{QL[q]} %"] = ins[f"{q}_err_pct"].mean()
+                row[f"{QL[q]} %"] = ins[f"{q}_err_pct"].abs().mean()
         else:
             for q in Q:
                 row[f"{QL[q]} %"] = np.nan

@@ -184,6 +184,15 @@ def test_acceptance_regime_per_combination_and_source():
     assert "with gaps" in text
 
 
+def test_acceptance_regime_takes_the_magnitude_of_signed_errors():
+    """Tables store signed errors (100 (estimate - theory)/theory): an underestimate by
+    50 % is as far outside the 30 % regime (thesis fig. 52) as an overestimate."""
+    t = pd.DataFrame({"surface.cd": [1e-5, 1e-4, 1e-3, 1e-2], "force_source": "true", "status": "ok",
+                      "tau_c_err_pct": [-50.0, -20.0, 25.0, 45.0]})  # fmt: skip
+    (a,) = sweep.acceptance_regime(t, ("surface.cd",))
+    assert (a["cd_min"], a["cd_max"], a["n_accepted"], a["contiguous"]) == (1e-4, 1e-3, 2, True)
+
+
 # --------------------------------------------------------------------- resume and determinism
 
 RESUME_SCRIPT = textwrap.dedent(

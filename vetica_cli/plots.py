@@ -741,9 +741,17 @@ def select_sweep_figures(swept: list[str]) -> list[tuple[str, str, tuple]]:
 
 @dataclass
 class SweepData:
+    """The rows of a sweep table the figures draw, with the error columns as magnitudes
+    (tables store signed errors; the figures' error axes are logarithmic)."""
+
     df: pd.DataFrame  # all rows
     swept: list
     base: dict | None
+
+    def __post_init__(self):
+        errs = [c for c in self.df.columns if c.endswith("_err_pct")]
+        if errs:
+            self.df = self.df.assign(**{c: self.df[c].abs() for c in errs})
 
     @property
     def others(self) -> list:
@@ -1015,7 +1023,7 @@ def acceptance(d: pd.DataFrame, err_col: str = "tau_c_err_pct") -> Regime | None
     None when no point is accepted.
     """
     grid = np.sort(d[CD].to_numpy(float))
-    ok = d[(d["status"].astype(str) == "ok") & (d[err_col] < ACCEPT_PCT)]
+    ok = d[(d["status"].astype(str) == "ok") & (d[err_col].abs() < ACCEPT_PCT)]
     acc = np.sort(ok[CD].to_numpy(float))
     if not len(acc):
         return None

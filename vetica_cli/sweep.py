@@ -123,7 +123,7 @@ def column_units(study: Study) -> dict:
         u = ESTIMATE_UNITS[name]
         units[name] = f"{u}: VETICA estimate"
         units[f"{name}_theory"] = f"{u}: SLS theory value (SPEC 7)"
-        units[f"{name}_err_pct"] = "%: 100 |estimate - theory| / theory"
+        units[f"{name}_err_pct"] = "%: 100 (estimate - theory) / theory, signed (tables before v0.2: its magnitude)"
     for name in FITTED:
         units[f"{name}_sigma_pct"] = (
             "%: relative 1-sigma of the full method's estimate (Jacobian; NaN for vetica or unbounded)"
@@ -784,7 +784,7 @@ def acceptance_regime(
 ) -> list[dict]:
     """For every combination of the other swept keys (the extraction method is
     the 'method' column) and each force source: the range of cd with status
-    'ok' and ``err_col`` below 30 % (tau_c error: thesis fig. 52)."""
+    'ok' and ``|err_col|`` below 30 % (tau_c error: thesis fig. 52)."""
     if cd_key not in keys:
         return []
     # extraction keys are columns of their own: extract.method -> 'method', extract.force -> 'force_source'
@@ -795,7 +795,7 @@ def acceptance_regime(
     group_cols = [*others, "force_source"]
     for combo, g in table.groupby(group_cols, sort=False, dropna=False):
         combo = combo if isinstance(combo, tuple) else (combo,)
-        ok = g[(g["status"] == "ok") & (g[err_col] < ACCEPT_ERR_PCT)]
+        ok = g[(g["status"] == "ok") & (g[err_col].abs() < ACCEPT_ERR_PCT)]
         cds = sorted(ok[cd_key].astype(float))
         all_cd = sorted(g[cd_key].astype(float))
         entry = {k: _plain(v) for k, v in zip(group_cols, combo)}

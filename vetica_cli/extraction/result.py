@@ -18,11 +18,12 @@ def finite_or_none(v) -> float | None:
 
 
 def error_pct(value: float | None, theory: float | None) -> float | None:
-    """Error of an extracted value against its theory value [%]:
-    ``100 |value - theory| / theory`` (SPEC 7); None when either is unknown."""
+    """Signed error of an extracted value against its theory value [%]:
+    ``100 (value - theory) / theory`` (positive = overestimate; SPEC 7 states its
+    magnitude); None when either is unknown."""
     if value is None or not theory:
         return None
-    return 100.0 * abs(value - theory) / abs(theory)
+    return 100.0 * (value - theory) / theory
 
 
 @dataclass(frozen=True)
