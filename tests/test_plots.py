@@ -221,7 +221,7 @@ def test_acceptance_regime_spans_the_ok_points_below_30_percent():
 
 @pytest.mark.parametrize("study", ["frequency", "print_step"])
 def test_acceptance_regime_agrees_with_what_vetica_sweep_reports(study):
-    from vetica_cli.sweep import acceptance_regime
+    from vetica_cli.study.acceptance import acceptance_regime
 
     df, _ = synthetic_sweep(study)
     other = next(k for k in STUDIES[study] if k != "surface.cd")

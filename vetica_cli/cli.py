@@ -53,14 +53,11 @@ def simulate(
     x_dashpot, segment (approach | steady); the Parquet metadata key 'vetica'
     holds the resolved params, units, stop_reason and observables.
     """
-    from .io import write_run
     from .report import run_summary
-    from .simulation import config as cfgmod
-    from .simulation.simulate import simulate as _simulate
+    from .simulation.config import parse_set
+    from .simulation.simulate import simulate_file
 
-    cfg = cfgmod.load(config, cfgmod.parse_set(set_))
-    run = _simulate(cfg)
-    write_run(run, output)
+    run = simulate_file(config, output, parse_set(set_))
     if not quiet:
         typer.echo(run_summary(run, output))
 
@@ -74,10 +71,9 @@ def bench(
     """Time the kernel on the worked example: ns per integration step and
     wall seconds to steady state (one core)."""
     from .bench import run_bench
-    from .simulation import config as cfgmod
+    from .simulation.config import parse_set
 
-    cfg = cfgmod.load(None, cfgmod.parse_set(set_))
-    typer.echo(run_bench(cfg, repeat))
+    typer.echo(run_bench(parse_set(set_), repeat))
 
 
 @app.command()
@@ -115,35 +111,17 @@ def sweep(
     other swept keys, the range of surface.cd where the tau_c error is below
     30 %.  A killed sweep run again computes only the missing points.
     """
-    from .grid import load_study
-    from .simulation import config as cfgmod
-    from .sweep import dry_run_text, parts_dir, run_sweep, summary
+    from .simulation.config import parse_set
+    from .study.sweep import SweepInterrupted, sweep_command
 
-    study = load_study(config, cfgmod.parse_set(set_))
-    out = output if output is not None else Path("results") / f"{config.stem}.parquet"
-    if dry_run:
-        typer.echo(dry_run_text(study, out, jobs, share_print_step))
-        return
     try:
-        res = run_sweep(
-            study,
-            out,
-            jobs=jobs,
-            backend=backend,
-            scheduler=scheduler,
-            resume=resume,
-            share_print_step=share_print_step,
-            progress=not quiet,
-        )
-    except KeyboardInterrupt:
-        n = len(list(parts_dir(out).glob("*.parquet")))
-        typer.echo(
-            f"interrupted: {n} of {len(study.points)} points are persisted in {parts_dir(out)}/; "
-            "run the same command again to compute the rest",
-            err=True,
-        )
+        text = sweep_command(config, output, parse_set(set_), dry_run=dry_run, jobs=jobs, backend=backend,
+                             scheduler=scheduler, resume=resume, share_print_step=share_print_step,
+                             progress=not quiet)  # fmt: skip
+    except SweepInterrupted as exc:
+        typer.echo(str(exc), err=True)
         raise typer.Exit(130) from None
-    typer.echo(summary(res, study))
+    typer.echo(text)
 
 
 @app.command()

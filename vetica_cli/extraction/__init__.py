@@ -14,7 +14,7 @@ from ..io import read_table
 from . import fullfit as _fullfit  # noqa: F401  (registers 'full')
 from . import vetica as _vetica  # noqa: F401  (registers 'vetica')
 from .base import DEFAULT_METHOD, METHODS, ExtractionMethod, get, register
-from .record import FORCES, Record, build_record
+from .record import FORCES, SOURCES, Record, build_record
 from .result import Estimate, ExtractionResult, Spread
 
 
@@ -73,6 +73,7 @@ __all__ = [
     "ExtractionMethod",
     "ExtractionResult",
     "Record",
+    "SOURCES",
     "Spread",
     "build_record",
     "extract",

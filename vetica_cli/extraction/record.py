@@ -25,7 +25,8 @@ from ..errors import ConfigError, InputError
 from ..signals.spectral import reconstruct_force, reconstruction_error
 from ..signals.taps import first_contact_minimum
 
-FORCES = ("auto", "true", "reconstructed")
+SOURCES = ("true", "reconstructed")  # force sources: the f_ts column, or rebuilt from the paddle signal
+FORCES = ("auto", *SOURCES)  # auto = reconstructed when z_paddle is present
 
 
 @dataclass

@@ -34,7 +34,8 @@ import pandas as pd
 from .. import __version__
 from ..core import thc
 from ..errors import ConfigError
-from .config import Config
+from ..io import write_run
+from .config import Config, load
 from .instrument import apply_instrument
 from .observables import compute_observables
 
@@ -186,6 +187,14 @@ def simulate(cfg: Config) -> Run:
     )
     compute_observables(run, cfg, d)  # from the noise-free signals
     apply_instrument(run, cfg)
+    return run
+
+
+def simulate_file(config=None, output="run.parquet", overrides: dict | None = None) -> Run:
+    """``vetica simulate``: load a one-point YAML config (None = the defaults) with dotted
+    ``overrides``, simulate it and write the run to ``output`` (Parquet with metadata)."""
+    run = simulate(load(config, overrides))
+    write_run(run, output)
     return run
 
 

@@ -35,7 +35,7 @@ simulated; they may be swept or set in an ``extract:`` section of the base:
 * ``extract.method``: a registered extraction method (:mod:`vetica_cli.extraction`:
   ``vetica``, thesis 3.3, the default; ``full``, the whole-cycle model
   inversion).  Points that differ only in the method share one simulation
-  (see :mod:`vetica_cli.sweep`).
+  (see :mod:`vetica_cli.study.plan`).
 * ``extract.force``: ``both`` (the default: the simulator's true force and the
   force reconstructed from the paddle signal, one row each), ``true`` or
   ``reconstructed`` (one row).  E.g. with detector noise the reconstruction at
@@ -56,17 +56,17 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from . import __version__
-from .errors import ConfigError
-from .extraction import DEFAULT_METHOD, METHODS
-from .simulation.config import DERIVED, SECTIONS, Config, defaults, from_dict, read_yaml, section_names
-from .surfaces import DEFAULT_MODEL, MODELS
+from .. import __version__
+from ..errors import ConfigError
+from ..extraction import DEFAULT_METHOD, METHODS, SOURCES
+from ..simulation.config import DERIVED, SECTIONS, Config, defaults, from_dict, read_yaml, section_names
+from ..surfaces import DEFAULT_MODEL, MODELS
 
 META_KEYS = ("name", "description")
 # extraction keys: not part of the simulated config; key -> (allowed values, default)
 EXTRACT_KEYS = {
     "extract.method": (tuple(METHODS), DEFAULT_METHOD),
-    "extract.force": (("both", "true", "reconstructed"), "both"),
+    "extract.force": (("both", *SOURCES), "both"),
 }
 EXTRACT_SECTION = "extract"
 RANGE_FORMS = ("logspace", "linspace")
