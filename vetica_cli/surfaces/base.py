@@ -22,7 +22,7 @@ import copy
 import inspect
 from abc import ABC, abstractmethod
 from dataclasses import dataclass
-from typing import Any, ClassVar
+from typing import Any, Callable, ClassVar
 
 import numpy as np
 
@@ -58,6 +58,7 @@ class DerivedKey:
     description: str  # e.g. "k0 = ratio * k_inf (thesis 4.4.2)"
     label: str = ""  # axis label (matplotlib)
     short: str = ""  # short label for legends (matplotlib)
+    fmt: Callable[[float], str] | None = None  # how a value is written (e.g. a ratio as 16:1)
 
 
 @dataclass(frozen=True)

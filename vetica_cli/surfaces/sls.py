@@ -58,7 +58,7 @@ class SLS(SurfaceModel):
     derived_keys = {
         "stiffness_ratio": DerivedKey(
             "k0", "k_inf", "k0 = ratio * k_inf (thesis 4.4.2: k0:k_inf from 1:8 to 32:1 at k_inf = 4 N/m)",
-            label=r"stiffness ratio $k_0:k_\infty$", short=r"$k_0:k_\infty$",
+            label=r"stiffness ratio $k_0:k_\infty$", short=r"$k_0:k_\infty$", fmt=ratio_label,
         )
     }  # fmt: skip
     theory_source = "SLS theory value (SPEC 7)"
