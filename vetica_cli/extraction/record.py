@@ -184,13 +184,13 @@ def _z1_reference(approach, z1, meta, force_of: _ForceSource, need_approach: boo
 
 def surface_of(params: dict) -> tuple[surfaces.SurfaceModel, dict | None]:
     """The surface model of a run's resolved parameters (the default for measured data) and
-    its theory values, or None when the parameters do not hold every model parameter."""
+    its theory values, or None when the parameters do not hold every key of the model."""
     surface = params.get("surface") or {}
     try:
         model = surfaces.get(surface.get("model", surfaces.DEFAULT_MODEL))
     except ConfigError as exc:
         raise InputError(f"the file's metadata: {exc}") from None
-    if not all(surface.get(k) is not None for k in model.parameter_keys):
+    if not all(surface.get(k) is not None for k in model.config_keys):
         return model, None
     return model, model.theory(surface)
 
