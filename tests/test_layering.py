@@ -127,17 +127,14 @@ def test_no_private_name_crosses_a_module_boundary(path):
     modules = set()  # names bound to imported vetica_cli modules
     for node in ast.walk(tree):
         if isinstance(node, ast.ImportFrom):
-            for a in node.names:
-                if is_module(f"{node.module}.{a.name}" if node.module else a.name) and (node.module or "").startswith(
-                    "vetica_cli"
-                ):
-                    modules.add(a.asname or a.name)
+            if not (node.module or "").startswith("vetica_cli"):
+                continue
+            modules |= {a.asname or a.name for a in node.names if is_module(f"{node.module}.{a.name}")}
         elif isinstance(node, ast.Import):
             modules |= {a.asname or a.name.split(".")[0] for a in node.names if a.name.startswith("vetica_cli")}
     for node in ast.walk(tree):
-        if isinstance(node, ast.Attribute) and _private(node.attr):
-            if isinstance(node.value, ast.Name) and node.value.id in modules:
-                bad.append(f"{node.lineno}: {node.value.id}.{node.attr}")
+        if isinstance(node, ast.Attribute) and _private(node.attr) and getattr(node.value, "id", None) in modules:
+            bad.append(f"{node.lineno}: {node.value.id}.{node.attr}")
         if isinstance(node, ast.Call) and getattr(node.func, "attr", getattr(node.func, "id", "")) == "setattr":
             args = node.args
             if len(args) >= 2 and isinstance(args[1], ast.Constant) and _private(str(args[1].value)):

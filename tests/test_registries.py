@@ -11,6 +11,7 @@ from __future__ import annotations
 import inspect
 import json
 import math
+from typing import ClassVar
 
 import numpy as np
 import pytest
@@ -104,17 +105,17 @@ class ToyWiechert(surfaces.SurfaceModel):
     key = "toy_wiechert"
     name = "Wiechert"
     parameter_keys = ("k_inf", "k_1", "cd_1", "k_2", "cd_2")
-    parameter_units = {"k_inf": "N/m", "k_1": "N/m", "cd_1": "kg/s", "k_2": "N/m", "cd_2": "kg/s"}
-    parameter_labels = {k: k for k in parameter_keys}
-    defaults = {"k_inf": 4.0, "arms": [{"k": 64.0, "cd": 1e-4}, {"k": 16.0, "cd": 1e-2}]}
-    rules = {"k_inf": (positive, "a stiffness > 0 N/m")}
-    quantities = {
+    parameter_units: ClassVar[dict] = {"k_inf": "N/m", "k_1": "N/m", "cd_1": "kg/s", "k_2": "N/m", "cd_2": "kg/s"}
+    parameter_labels: ClassVar[dict] = {k: k for k in parameter_keys}
+    defaults: ClassVar[dict] = {"k_inf": 4.0, "arms": [{"k": 64.0, "cd": 1e-4}, {"k": 16.0, "cd": 1e-2}]}
+    rules: ClassVar[dict] = {"k_inf": (positive, "a stiffness > 0 N/m")}
+    quantities: ClassVar[dict] = {
         "k_g": surfaces.Quantity("N/m", "Kg", "$K_g$"),
         "tau_1": surfaces.Quantity("s", "tau_1", r"$\tau_1$"),
         "tau_2": surfaces.Quantity("s", "tau_2", r"$\tau_2$"),
         "k_inf": surfaces.Quantity("N/m", "k_inf", r"$k_\infty$"),
     }
-    fit_bounds = {k: (1e-13, 1e6) for k in parameter_keys}
+    fit_bounds: ClassVar[dict] = {k: (1e-13, 1e6) for k in parameter_keys}
     theory_source = "Wiechert theory value (SPEC 11)"
 
     def parse_key(self, name, value):
@@ -206,6 +207,6 @@ def test_extraction_method_follows_the_convention(key, cheap_run):
 def test_method_choices_come_from_the_registry():
     assert EXTRACT_KEYS["extract.method"][0] == tuple(METHODS)
     help_text = " ".join(CliRunner().invoke(app, ["extract", "--help"], terminal_width=300).output.split())
-    for key, m in METHODS.items():
+    for key in METHODS:
         assert key in help_text
     assert inspect.getdoc(type(METHODS["vetica"]))

@@ -6,7 +6,8 @@ what is allowed (STYLE: validate once, at the boundary)."""
 from __future__ import annotations
 
 import math
-from typing import Any, Callable
+from collections.abc import Callable
+from typing import Any
 
 from .errors import ConfigError
 

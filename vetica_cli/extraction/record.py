@@ -120,7 +120,9 @@ class _ForceSource:
     def __call__(self, seg: pd.DataFrame, where: str) -> np.ndarray:
         if self.force == "true":
             return column(seg, "f_ts", where)
-        p = {k: v if v is not None else self.probe.get(k) for k, v in (("k2", self.k2), ("f2", self.f2), ("q2", self.q2))}
+        p = {
+            k: v if v is not None else self.probe.get(k) for k, v in (("k2", self.k2), ("f2", self.f2), ("q2", self.q2))
+        }
         absent = [k for k, v in p.items() if v is None]
         if absent:
             raise InputError(

@@ -46,6 +46,7 @@ from __future__ import annotations
 import math
 import time
 from dataclasses import dataclass, field
+from typing import Any, ClassVar
 
 import numpy as np
 from scipy.optimize import least_squares
@@ -169,12 +170,7 @@ def fit_sum_of_sines(u: np.ndarray, z: np.ndarray, terms: int = 3, max_points: i
 
     best = None
     for freqs in STARTS:
-        b0 = np.pi * np.array(freqs[:terms])
-        design = np.hstack([np.sin(np.outer(x, b0)), np.cos(np.outer(x, b0)), np.ones((len(x), 1))])
-        lin, *_ = np.linalg.lstsq(design, y, rcond=None)
-        amp = np.hypot(lin[:terms], lin[terms : 2 * terms])
-        phase = np.arctan2(lin[terms : 2 * terms], lin[:terms])  # p sin + q cos = A sin(. + atan2(q, p))
-        p0 = np.concatenate([amp, b0, phase, [lin[-1]]])
+        p0 = _linear_start(x, y, np.pi * np.array(freqs[:terms]))
         try:  # short run from each start, then the best one to convergence
             sol = least_squares(resid, p0, jac=jac, method="lm", max_nfev=SCOUT_NFEV)
         except (ValueError, np.linalg.LinAlgError):  # pragma: no cover - degenerate start
@@ -184,18 +180,34 @@ def fit_sum_of_sines(u: np.ndarray, z: np.ndarray, terms: int = 3, max_points: i
     if best is None:
         raise InputError(f"sum-of-sines fit failed on a contact of {len(u)} samples")
     best = least_squares(resid, best.x, jac=jac, method="lm", max_nfev=NFEV)
-    a, b, c = best.x[:terms], best.x[terms : 2 * terms], best.x[2 * terms : 3 * terms]
-    # back to physical units: z = zm + zs (c0 + sum a sin(b (u - u0)/span + c))
-    bu = b / span
-    ph = c - bu * u[0]
-    fit = SineFit(
-        b=np.append(bu, 0.0),
-        p=np.append(zs * a * np.cos(ph), 0.0),
-        q=np.append(zs * a * np.sin(ph), zm + zs * best.x[-1]),
-        rms=0.0,
-    )
+    fit = _physical(best.x, terms, u[0], span, zm, zs)
     fit.rms = float(np.sqrt(np.mean((fit(u) - z) ** 2)))
     return fit
+
+
+def _linear_start(x: np.ndarray, y: np.ndarray, b0: np.ndarray) -> np.ndarray:
+    """Starting ``(a, b, c, c0)`` at the frequencies ``b0``: amplitudes and phases from a
+    linear least-squares fit of sines and cosines at those frequencies."""
+    terms = len(b0)
+    design = np.hstack([np.sin(np.outer(x, b0)), np.cos(np.outer(x, b0)), np.ones((len(x), 1))])
+    lin, *_ = np.linalg.lstsq(design, y, rcond=None)
+    amp = np.hypot(lin[:terms], lin[terms : 2 * terms])
+    phase = np.arctan2(lin[terms : 2 * terms], lin[:terms])  # p sin + q cos = A sin(. + atan2(q, p))
+    return np.concatenate([amp, b0, phase, [lin[-1]]])
+
+
+def _physical(params: np.ndarray, terms: int, u0: float, span: float, zm: float, zs: float) -> SineFit:
+    """The scaled fit back in physical units: ``z = zm + zs (c0 + sum a sin(b (u - u0)/span + c))``
+    as a :class:`SineFit` (rms not yet set)."""
+    a, b, c = params[:terms], params[terms : 2 * terms], params[2 * terms : 3 * terms]
+    bu = b / span
+    ph = c - bu * u0
+    return SineFit(
+        b=np.append(bu, 0.0),
+        p=np.append(zs * a * np.cos(ph), 0.0),
+        q=np.append(zs * a * np.sin(ph), zm + zs * params[-1]),
+        rms=0.0,
+    )
 
 
 def exp_conv_cos(u: np.ndarray, b: np.ndarray, c: np.ndarray, tau: float) -> np.ndarray:
@@ -411,7 +423,7 @@ class Vetica(ExtractionMethod):
     description = "VETICA (thesis 3.3): creep between taps, initial contact slope, superposition fit"
     title = "VETICA"
     surface_models = ("sls",)
-    options_default = {"kg_points": 10, "kr_guess": None}
+    options_default: ClassVar[dict[str, Any]] = {"kg_points": 10, "kr_guess": None}
     seconds_per_point = 1.4  # 0.6 s (true force) + 0.8 s (reconstructed), 10 periods at 0.125 ns, 2 cores
 
     def run(self, record: Record, options: dict) -> ExtractionResult:

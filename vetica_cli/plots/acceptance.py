@@ -52,12 +52,30 @@ def fig_acceptance_vs(sw: SweepData, key: str, thesis: str) -> Figure | None:
     (a) tau_c error against cd, one line per setting; (b) the regime's cd
     interval per setting, for each force source.
     """
-    sources = sw.sources()
-    others = sw.others
-    groups = groups_of(sw.df, others)
+    groups = groups_of(sw.df, sw.others)
     colors = colors_for(len(groups))
     fig = new_figure(15, 6.3)
     ax_e, ax_r = fig.subplots(1, 2, width_ratios=[1.15, 1])
+    _error_panel(ax_e, sw, groups, colors)
+    _interval_panel(ax_r, sw, groups, colors)
+    name = axis_meta(key)[0]
+    add_note(
+        fig,
+        status_note(
+            sw.df,
+            sw.swept,
+            "bars: lowest to highest accepted cd, ticks: the accepted points; pale bar: the accepted points are not "
+            "one unbroken run of the grid",
+            regime=True,
+        ),
+    )
+    set_title(fig, sw, f"Acceptance regime against {name} (cf. thesis fig. {thesis})")
+    return fig
+
+
+def _error_panel(ax_e, sw: SweepData, groups, colors) -> None:
+    """(a) the tau_c error against cd, one line per setting and force source, the threshold dotted."""
+    sources = sw.sources()
     flags = set()
     for (glab, _, g), color in zip(groups, colors):
         for src in sources:
@@ -83,11 +101,16 @@ def fig_acceptance_vs(sw: SweepData, key: str, thesis: str) -> Figure | None:
     h, _ = ax_e.get_legend_handles_labels()
     h += extra_handles(flags)
     ax_e.legend(handles=h, fontsize=8, loc="best")
-    # (b) interval bars
+
+
+def _interval_panel(ax_r, sw: SweepData, groups, colors) -> None:
+    """(b) the regime's cd interval per setting (bars), its accepted points (ticks), per force source."""
+    sources = sw.sources()
     off = {"true": -0.17, "reconstructed": 0.17} if len(sources) > 1 else {sources[0]: 0.0}
     hs = {}
     cd_all = sw.df[CD].to_numpy(float)
     h2 = _half_step(cd_all)
+    his = []
     for i, ((glab, _, g), color) in enumerate(zip(groups, colors)):
         for src in sources:
             rng = regime(g[g["force_source"].astype(str) == src])
@@ -97,6 +120,7 @@ def fig_acceptance_vs(sw: SweepData, key: str, thesis: str) -> Figure | None:
                     np.sqrt(cd_all.min() * cd_all.max()), yv, "none", ha="center", va="center", fontsize=8, color="0.3"
                 )
                 continue
+            his.append(rng.hi)
             lo, hi = rng.lo / h2, rng.hi * h2
             hs[src] = ax_r.barh(
                 yv,
@@ -115,12 +139,6 @@ def fig_acceptance_vs(sw: SweepData, key: str, thesis: str) -> Figure | None:
             broken = "" if rng.contiguous else " (broken)"
             ax_r.text(hi * 1.15, yv, span + broken, va="center", fontsize=7.5)
     ax_r.set_xscale("log")
-    his = [
-        r.hi
-        for _, _, g in groups
-        for r in [regime(g[g["force_source"].astype(str) == s]) for s in sources]
-        if r is not None
-    ]
     ax_r.set_xlim(cd_all.min() / h2 / 1.5, max([cd_all.max() * h2 * 1.5] + [h * h2 * 150 for h in his]))
     ax_r.set_yticks(range(len(groups)))
     ax_r.set_yticklabels([lab for lab, _, _ in groups], fontsize=8)
@@ -130,16 +148,3 @@ def fig_acceptance_vs(sw: SweepData, key: str, thesis: str) -> Figure | None:
     ax_r.grid(alpha=0.3, axis="x")
     if hs:
         ax_r.legend(handles=list(hs.values()), fontsize=8, loc="lower right")
-    name = axis_meta(key)[0]
-    add_note(
-        fig,
-        status_note(
-            sw.df,
-            sw.swept,
-            "bars: lowest to highest accepted cd, ticks: the accepted points; pale bar: the accepted points are not "
-            "one unbroken run of the grid",
-            regime=True,
-        ),
-    )
-    set_title(fig, sw, f"Acceptance regime against {name} (cf. thesis fig. {thesis})")
-    return fig

@@ -42,76 +42,8 @@ def fig_errors_vs_cd(sw: SweepData) -> Figure | None:
     layout); with more axes, one panel per quantity holds a line per
     setting of the other keys.
     """
-    sources = sw.sources()
     others = sw.others
-    flags = set()
-    if not others:
-        fig = new_figure(6.2 * len(sources) + 0.6, 5.6)
-        axes = np.atleast_1d(fig.subplots(1, len(sources), sharey=True))
-        for ax, src in zip(axes, sources):
-            d = sw.rows(src)
-            rng = regime(d)
-            shade_regime(ax, rng, d[CD], label=f"acceptance regime (τc error < {PCT})")
-            for i, (q, (qlab, _, _)) in enumerate(sw.quantities.items()):
-                col, mk = quantity_style(q, i)
-                flags |= series(
-                    ax,
-                    d[CD],
-                    d[f"{q}_err_pct"],
-                    statuses(d),
-                    col,
-                    SOURCE_LS[src],
-                    mk,
-                    SOURCE_FILLED[src],
-                    qlab,
-                    floor=ERR_FLOOR,
-                    show_missing=True,
-                )
-            ax.axhline(ACCEPT_ERR_PCT, color="k", ls=":", lw=1)
-            ax.set_title(
-                f"{SOURCE_LABEL[src]} ({'solid' if src == 'true' else 'dashed'})\n{regime_text(rng)}", fontsize=10
-            )
-            err_axes(ax)
-        axes[0].set_ylabel(axis_label("error |extracted - theory| / theory", "%"))
-        handles, _labels = axes[-1].get_legend_handles_labels()
-        handles += extra_handles(flags)
-        axes[-1].legend(handles=handles, fontsize=8, loc="upper left")
-    else:
-        groups = groups_of(sw.df, others)
-        colors = colors_for(len(groups))
-        fig = new_figure(15, 8.5)
-        axes = fig.subplots(2, 3).ravel()
-        for ax, (q, (qlab, _, _)) in zip(axes, sw.quantities.items()):
-            for (glab, _, g), color in zip(groups, colors):
-                for src in sources:
-                    d = g[g["force_source"].astype(str) == src]
-                    flags |= series(
-                        ax,
-                        d[CD],
-                        d[f"{q}_err_pct"],
-                        statuses(d),
-                        color,
-                        SOURCE_LS[src],
-                        "o",
-                        SOURCE_FILLED[src],
-                        None,
-                        floor=ERR_FLOOR,
-                        show_missing=True,
-                    )
-            if q == "tau_c":
-                ax.axhline(ACCEPT_ERR_PCT, color="k", ls=":", lw=1.2)
-                ax.text(
-                    0.01,
-                    ACCEPT_ERR_PCT,
-                    f" {PCT} (acceptance)",
-                    transform=ax.get_yaxis_transform(),
-                    va="bottom",
-                    fontsize=8,
-                )
-            ax.set_title(f"error of {qlab}", fontsize=10)
-            ax.set_ylabel(axis_label("error", "%"))
-            err_axes(ax)
-        legend_panel(axes[-1], groups, colors, sources, flags)
+    fig = _errors_per_source(sw) if not others else _errors_per_quantity(sw)
     add_note(
         fig,
         status_note(
@@ -128,6 +60,77 @@ def fig_errors_vs_cd(sw: SweepData) -> Figure | None:
         else f"dotted: the {PCT} acceptance threshold on τc"
     )
     set_title(fig, sw, f"VETICA errors against the dashpot; {how} (cf. thesis figs. 43-46)")
+    return fig
+
+
+def _errors_per_source(sw: SweepData) -> Figure:
+    """cd the only axis: one panel per force source holding every quantity (thesis fig. 46 layout)."""
+    sources = sw.sources()
+    flags = set()
+    fig = new_figure(6.2 * len(sources) + 0.6, 5.6)
+    axes = np.atleast_1d(fig.subplots(1, len(sources), sharey=True))
+    for ax, src in zip(axes, sources):
+        d = sw.rows(src)
+        rng = regime(d)
+        shade_regime(ax, rng, d[CD], label=f"acceptance regime (τc error < {PCT})")
+        for i, (q, (qlab, _, _)) in enumerate(sw.quantities.items()):
+            col, mk = quantity_style(q, i)
+            flags |= series(
+                ax,
+                d[CD],
+                d[f"{q}_err_pct"],
+                statuses(d),
+                col,
+                SOURCE_LS[src],
+                mk,
+                SOURCE_FILLED[src],
+                qlab,
+                floor=ERR_FLOOR,
+                show_missing=True,
+            )
+        ax.axhline(ACCEPT_ERR_PCT, color="k", ls=":", lw=1)
+        ax.set_title(f"{SOURCE_LABEL[src]} ({'solid' if src == 'true' else 'dashed'})\n{regime_text(rng)}", fontsize=10)
+        err_axes(ax)
+    axes[0].set_ylabel(axis_label("error |extracted - theory| / theory", "%"))
+    handles, _labels = axes[-1].get_legend_handles_labels()
+    handles += extra_handles(flags)
+    axes[-1].legend(handles=handles, fontsize=8, loc="upper left")
+    return fig
+
+
+def _errors_per_quantity(sw: SweepData) -> Figure:
+    """More axes than cd: one panel per quantity holding a line per setting of the other keys."""
+    sources = sw.sources()
+    flags = set()
+    groups = groups_of(sw.df, sw.others)
+    colors = colors_for(len(groups))
+    fig = new_figure(15, 8.5)
+    axes = fig.subplots(2, 3).ravel()
+    for ax, (q, (qlab, _, _)) in zip(axes, sw.quantities.items()):
+        for (glab, _, g), color in zip(groups, colors):
+            for src in sources:
+                d = g[g["force_source"].astype(str) == src]
+                flags |= series(
+                    ax,
+                    d[CD],
+                    d[f"{q}_err_pct"],
+                    statuses(d),
+                    color,
+                    SOURCE_LS[src],
+                    "o",
+                    SOURCE_FILLED[src],
+                    None,
+                    floor=ERR_FLOOR,
+                    show_missing=True,
+                )
+        if q == "tau_c":
+            ax.axhline(ACCEPT_ERR_PCT, color="k", ls=":", lw=1.2)
+            ax.text(0.01, ACCEPT_ERR_PCT, f" {PCT} (acceptance)", transform=ax.get_yaxis_transform(), va="bottom",
+                    fontsize=8)  # fmt: skip
+        ax.set_title(f"error of {qlab}", fontsize=10)
+        ax.set_ylabel(axis_label("error", "%"))
+        err_axes(ax)
+    legend_panel(axes[-1], groups, colors, sources, flags)
     return fig
 
 
@@ -190,21 +193,7 @@ def fig_errors_vs(sw: SweepData, key: str, thesis: str | None) -> Figure | None:
     rest = [k for k in sw.others if k != key]
     plotted = False
     for src in sources:
-        d = sw.rows(src)
-        rows = []
-        d = d[d["status"].astype(str) == "ok"]
-        for kv, g in d.groupby(key):
-            sel = []
-            for _, _, gg in groups_of(g, rest):
-                if cd_swept:
-                    rng = regime(gg)
-                    if rng is None:
-                        continue
-                    gg = gg[(gg[CD] >= rng.lo) & (gg[CD] <= rng.hi)]
-                sel.append(gg[gg["status"].astype(str) == "ok"])
-            sel = pd.concat(sel) if sel else g.iloc[:0]
-            rows.append({key: kv, **{q: sel[f"{q}_err_pct"].mean() if len(sel) else np.nan for q in sw.quantities}})
-        m = pd.DataFrame(rows)
+        m = _mean_errors(sw.rows(src), key, rest, cd_swept, list(sw.quantities))
         for i, (q, (qlab, _, _)) in enumerate(sw.quantities.items()):
             col, mk = quantity_style(q, i)
             y = np.maximum(m[q].to_numpy(float), ERR_FLOOR)
@@ -243,3 +232,22 @@ def fig_errors_vs(sw: SweepData, key: str, thesis: str | None) -> Figure | None:
     add_note(fig, status_note(sw.df, sw.swept, extra + "; solid: true force, dashed: reconstructed", marked=False))
     set_title(fig, sw, f"VETICA errors against {name}{ref}")
     return fig
+
+
+def _mean_errors(d: pd.DataFrame, key: str, rest: list, cd_swept: bool, quantities: list) -> pd.DataFrame:
+    """Mean error of each quantity at each value of ``key`` over the ok points: with cd swept,
+    only those inside their setting's (of ``rest``) own acceptance regime."""
+    rows = []
+    d = d[d["status"].astype(str) == "ok"]
+    for kv, g in d.groupby(key):
+        sel = []
+        for _, _, gg in groups_of(g, rest):
+            if cd_swept:
+                rng = regime(gg)
+                if rng is None:
+                    continue
+                gg = gg[(gg[CD] >= rng.lo) & (gg[CD] <= rng.hi)]
+            sel.append(gg[gg["status"].astype(str) == "ok"])
+        sel = pd.concat(sel) if sel else g.iloc[:0]
+        rows.append({key: kv, **{q: sel[f"{q}_err_pct"].mean() if len(sel) else np.nan for q in quantities}})
+    return pd.DataFrame(rows)

@@ -296,19 +296,7 @@ def fig_force_distance(run: RunData, f_rec: np.ndarray | None) -> Figure:
     e_kernel = run.observables.get("e_diss_ev")
     if e_kernel is not None:
         text.append(f"$E_{{diss}}$ (run, integrated at dt) = {e_kernel:.4g} eV/cycle")
-    on, off = transitions(run)
-    i_on = np.flatnonzero(np.isin(sl, on))
-    i_off = np.flatnonzero(np.isin(sl, off))
-    i_pk = int(np.argmax(f_nn))
-    marks = [
-        (i_on[0] if len(i_on) else None, "D1 contact", "x"),
-        (i_pk, "D2 peak force", "^"),
-        (i_off[0] if len(i_off) else None, "D3 separation", "+"),
-    ]
-    for i, lab, m in marks:
-        if i is None:
-            continue
-        ax.plot(z_nm[i], f_nn[i], m, color="k", ms=10, mew=2, ls="none", label=f"{lab}: {z_nm[i]:.3g} nm")
+    _mark_transitions(ax, run, sl, z_nm, f_nn)
     ax.axhline(0, color="0.5", lw=0.6)
     ax.axvline(0, color="0.5", lw=0.6, ls=":")
     ax.set_xlim(xlo, xhi)
@@ -332,6 +320,22 @@ def fig_force_distance(run: RunData, f_rec: np.ndarray | None) -> Figure:
         fontsize=10,
     )
     return fig
+
+
+def _mark_transitions(ax, run: RunData, sl: np.ndarray, z_nm: np.ndarray, f_nn: np.ndarray) -> None:
+    """D1 contact, D2 peak force and D3 separation of the drawn tap (thesis fig. 28)."""
+    on, off = transitions(run)
+    i_on = np.flatnonzero(np.isin(sl, on))
+    i_off = np.flatnonzero(np.isin(sl, off))
+    marks = [
+        (i_on[0] if len(i_on) else None, "D1 contact", "x"),
+        (int(np.argmax(f_nn)), "D2 peak force", "^"),
+        (i_off[0] if len(i_off) else None, "D3 separation", "+"),
+    ]
+    for i, lab, m in marks:
+        if i is None:
+            continue
+        ax.plot(z_nm[i], f_nn[i], m, color="k", ms=10, mew=2, ls="none", label=f"{lab}: {z_nm[i]:.3g} nm")
 
 
 def fig_reconstruction(run: RunData, f_rec: np.ndarray) -> Figure:

@@ -340,7 +340,29 @@ def expand(raw: dict, name: str = "study", overrides: dict | None = None) -> Stu
     base = {k: (dict(v) if isinstance(v, dict) else v) for k, v in raw.items() if k in SECTIONS}
     extract = _extract_section(raw.get(EXTRACT_SECTION))
     keys, factors = _factors(sweep)
-    for key, value in (overrides or {}).items():
+    _apply_overrides(base, extract, keys, overrides or {})
+    base_clean, base_derived = _split_derived(base)
+    points = []
+    seen: dict[str, int] = {}
+    for i, combo in enumerate(itertools.product(*factors)):
+        assign: dict = {}
+        for part in combo:
+            assign.update(part)
+        p = _point(i, keys, assign, extract, base_clean, base_derived)
+        if p.key in seen:
+            label = ", ".join(f"{k}={assign[k]!r}" for k in keys)
+            raise ConfigError(
+                f"points {seen[p.key]} and {i} ({label}) resolve to the same config; remove the duplicate"
+            )
+        seen[p.key] = i
+        points.append(p)
+    return Study(name=name, description=description, keys=tuple(keys), points=tuple(points), base=base, sweep=sweep,
+                 extract=extract)  # fmt: skip
+
+
+def _apply_overrides(base: dict, extract: dict, keys: list, overrides: dict) -> None:
+    """``--set`` overrides into the base sections and the extract section (not on swept keys)."""
+    for key, value in overrides.items():
         if key in keys:
             raise ConfigError(f"--set {key}: the key is swept by the study; change its sweep entry instead")
         if key not in sweepable_keys():
@@ -353,40 +375,31 @@ def expand(raw: dict, name: str = "study", overrides: dict | None = None) -> Stu
         if not isinstance(base[sec], dict):
             raise ConfigError(f"section {sec!r} must be a mapping, got {base[sec]!r}")
         base[sec][kname] = value
-    base_clean, base_derived = _split_derived(base)
-    points = []
-    seen: dict[str, int] = {}
-    for i, combo in enumerate(itertools.product(*factors)):
-        assign: dict = {}
-        for part in combo:
-            assign.update(part)
-        values = {k: assign[k] for k in keys}
-        label = ", ".join(f"{k}={v!r}" for k, v in values.items())
-        ext = {**{k: extract.get(k.split(".")[1], d) for k, (_, d) in EXTRACT_KEYS.items()},
-               **{k: v for k, v in assign.items() if k in EXTRACT_KEYS}}  # fmt: skip
-        assign = {k: v for k, v in assign.items() if k not in EXTRACT_KEYS}
-        try:
-            cfg = from_dict(_resolve(base_clean, base_derived, assign))
-        except ConfigError as exc:
-            raise ConfigError(f"point {i} ({label}): {exc}") from None
-        method, force = ext["extract.method"], ext["extract.force"]
-        key = point_key(cfg, method, force)
-        if key in seen:
-            raise ConfigError(f"points {seen[key]} and {i} ({label}) resolve to the same config; remove the duplicate")
-        seen[key] = i
-        # swept values as the config resolved them (e.g. '1e-4' -> 1e-4)
-        resolved = {}
-        for k in keys:
-            if k in DERIVED:
-                resolved[k] = _num(k, values[k], "value")
-            elif k in EXTRACT_KEYS:
-                resolved[k] = values[k]
-            else:
-                sec, nm = k.split(".")
-                resolved[k] = getattr(getattr(cfg, sec), nm)
-        points.append(Point(index=i, values=resolved, config=cfg, key=key, method=method, force=force))
-    return Study(name=name, description=description, keys=tuple(keys), points=tuple(points), base=base, sweep=sweep,
-                 extract=extract)  # fmt: skip
+
+
+def _point(i: int, keys: list, assign: dict, extract: dict, base_clean: dict, base_derived: dict) -> Point:
+    """Point ``i`` of the grid from its swept assignments: config resolved and validated,
+    extraction keys from the assignment or the base ``extract:`` section."""
+    values = {k: assign[k] for k in keys}
+    label = ", ".join(f"{k}={v!r}" for k, v in values.items())
+    ext = {**{k: extract.get(k.split(".")[1], d) for k, (_, d) in EXTRACT_KEYS.items()},
+           **{k: v for k, v in assign.items() if k in EXTRACT_KEYS}}  # fmt: skip
+    try:
+        cfg = from_dict(_resolve(base_clean, base_derived, {k: v for k, v in assign.items() if k not in EXTRACT_KEYS}))
+    except ConfigError as exc:
+        raise ConfigError(f"point {i} ({label}): {exc}") from None
+    method, force = ext["extract.method"], ext["extract.force"]
+    # swept values as the config resolved them (e.g. '1e-4' -> 1e-4)
+    resolved = {}
+    for k in keys:
+        if k in DERIVED:
+            resolved[k] = _num(k, values[k], "value")
+        elif k in EXTRACT_KEYS:
+            resolved[k] = values[k]
+        else:
+            sec, nm = k.split(".")
+            resolved[k] = getattr(getattr(cfg, sec), nm)
+    return Point(index=i, values=resolved, config=cfg, key=point_key(cfg, method, force), method=method, force=force)
 
 
 def _model_of(sections: dict) -> str:

@@ -67,9 +67,7 @@ def column_units(study: Study) -> dict:
         for name, q in model.quantities.items():
             units[name] = f"{q.unit}: estimate of the {q.description} by the row's extraction method"
             units[f"{name}_theory"] = f"{q.unit}: {model.theory_source}"
-            units[f"{name}_err_pct"] = (
-                "%: 100 (estimate - theory) / theory, signed (tables before v0.2: its magnitude)"
-            )
+            units[f"{name}_err_pct"] = "%: 100 (estimate - theory) / theory, signed (tables before v0.2: its magnitude)"
         for name in sigma_names(model):
             units[f"{name}_sigma_pct"] = (
                 "%: relative 1-sigma of the estimate (Jacobian) for methods that report one; NaN otherwise or unbounded"

@@ -11,8 +11,8 @@ from __future__ import annotations
 
 import math
 import time
+from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Callable
 
 from ..extraction import DEFAULT_METHOD, ExtractionResult, extract
 from ..simulation.config import Config, from_dict

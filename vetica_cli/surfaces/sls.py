@@ -2,9 +2,11 @@
 
 from __future__ import annotations
 
+from typing import Any, ClassVar
+
 import numpy as np
 
-from ..checks import positive
+from ..checks import Rule, positive
 from .base import DerivedKey, Quantity, SurfaceModel, register
 
 
@@ -36,16 +38,16 @@ class SLS(SurfaceModel):
     key = "sls"
     name = "SLS"
     parameter_keys = ("k_inf", "k0", "cd")
-    parameter_units = {"k_inf": "N/m", "k0": "N/m", "cd": "kg/s"}
-    parameter_labels = {"k_inf": r"$k_\infty$", "k0": "$k_0$", "cd": "$c_d$"}
-    parameter_axis_labels = {"cd": "dashpot $c_d$"}
-    defaults = {"k_inf": 4.0, "k0": 128.0, "cd": 3e-5}
-    rules = {
+    parameter_units: ClassVar[dict[str, str]] = {"k_inf": "N/m", "k0": "N/m", "cd": "kg/s"}
+    parameter_labels: ClassVar[dict[str, str]] = {"k_inf": r"$k_\infty$", "k0": "$k_0$", "cd": "$c_d$"}
+    parameter_axis_labels: ClassVar[dict[str, str]] = {"cd": "dashpot $c_d$"}
+    defaults: ClassVar[dict[str, Any]] = {"k_inf": 4.0, "k0": 128.0, "cd": 3e-5}
+    rules: ClassVar[dict[str, Rule]] = {
         "k_inf": (positive, "a stiffness > 0 N/m"),
         "k0": (positive, "a stiffness > 0 N/m"),
         "cd": (positive, "a dashpot coefficient > 0 kg/s"),
     }
-    quantities = {
+    quantities: ClassVar[dict[str, Quantity]] = {
         "tau_c": Quantity("s", "tau_c", r"$\tau_c$", "µs", 1e6, True, "retardation time"),
         "k_g": Quantity("N/m", "Kg", r"$K_g$", description="glassy stiffness"),
         "k_r": Quantity("N/m", "Kr", r"$K_r$", plotted=False, description="rubbery stiffness"),
@@ -54,8 +56,8 @@ class SLS(SurfaceModel):
         "k_inf": Quantity("N/m", "k_inf", r"$k_\infty$", description="equilibrium spring"),
         "cd": Quantity("kg/s", "cd", "$c_d$", description="dashpot"),
     }
-    fit_bounds = {"k_inf": (1e-4, 1e6), "k0": (1e-4, 1e6), "cd": (1e-13, 1e6)}
-    derived_keys = {
+    fit_bounds: ClassVar[dict[str, tuple[float, float]]] = {"k_inf": (1e-4, 1e6), "k0": (1e-4, 1e6), "cd": (1e-13, 1e6)}
+    derived_keys: ClassVar[dict[str, DerivedKey]] = {
         "stiffness_ratio": DerivedKey(
             "k0", "k_inf", "k0 = ratio * k_inf (thesis 4.4.2: k0:k_inf from 1:8 to 32:1 at k_inf = 4 N/m)",
             label=r"stiffness ratio $k_0:k_\infty$", short=r"$k_0:k_\infty$", fmt=ratio_label,

@@ -6,6 +6,7 @@ from __future__ import annotations
 import math
 import time
 from dataclasses import replace
+from typing import Any, ClassVar
 
 import numpy as np
 
@@ -104,7 +105,7 @@ class FullFit(ExtractionMethod):
     description = "whole-cycle SLS model inversion: the surface driven by the measured tip, fitted to every sample"
     title = "whole-cycle fit"
     surface_models = ("sls",)
-    options_default = {"kg_points": 10, "start": None, "fit_hamaker": False, "near_stride": 4, "far_stride": 256,
+    options_default: ClassVar[dict[str, Any]] = {"kg_points": 10, "start": None, "fit_hamaker": False, "near_stride": 4, "far_stride": 256,
                        "scan": True, "fit_offset": True, "state": "auto", "substeps": None}  # fmt: skip
     needs_approach = True
     uniform_sampling = True
