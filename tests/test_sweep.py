@@ -62,7 +62,7 @@ def cheap_study(sweep_block, **top):
 
 
 def fake_extract(df, meta, force, method="vetica"):
-    """Deterministic stand-in for vetica_cli.extract: tau_c off by a force-dependent
+    """Deterministic stand-in for vetica_cli.extraction.extract: tau_c off by a force-dependent
     factor that also depends on the simulated signal (so determinism is tested)."""
     s = meta["params"]["surface"]
     th = {
