@@ -11,9 +11,14 @@ from __future__ import annotations
 
 from ..errors import InputError
 from ..io import read_table
-from . import fullfit as _fullfit  # noqa: F401  (registers 'full')
-from . import vetica as _vetica  # noqa: F401  (registers 'vetica')
 from .base import DEFAULT_METHOD, METHODS, ExtractionMethod, get, register
+
+# isort: off
+# the methods register themselves; this order is the order of the --method choices
+from . import vetica as _vetica  # noqa: F401  (registers 'vetica')
+from . import fullfit as _fullfit  # noqa: F401  (registers 'full')
+
+# isort: on
 from .record import FORCES, SOURCES, Record, build_record
 from .result import Estimate, ExtractionResult, Spread
 
