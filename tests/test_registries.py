@@ -155,6 +155,7 @@ def test_a_model_with_a_list_of_arms_plugs_in_through_the_registry(toy_model):
     cfg = from_dict({"surface": {"model": "toy_wiechert", "arms": [{"k": 10, "cd": "1e-3"}, {"k": 5, "cd": 1}]}})
     assert cfg.surface.arms[0] == {"k": 10.0, "cd": 1e-3} and cfg.surface.hamaker == 0.2e-18
     assert cfg.to_dict()["surface"]["model"] == "toy_wiechert" and from_dict(cfg.to_dict()) == cfg
+    assert hash(from_dict(cfg.to_dict())) == hash(cfg)  # configs stay hashable with a list-valued key
     with pytest.raises(ConfigError, match=r"surface.arms\[1\].cd: -1 is not allowed"):
         from_dict({"surface": {"model": "toy_wiechert", "arms": [{"k": 1, "cd": 1}, {"k": 1, "cd": -1}]}})
     # the study grid and the table schema follow the model

@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import copy
 import dataclasses
+import json
 from dataclasses import dataclass, field, fields
 from pathlib import Path
 from typing import Any
@@ -77,6 +78,9 @@ class Surface:
     @property
     def surface_model(self) -> surfaces.SurfaceModel:
         return surfaces.get(self.model)
+
+    def __hash__(self) -> int:  # params may hold lists (arms): hash the section as written
+        return hash(json.dumps(self.to_dict(), sort_keys=True))
 
     def to_dict(self) -> dict:
         """The section as written in YAML and in the metadata: the model's keys, then the
