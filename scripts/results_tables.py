@@ -3,8 +3,9 @@
     python scripts/results_tables.py            # markdown on stdout, ~5 s
 
 Reads results/<study>.parquet (written by `vetica sweep configs/<study>.yaml`).
+Errors are summarised by their magnitude (tables from v0.2 on store them signed).
 The acceptance regime is the one `vetica sweep` and `vetica plot` use
-(vetica_cli.plots.acceptance: status ok and tau_c error < 30 %, thesis fig. 52).
+(vetica_cli.study.acceptance.regime: status ok and |tau_c error| < 30 %, thesis fig. 52).
 """
 
 from __future__ import annotations
@@ -15,7 +16,8 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from vetica_cli.plots import _common_ok, acceptance
+from vetica_cli.plots.observables import common_ok
+from vetica_cli.study.acceptance import regime
 
 RES = Path(__file__).resolve().parent.parent / "results"
 STUDIES = [
@@ -56,7 +58,7 @@ def md(df: pd.DataFrame, floatfmt: str = ".3g") -> str:
 
 
 def regime_str(d: pd.DataFrame) -> tuple[str, float]:
-    r = acceptance(d)
+    r = regime(d)
     if r is None:
         return "none", np.nan
     dec = np.log10(r.hi / r.lo)
@@ -90,12 +92,12 @@ def dashpot_tables() -> str:
         for src in ("true", "reconstructed"):
             d = df[df.force_source == src]
             s, dec = regime_str(d)
-            r = acceptance(d)
+            r = regime(d)
             inside = d[(d[CD] >= r.lo) & (d[CD] <= r.hi) & (d.status == "ok")] if r else d.iloc[:0]
             row = {"surface": lab, "force": src, "acceptance regime cd [kg/s]": s, "decades": dec}
             for q in Q:
                 row[f"{QL[q]} err %: mean / max"] = (
-                    f"{inside[f'{q}_err_pct'].mean():.3g} / {inside[f'{q}_err_pct'].max():.3g}"
+                    f"{inside[f'{q}_err_pct'].abs().mean():.3g} / {inside[f'{q}_err_pct'].abs().max():.3g}"
                 )
             rows.append(row)
     parts.append(
@@ -127,7 +129,7 @@ def dashpot_tables() -> str:
     for lab, df in (("vdW on", on), ("vdW off", off)):
         for src in ("true", "reconstructed"):
             d = df[(df.force_source == src) & (df.status == "ok")]
-            r = acceptance(d)
+            r = regime(d)
             ins = d[(d[CD] >= r.lo) & (d[CD] <= r.hi)] if r else d.iloc[:0]
             rows.append(
                 {
@@ -137,7 +139,7 @@ def dashpot_tables() -> str:
                     "max Δk_inf in regime [N/m]": (ins["k_inf"] - ins["k_inf_theory"]).abs().max(),
                     "max Δk0, all ok [N/m]": (d["k0"] - d["k0_theory"]).abs().max(),
                     "max Δk_inf, all ok [N/m]": (d["k_inf"] - d["k_inf_theory"]).abs().max(),
-                    "max Kg err % all ok": d["k_g_err_pct"].max(),
+                    "max Kg err % all ok": d["k_g_err_pct"].abs().max(),
                     "ok points without τc": int(d["tau_c"].isna().sum()),
                 }
             )
@@ -174,7 +176,7 @@ def regime_by(name: str, key: str, scale: float, unit: str) -> str:
         gt = g[g.force_source == "true"]
         row["not_steady"] = int((gt.status == "not_steady").sum())
         row["failed"] = int((gt.status == "failed").sum())
-        row["min τc err % (true)"] = gt.loc[gt.status == "ok", "tau_c_err_pct"].min()
+        row["min τc err % (true)"] = gt.loc[gt.status == "ok", "tau_c_err_pct"].abs().min()
         rows.append(row)
     return md(pd.DataFrame(rows))
 
@@ -182,7 +184,7 @@ def regime_by(name: str, key: str, scale: float, unit: str) -> str:
 def frequency_tables() -> str:
     df = load("frequency")
     parts = [regime_by("frequency", "probe.f1", 1e-3, "kHz")]
-    pts = _common_ok(df[df.force_source == "true"], "probe.f1", [CD])[0]
+    pts = common_ok(df[df.force_source == "true"], "probe.f1", [CD])[0]
     g = pts.groupby("probe.f1")
     t = pd.DataFrame(
         {
@@ -207,13 +209,13 @@ def frequency_tables() -> str:
 def mean_err_in_regime(df: pd.DataFrame, key: str, src: str = "true") -> pd.DataFrame:
     rows = []
     for kv, g in df[df.force_source == src].groupby(key):
-        r = acceptance(g)
+        r = regime(g)
         row = {key: kv, "n in regime": 0}
         if r is not None:
             ins = g[(g[CD] >= r.lo) & (g[CD] <= r.hi) & (g.status == "ok")]
             row["n in regime"] = len(ins)
             for q in Q:
-                row[f"{QL[q]} %"] = ins[f"{q}_err_pct"].mean()
+                row[f"{QL[q]} %"] = ins[f"{q}_err_pct"].abs().mean()
         else:
             for q in Q:
                 row[f"{QL[q]} %"] = np.nan
@@ -229,7 +231,7 @@ def ratio_tables() -> str:
             f"Mean error within each ratio's acceptance regime, {src} force (fig. 47):\n\n"
             + md(mean_err_in_regime(df, "surface.stiffness_ratio", src))
         )
-    pts = _common_ok(df[df.force_source == "true"], "surface.stiffness_ratio", [CD])[0]
+    pts = common_ok(df[df.force_source == "true"], "surface.stiffness_ratio", [CD])[0]
     g = pts.groupby("surface.stiffness_ratio")
     lo_cd, hi_cd = df[CD].min(), df[CD].max()
     t = pd.DataFrame(
@@ -270,7 +272,7 @@ def setpoint_tables() -> str:
             + md(mean_err_in_regime(df, "operation.setpoint", src))
         )
     pts = df[(df.force_source == "true") & (df.status != "failed")]
-    g = _common_ok(pts, "operation.setpoint", [CD])[0].groupby("operation.setpoint")
+    g = common_ok(pts, "operation.setpoint", [CD])[0].groupby("operation.setpoint")
     t = pd.DataFrame(
         {
             "set point %": g.size().index * 100,

@@ -17,22 +17,21 @@ import time
 import numpy as np
 from scipy.optimize import least_squares
 
-from vetica_cli.config import load
+from vetica_cli import surfaces
 from vetica_cli.errors import InputError
-from vetica_cli.extract import extract
-from vetica_cli.simulate import simulate
-from vetica_cli.spectral import reconstruct_force, reconstruction_error
-from vetica_cli.vetica import (
-    _Superposition,
-    find_taps,
-    first_contact_minimum,
+from vetica_cli.extraction import extract
+from vetica_cli.extraction.vetica import (
+    Superposition,
     fit_sum_of_sines,
     sls_elements,
     stage1a_tau_c,
     stage1b_kg,
     stage2_kr,
-    theory,
 )
+from vetica_cli.signals.spectral import reconstruct_force, reconstruction_error
+from vetica_cli.signals.taps import find_taps, first_contact_minimum
+from vetica_cli.simulation.config import load
+from vetica_cli.simulation.simulate import simulate
 
 # thesis tables 2-4 (SPEC 9); tau_r from thesis eq. 76 with its own numbers
 THESIS = {"tau_c": 7.6152e-6, "k_g": 131.79, "k_r": 4.0869, "k0": 127.91, "k_inf": 4.0869, "cd": 2.99e-5}
@@ -60,7 +59,7 @@ def main():
         runs[vdw] = run(vdw)
         p(f"<!-- simulated vdw_on_surface={vdw} in {time.perf_counter() - t0:.1f} s -->")
     cfg = runs[True][0]
-    th = theory(cfg.surface.k0, cfg.surface.k_inf, cfg.surface.cd)
+    th = surfaces.get(cfg.surface.model).theory(cfg.surface.params)
 
     # --- thesis table 4 consistency
     p("## Thesis table 4, recomputed from its own Stage-1 values\n")
@@ -84,7 +83,7 @@ def main():
         cells = [label, f"{th[key]:.5g}", f"{THESIS[key]:.5g} ({pct(THESIS[key], th[key]):+.2f})"]
         for vdw in (True, False):
             for force in ("true", "reconstructed"):
-                v = res[vdw, force][key]["value"]
+                v = res[vdw, force].value(key)
                 cells.append(f"{v:.5g} ({pct(v, th[key]):+.2f})")
         p("| " + " | ".join(cells) + " |")
     p("")
@@ -95,19 +94,19 @@ def main():
         cells = [label]
         for vdw in (True, False):
             for force in ("true", "reconstructed"):
-                sp = res[vdw, force][key]["spread"]
-                cells.append(f"{100 * sp['std'] / sp['mean']:.3f} (n={sp['n']})")
+                sp = res[vdw, force].estimates[key].spread
+                cells.append(f"{100 * sp.std / sp.mean:.3f} (n={sp.n})")
         p("| " + " | ".join(cells) + " |")
     p("")
     p("Z1, reconstruction error and time:\n")
     for vdw in (True, False):
         for force in ("true", "reconstructed"):
-            info = res[vdw, force]["info"]
-            tm = info["timing_s"]
+            info = res[vdw, force].info
+            tm = res[vdw, force].timing_s
             rec = info.get("reconstruction_error")
             rec_s = (f"reconstruction RMS {rec['rms_pct']:.2g} %, max {rec['max_pct']:.2g} %, peak {rec['peak_pct']:+.2g} %"
                      " of the peak force; " if rec else "")  # fmt: skip
-            p(f"- vdW {'on' if vdw else 'off'}, {force}: {res[vdw, force]['taps']} taps, Z1 = {info['z1'] * 1e9:.4f} nm; "
+            p(f"- vdW {'on' if vdw else 'off'}, {force}: {res[vdw, force].taps} taps, Z1 = {info['z1'] * 1e9:.4f} nm; "
               f"{rec_s}time: reconstruction {tm['reconstruction']:.2f} s, stage 1 {tm['stage1'] * 1e3:.0f} ms, "
               f"stage 2 {tm['stage2'] * 1e3:.0f} ms ({tm['stage2_per_tap'] * 1e3:.0f} ms per tap)")  # fmt: skip
     p("")
@@ -160,7 +159,7 @@ def main():
             u = t[sl] - t[c]
             fit = fit_sum_of_sines(u, z[sl])
             krs.append(stage2_kr(u, f[sl], fit, kg, th["tau_c"], f[c])[0])
-            sup = _Superposition(u, fit)
+            sup = Superposition(u, fit)
             fc, fs = f[c], f[sl]
 
             def res_pre(q, sup=sup, fc=fc, fs=fs, s0=sig0[j], u=u, kg=kg):
@@ -189,8 +188,8 @@ def main():
         except InputError as exc:
             p(f"| {fc / 1e6:g} MHz | {fc / f1:.0f} | extraction failed: {exc} |||||||")
             continue
-        e = r["info"]["reconstruction_error"]
-        errs = " | ".join(f"{pct(r[k]['value'], th[k]):+.2f}" for k in ("tau_c", "k_g", "k0", "k_inf", "cd"))
+        e = r.info["reconstruction_error"]
+        errs = " | ".join(f"{pct(r.value(k), th[k]):+.2f}" for k in ("tau_c", "k_g", "k0", "k_inf", "cd"))
         p(
             f"| {fc / 1e6:g} MHz | {fc / f1:.0f} | {e['rms_pct']:.2g} | {e['max_pct']:.2g} | {e['peak_pct']:+.2g} | {errs} |"
         )
@@ -224,14 +223,14 @@ def main():
         except InputError as exc:
             p(f"| {fc / 1e6:g} MHz | {fc / f1:.0f} | extraction failed: {exc} |||||||")
             continue
-        e = r["info"]["reconstruction_error"]
-        errs = " | ".join(f"{pct(r[k]['value'], th[k]):+.3g}" for k in ("tau_c", "k_g", "k0", "k_inf", "cd"))
+        e = r.info["reconstruction_error"]
+        errs = " | ".join(f"{pct(r.value(k), th[k]):+.3g}" for k in ("tau_c", "k_g", "k0", "k_inf", "cd"))
         p(f"| {fc / 1e6:g} MHz | {fc / f1:.0f} | {e['rms_pct']:.3g} | {e['max_pct']:.3g} | {errs} |")
     try:
         r = extract(dfn, metan, force="true")
         p(
             "\nTrue force, same noisy positions: "
-            + ", ".join(f"{k} {pct(r[k]['value'], th[k]):+.3g} %" for k in ("tau_c", "k_g", "k0", "k_inf", "cd"))
+            + ", ".join(f"{k} {pct(r.value(k), th[k]):+.3g} %" for k in ("tau_c", "k_g", "k0", "k_inf", "cd"))
         )
     except InputError as exc:
         p(f"\nTrue force, same noisy positions: extraction failed: {exc}")

@@ -13,13 +13,15 @@ import math
 import numpy as np
 import pytest
 
-from vetica_cli.config import load
 from vetica_cli.core.prescribed import NDIR, surface_force
 from vetica_cli.errors import InputError
-from vetica_cli.extract import extract
-from vetica_cli.fullfit import SurfaceFit, _segment, extract_full
-from vetica_cli.simulate import simulate
-from vetica_cli.vetica import first_contact_minimum
+from vetica_cli.extraction import extract
+from vetica_cli.extraction.format import to_json
+from vetica_cli.extraction.fullfit.model import SurfaceFit
+from vetica_cli.extraction.record import segment
+from vetica_cli.signals.taps import first_contact_minimum
+from vetica_cli.simulation.config import load
+from vetica_cli.simulation.simulate import simulate
 
 K0, KINF, CD = 128.0, 4.0, 3e-5  # worked example (thesis tables 2-4)
 HR6 = 0.2e-18 * 10e-9 / 6  # H R / 6 [J m]
@@ -97,7 +99,7 @@ def test_prescribed_surface_reproduces_the_simulator_at_the_true_parameters(work
     so its relaxation leads by (h - dt)/2, ~4 pN) and the dashpot position at the window
     start to 1e-4 (simulator: x_dashpot of the last sample, one period on)."""
     df, _ = worked
-    st, ap = _segment(df, "steady"), _segment(df, "approach")
+    st, ap = segment(df, "steady"), segment(df, "approach")
     t, z, f = st["t"].to_numpy(), st["z_tip"].to_numpy(), st["f_ts"].to_numpy()
     i1 = first_contact_minimum(ap["f_ts"].to_numpy())
     h = (t[-1] - t[0]) / (len(t) - 1)
@@ -106,7 +108,7 @@ def test_prescribed_surface_reproduces_the_simulator_at_the_true_parameters(work
     fm, _ = model.evaluate(np.array([KINF, K0, CD, HR6]), 0.0, ndir=0)
     rms = np.sqrt(np.mean((fm - model.f) ** 2)) / np.max(f)
     assert rms < 2e-4
-    assert model._state[0] == pytest.approx(st["x_dashpot"].to_numpy()[-1], rel=1e-4)
+    assert model.window_start_xd == pytest.approx(st["x_dashpot"].to_numpy()[-1], rel=1e-4)
 
 
 @pytest.mark.parametrize("force", ["true", "reconstructed"])
@@ -114,14 +116,15 @@ def test_full_method_recovers_the_worked_example_within_1_percent(worked, force)
     """Issue 6 done-when: k0, k_inf, cd within 1 % of the run's truth (measured: 0.02 %),
     every parameter identifiable, the same keys as VETICA's extract()."""
     df, meta = worked
-    res = extract_full(df, meta, force=force)
+    res = extract(df, meta, force=force, method="full")
     for name in ("k0", "k_inf", "cd", "tau_c", "k_g"):
-        assert res[name]["error_pct"] < 1.0, name
-    assert res["identifiable"] == {"k_inf": True, "k0": True, "cd": True}
-    assert all(0 < res["uncertainty"][k] < 0.01 for k in ("k0", "k_inf", "cd"))
+        assert abs(res.estimates[name].error_pct) < 1.0, name
+    assert {k: res.estimates[k].identifiable for k in res.fitted} == {"k_inf": True, "k0": True, "cd": True}
+    assert all(0 < res.estimates[k].sigma < 0.01 for k in ("k0", "k_inf", "cd"))
     ref = extract(df, meta, force=force)
-    assert set(ref) - {"info"} <= set(res) - {"info"}
-    assert res["method"] == "full" and res["force"] == force and res["taps"] == ref["taps"]
+    assert set(ref.estimates) <= set(res.estimates)
+    assert set(to_json(ref)) - {"info"} <= set(to_json(res)) - {"info"}
+    assert res.method == "full" and res.force == force and res.taps == ref.taps
 
 
 @pytest.mark.parametrize(
@@ -130,9 +133,9 @@ def test_full_method_recovers_the_worked_example_within_1_percent(worked, force)
 def test_converges_from_starts_decades_away(worked, start):
     """Starting stiffnesses 100x off and cd 1000x off (both ways): still within 1 %."""
     df, meta = worked
-    res = extract_full(df, meta, force="true", start=start)
+    res = extract(df, meta, force="true", method="full", start=start)
     for name in ("k0", "k_inf", "cd"):
-        assert res[name]["error_pct"] < 1.0, name
+        assert abs(res.estimates[name].error_pct) < 1.0, name
 
 
 def test_offset_of_the_tip_coordinate_only_moves_the_surface_height(worked):
@@ -141,11 +144,11 @@ def test_offset_of_the_tip_coordinate_only_moves_the_surface_height(worked):
     df, meta = worked
     shifted = df.copy()
     shifted["z_tip"] = shifted["z_tip"] + 3e-9
-    a = extract_full(df, meta, force="true")
-    b = extract_full(shifted, meta, force="true")
+    a = extract(df, meta, force="true", method="full")
+    b = extract(shifted, meta, force="true", method="full")
     for name in ("k0", "k_inf", "cd"):
-        assert b[name]["value"] == pytest.approx(a[name]["value"], rel=1e-4), name
-    ha, hb = a["info"]["fit"]["surface_height_m"], b["info"]["fit"]["surface_height_m"]
+        assert b.value(name) == pytest.approx(a.value(name), rel=1e-4), name
+    ha, hb = a.info["fit"]["surface_height_m"], b.info["fit"]["surface_height_m"]
     assert hb - ha == pytest.approx(3e-9, abs=1e-12)
 
 
@@ -153,7 +156,7 @@ def test_offset_of_the_tip_coordinate_only_moves_the_surface_height(worked):
 def test_bad_options_raise_one_line_input_errors(worked, kw, fragment):
     df, meta = worked
     with pytest.raises(InputError, match=fragment):
-        extract_full(df.iloc[:10], meta, **kw)
+        extract(df.iloc[:10], meta, method="full", **kw)
 
 
 # ----------------------------------------------------------------------------- beyond VETICA
@@ -167,12 +170,12 @@ def test_recovers_cd_0p01_ratio_16_where_vetica_fails():
     run = simulate(load(None, {"surface.k0": 64.0, "surface.cd": 1e-2}))
     df, meta = run.frame(), run.metadata()
     ref = extract(df, meta, force="true")
-    assert ref["k_inf"]["error_pct"] > 30 and ref["cd"]["error_pct"] > 30
+    assert abs(ref.estimates["k_inf"].error_pct) > 30 and abs(ref.estimates["cd"].error_pct) > 30
     for force in ("true", "reconstructed"):
-        res = extract_full(df, meta, force=force)
+        res = extract(df, meta, force=force, method="full")
         for name in ("k0", "k_inf", "cd"):
-            assert res[name]["error_pct"] < 1.0, (force, name)
-            assert res["identifiable"][name], (force, name)
+            assert abs(res.estimates[name].error_pct) < 1.0, (force, name)
+            assert res.estimates[name].identifiable, (force, name)
 
 
 @pytest.mark.slow
@@ -181,7 +184,7 @@ def test_frozen_dashpot_is_flagged_not_identifiable():
     say so -- cd, k0 and k_inf not identifiable -- while Kg = k0 + k_inf, the only
     stiffness such a surface shows, is recovered within 1 %."""
     run = simulate(load(None, {"surface.k0": 64.0, "surface.cd": 100.0, "numerics.max_time": 0.004}))
-    res = extract_full(run.frame(), run.metadata(), force="true")
-    assert res["identifiable"] == {"k_inf": False, "k0": False, "cd": False}
-    assert res["k_g"]["error_pct"] < 1.0
-    assert res["uncertainty"]["k_g"] < 0.01
+    res = extract(run.frame(), run.metadata(), force="true", method="full")
+    assert {k: res.estimates[k].identifiable for k in res.fitted} == {"k_inf": False, "k0": False, "cd": False}
+    assert abs(res.estimates["k_g"].error_pct) < 1.0
+    assert res.estimates["k_g"].sigma < 0.01

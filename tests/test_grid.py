@@ -1,4 +1,4 @@
-"""The sweep grammar (vetica_cli.grid): lists, logspace, linspace, zip groups,
+"""The sweep grammar (vetica_cli.study.grid): lists, logspace, linspace, zip groups,
 derived keys, the cartesian product, and one-line errors for bad study configs.
 
 Reference values are the grammar's definitions: ``logspace [a, b, n]`` is
@@ -10,8 +10,8 @@ to 12 significant digits by design, so comparisons use rel=1e-12.
 import numpy as np
 import pytest
 
-from vetica_cli.config import ConfigError
-from vetica_cli.grid import config_keys, expand, load_study, parse_values, point_key, sweepable_keys
+from vetica_cli.errors import ConfigError
+from vetica_cli.study.grid import config_keys, expand, load_study, parse_values, point_key, sweepable_keys
 
 
 def test_logspace_gives_clean_decades_and_points_per_decade():

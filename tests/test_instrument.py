@@ -5,10 +5,11 @@ import math
 import numpy as np
 import pytest
 
-from vetica_cli.config import ConfigError, load
 from vetica_cli.core.thc import COLUMNS
-from vetica_cli.observables import harmonic
-from vetica_cli.simulate import simulate
+from vetica_cli.errors import ConfigError
+from vetica_cli.simulation.config import load
+from vetica_cli.simulation.observables import harmonic
+from vetica_cli.simulation.simulate import simulate
 
 BASE = {"numerics.print_step": 1e-9, "numerics.record_cycles": 2}
 IC, IP, IT, IB, IF = (COLUMNS.index(c) for c in ("z_cantilever", "z_paddle", "z_tip", "z_base", "f_ts"))

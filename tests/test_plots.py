@@ -17,11 +17,18 @@ import pandas as pd
 import pytest
 from typer.testing import CliRunner
 
-from vetica_cli import plots
 from vetica_cli.cli import app
-from vetica_cli.config import load
 from vetica_cli.io import read_table, write_run, write_table
-from vetica_cli.simulate import simulate
+from vetica_cli.plots.acceptance import fig_acceptance_vs
+from vetica_cli.plots.data import SweepData, swept_keys
+from vetica_cli.plots.errors import fig_errors_vs_cd
+from vetica_cli.plots.observables import fig_observable_vs_cd, mean_band
+from vetica_cli.plots.run import load_run, loop_energy_ev, tap_window, transitions
+from vetica_cli.plots.study import select_sweep_figures
+from vetica_cli.signals.spectral import spectral_derivative
+from vetica_cli.simulation.config import load
+from vetica_cli.simulation.simulate import simulate
+from vetica_cli.study.acceptance import regime
 
 runner = CliRunner()
 
@@ -179,14 +186,14 @@ def test_plot_writes_the_study_figures_for_each_sweep_kind(table, tmp_path, stud
 
 
 def test_figure_selection_follows_the_swept_keys():
-    cd_only = [n for n, _, _ in plots.select_sweep_figures(["surface.cd"])]
+    cd_only = [n for n, _, _ in select_sweep_figures(["surface.cd"])]
     assert "fig43-45_values_vs_cd" in cd_only and not any("ratio" in n or "f1" in n for n in cd_only)
-    f1 = [n for n, _, _ in plots.select_sweep_figures(["surface.cd", "probe.f1"])]
+    f1 = [n for n, _, _ in select_sweep_figures(["surface.cd", "probe.f1"])]
     assert "fig52_acceptance_vs_f1" in f1 and "fig51_contact_times_vs_f1" in f1 and "fig43-45_values_vs_cd" not in f1
     # without cd there is no acceptance regime to draw
-    assert [n for n, _, _ in plots.select_sweep_figures(["probe.f1"])] == ["fig51_contact_times_vs_f1"]
+    assert [n for n, _, _ in select_sweep_figures(["probe.f1"])] == ["fig51_contact_times_vs_f1"]
     # an unknown swept key still gets its errors figure
-    assert "errors_vs_probe_q2" in [n for n, _, _ in plots.select_sweep_figures(["surface.cd", "probe.q2"])]
+    assert "errors_vs_probe_q2" in [n for n, _, _ in select_sweep_figures(["surface.cd", "probe.q2"])]
 
 
 def test_swept_keys_come_from_varying_columns_and_drop_lockstep_keys():
@@ -194,9 +201,9 @@ def test_swept_keys_come_from_varying_columns_and_drop_lockstep_keys():
     df["probe.f2"] = 15 * df["probe.f1"]  # a zip group / f2_ratio: varies with f1, adds no axis
     df["surface.k_inf"] = 4.0  # named but constant
     meta["config"]["sweep"]["probe.f2"] = [15 * f for f in meta["config"]["sweep"]["probe.f1"]]
-    assert plots.swept_keys(df, meta) == ["surface.cd", "probe.f1"]
+    assert swept_keys(df, meta) == ["surface.cd", "probe.f1"]
     # a single-valued dotted column is not an axis even without a sweep block
-    assert plots.swept_keys(df, {"units": {}}) == ["surface.cd", "probe.f1"]
+    assert swept_keys(df, {"units": {}}) == ["surface.cd", "probe.f1"]
 
 
 def test_acceptance_regime_spans_the_ok_points_below_30_percent():
@@ -205,28 +212,28 @@ def test_acceptance_regime_spans_the_ok_points_below_30_percent():
     d = pd.DataFrame(
         {"surface.cd": np.arange(1, 9.0), "tau_c_err_pct": [80, 20, 10, 45, 5, 25, 28, 60.0], "status": ["ok"] * 8}
     )
-    r = plots.acceptance(d)
+    r = regime(d)
     assert (r.lo, r.hi, r.contiguous) == (2.0, 7.0, False)
     assert list(r.accepted) == [2, 3, 5, 6, 7]
     d.loc[3, "tau_c_err_pct"] = 12.0
-    assert plots.acceptance(d).contiguous
+    assert regime(d).contiguous
     # a not-steady point is not accepted, whatever its error, and breaks the run
     d.loc[3, "status"] = "not_steady"
-    r = plots.acceptance(d)
+    r = regime(d)
     assert (r.lo, r.hi, r.contiguous) == (2.0, 7.0, False)
     d["tau_c_err_pct"] = 31.0
-    assert plots.acceptance(d) is None
+    assert regime(d) is None
 
 
 @pytest.mark.parametrize("study", ["frequency", "print_step"])
 def test_acceptance_regime_agrees_with_what_vetica_sweep_reports(study):
-    from vetica_cli.sweep import acceptance_regime
+    from vetica_cli.study.acceptance import acceptance_regime
 
     df, _ = synthetic_sweep(study)
     other = next(k for k in STUDIES[study] if k != "surface.cd")
     for entry in acceptance_regime(df, list(STUDIES[study])):
         g = df[(df[other] == entry[other]) & (df["force_source"] == entry["force_source"])]
-        r = plots.acceptance(g)
+        r = regime(g)
         if entry["cd_min"] is None:
             assert r is None
         else:
@@ -235,8 +242,8 @@ def test_acceptance_regime_agrees_with_what_vetica_sweep_reports(study):
 
 def test_failed_and_not_steady_points_are_reported_in_the_figure_note(table, tmp_path):
     df, _meta = synthetic_sweep("dashpot")
-    sw = plots.SweepData(df=df, swept=["surface.cd"], base=BASE)
-    fig = plots.fig_errors_vs_cd(sw)
+    sw = SweepData(df=df, swept=["surface.cd"], base=BASE)
+    fig = fig_errors_vs_cd(sw)
     texts = " ".join(t.get_text() for t in fig.texts)
     assert "1 failed point(s) excluded" in texts and "1 not-steady point(s)" in texts
 
@@ -245,12 +252,12 @@ def test_a_key_without_effect_on_an_observable_gets_no_lines_of_its_own():
     # synthetic print-step study: the observables do not depend on the print step (one shared
     # simulation per cd), so E_diss against cd is one line, and the note says why
     df, meta = synthetic_sweep("print_step")
-    sw = plots.SweepData(df=df, swept=plots.swept_keys(df, meta), base=BASE)
-    fig = plots.fig_observable_vs_cd(sw, "e_diss_ev", "41")
+    sw = SweepData(df=df, swept=swept_keys(df, meta), base=BASE)
+    fig = fig_observable_vs_cd(sw, "e_diss_ev", "41")
     assert len([ln for ln in fig.axes[0].get_lines() if ln.get_linestyle() == "-"]) == 1
     assert "identical for every print step" in " ".join(t.get_text() for t in fig.texts)
     # ...while the errors do depend on it: one line per print step and force source
-    fig = plots.fig_acceptance_vs(sw, "numerics.print_step", "61")
+    fig = fig_acceptance_vs(sw, "numerics.print_step", "61")
     assert len([ln for ln in fig.axes[0].get_lines() if len(ln.get_xdata()) > 2]) == 2 * 4
 
 
@@ -265,11 +272,11 @@ def test_means_against_a_setting_use_only_the_cd_values_ok_at_every_setting():
             "peak_force": [10.0, 20.0, 30.0, 10.0, 20.0, 90.0],
         }
     )
-    mean, _lo, hi, n = plots._mean_band(df, "operation.setpoint", "peak_force", ["surface.cd"])
+    mean, _lo, hi, n = mean_band(df, "operation.setpoint", "peak_force", ["surface.cd"])
     assert mean.tolist() == [15.0, 15.0] and n.tolist() == [2, 2] and hi.tolist() == [20.0, 20.0]
     # no common value: fall back to every ok point
     df.loc[df["surface.cd"] < 3, "status"] = ["not_steady", "not_steady", "ok", "ok"]
-    mean, *_ = plots._mean_band(df, "operation.setpoint", "peak_force", ["surface.cd"])
+    mean, *_ = mean_band(df, "operation.setpoint", "peak_force", ["surface.cd"])
     assert mean.tolist() == [30.0, 15.0]
 
 
@@ -317,7 +324,7 @@ def test_plot_writes_the_run_figures(run_file, tmp_path):
 
 def _spectral_available() -> bool:
     try:
-        from vetica_cli import spectral  # noqa: F401
+        from vetica_cli.signals import spectral  # noqa: F401
     except ImportError:
         return False
     return True
@@ -328,16 +335,16 @@ def test_dissipation_loop_area_matches_the_run_energy(run_file):
     # per-step integral of the same quantity (observables e_diss_ev); sampling at 0.5 ns instead of
     # dt = 0.025 ns costs accuracy: tolerance 3 %
     df, meta = read_table(run_file)
-    run = plots.load_run(df, meta)
-    sl = plots.tap_window(run)
-    e = plots.loop_energy_ev(run.z[sl], run.f[sl])
+    run = load_run(df, meta)
+    sl = tap_window(run)
+    e = loop_energy_ev(run.z[sl], run.f[sl])
     assert e == pytest.approx(meta["observables"]["e_diss_ev"], rel=0.03)
 
 
 def test_transitions_are_the_force_minima_at_the_simulator_contact_edges(run_file):
     df, meta = read_table(run_file)
-    run = plots.load_run(df, meta)
-    on, off = plots.transitions(run)
+    run = load_run(df, meta)
+    on, off = transitions(run)
     assert len(on) == len(off) >= 2  # 3 recorded periods; taps cut by the record's ends are dropped
     # each transition sits at a force minimum close to -Fa(a0) = -H R / (6 a0^2) (SPEC 3); sampled at
     # 0.5 ns the minimum can be missed by a little: 15 %
@@ -362,7 +369,7 @@ def test_spectral_velocity_matches_the_analytic_derivative_despite_drift():
     drift = 50e-12 / (n_per * periods * dt)
     z = 70e-9 * np.sin(w * t) + 2e-9 * np.cos(3 * w * t) + drift * t
     v = 70e-9 * w * np.cos(w * t) - 6e-9 * w * np.sin(3 * w * t) + drift
-    assert np.allclose(plots.spectral_velocity(z, dt), v, rtol=0, atol=1e-8 * np.max(np.abs(v)))
+    assert np.allclose(spectral_derivative(z, dt), v, rtol=0, atol=1e-8 * np.max(np.abs(v)))
 
 
 def test_spectral_velocity_cutoff_drops_the_band_above_it():
@@ -374,7 +381,7 @@ def test_spectral_velocity_cutoff_drops_the_band_above_it():
     t = np.arange(n_per * periods) * dt
     w = 2 * np.pi * f1
     z = 70e-9 * np.sin(w * t) + 1e-11 * np.sin(40 * w * t)
-    v = plots.spectral_velocity(z, dt, cutoff_hz=10 * f1)
+    v = spectral_derivative(z, dt, cutoff_hz=10 * f1)
     assert np.allclose(v, 70e-9 * w * np.cos(w * t), rtol=0, atol=1e-5 * 70e-9 * w)
 
 
@@ -382,9 +389,9 @@ def test_spectral_velocity_of_the_run_agrees_with_finite_differences(run_file):
     # the tip trajectory has kinks in its acceleration at contact; central differences at 0.5 ns
     # and the spectral derivative must still agree to 1 % of the peak speed
     df, meta = read_table(run_file)
-    run = plots.load_run(df, meta)
+    run = load_run(df, meta)
     dt = meta["params"]["numerics"]["print_step"]
-    v = plots.spectral_velocity(run.z, dt)
+    v = spectral_derivative(run.z, dt)
     fd = np.gradient(run.z, dt)
     assert np.max(np.abs(v - fd)[1:-1]) < 0.01 * np.max(np.abs(fd))
 
@@ -392,7 +399,7 @@ def test_spectral_velocity_of_the_run_agrees_with_finite_differences(run_file):
 def test_tables_comparing_methods_get_one_titled_figure_set_per_method():
     """A sweep over extract.method (issue 6): the figures are drawn per method,
     named and titled after it, instead of mixing both methods in one series."""
-    from vetica_cli.plots import sweep_figures
+    from vetica_cli.plots.study import sweep_figures
 
     df, meta = synthetic_sweep("dashpot", failed=0, not_steady=0)
     both = pd.concat([df.assign(method="vetica"), df.assign(method="full")], ignore_index=True)
@@ -401,6 +408,6 @@ def test_tables_comparing_methods_get_one_titled_figure_set_per_method():
     assert {n.rsplit("_", 1)[1] for n in names} == {"vetica", "full"}
     assert len(names) == 2 * len(EXPECTED["dashpot"])
     full = dict(figs)["fig43-46_errors_vs_cd_full"]
-    assert "full extraction" in full._suptitle.get_text()
-    assert "VETICA" in dict(figs)["fig43-46_errors_vs_cd_vetica"]._suptitle.get_text()
+    assert "full extraction" in full.get_suptitle()
+    assert "VETICA" in dict(figs)["fig43-46_errors_vs_cd_vetica"].get_suptitle()
     assert "methods: full, vetica" in notes[-1]

@@ -8,7 +8,8 @@ import pytest
 from typer.testing import CliRunner
 
 from vetica_cli.cli import app
-from vetica_cli.config import ConfigError, from_dict, load, parse_set
+from vetica_cli.errors import ConfigError
+from vetica_cli.simulation.config import from_dict, load, parse_set
 
 runner = CliRunner()
 

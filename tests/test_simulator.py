@@ -10,9 +10,9 @@ import math
 import numpy as np
 import pytest
 
-from vetica_cli.config import load
 from vetica_cli.core.thc import COLUMNS
-from vetica_cli.simulate import simulate
+from vetica_cli.simulation.config import load
+from vetica_cli.simulation.simulate import simulate
 
 A0 = 100e-9
 FA0 = 0.2e-18 * 10e-9 / (6 * (0.2e-9) ** 2)  # Fa(a0) = H R / (6 a0^2), thesis eq. 3 [N]

@@ -11,10 +11,10 @@ import math
 import numpy as np
 import pytest
 
-from vetica_cli.config import load
 from vetica_cli.errors import InputError
-from vetica_cli.simulate import simulate
-from vetica_cli.spectral import paddle_inverse_transfer, reconstruct_force, reconstruction_error
+from vetica_cli.signals.spectral import paddle_inverse_transfer, reconstruct_force, reconstruction_error
+from vetica_cli.simulation.config import load
+from vetica_cli.simulation.simulate import simulate
 
 K2, F2, Q2 = 700.0, 750e3, 1000.0  # thesis worked-example paddle
 W2 = 2 * math.pi * F2

@@ -3,8 +3,9 @@ print-step sharing, the Dask backend, bad configs, the study configs, and the
 smoke sweep end to end.
 
 Most machinery tests use cheap real simulations (dt 0.05 ns, 100 drive periods,
-2 recorded periods) and a fake extraction injected with monkeypatch, so they
-test the sweep, not the physics; the smoke test runs the real extraction.
+2 recorded periods) and a fake extraction passed to the sweep as its task
+(``PointTask(extract=fake_extract)``), so they test the sweep, not the physics;
+the smoke test runs the real extraction.
 """
 
 import math
@@ -22,11 +23,19 @@ import pytest
 import yaml
 from typer.testing import CliRunner
 
-from vetica_cli import sweep
+from vetica_cli import surfaces
 from vetica_cli.cli import app
-from vetica_cli.config import Config, load
-from vetica_cli.grid import expand, load_study
+from vetica_cli.extraction import SOURCES, Estimate, ExtractionResult
 from vetica_cli.io import read_table
+from vetica_cli.simulation.config import Config, load
+from vetica_cli.simulation.simulate import simulate
+from vetica_cli.study.acceptance import acceptance_regime, format_acceptance
+from vetica_cli.study.grid import expand, load_study
+from vetica_cli.study.plan import fine_config, plan, subsample
+from vetica_cli.study.schema import STATUSES
+from vetica_cli.study.store import fingerprint_files, parts_dir
+from vetica_cli.study.sweep import run_sweep
+from vetica_cli.study.task import PointTask
 
 ROOT = Path(__file__).resolve().parents[1]
 CONFIGS = ROOT / "configs"
@@ -52,8 +61,8 @@ def cheap_study(sweep_block, **top):
     return expand(raw, name="t")
 
 
-def fake_extract(df, meta, force):
-    """Deterministic stand-in for vetica_cli.extract: tau_c off by a force-dependent
+def fake_extract(df, meta, force, method="vetica"):
+    """Deterministic stand-in for vetica_cli.extraction.extract: tau_c off by a force-dependent
     factor that also depends on the simulated signal (so determinism is tested)."""
     s = meta["params"]["surface"]
     th = {
@@ -67,13 +76,12 @@ def fake_extract(df, meta, force):
     }
     wiggle = float(np.mean(df["z_tip"].to_numpy())) * 1e6  # ~1e-2, from the simulation
     factor = (1.1 if force == "true" else 1.5) + wiggle
-    out = {}
-    for name, t in th.items():
-        v = t * factor
-        out[name] = {"value": v, "theory": t, "error_pct": 100 * abs(v - t) / t}
-    out["force"] = force
-    out["taps"] = 2
-    return out
+    units = {n: q.unit for n, q in surfaces.get("sls").quantities.items()}
+    est = {n: Estimate(t * factor, units[n], t, 100 * abs(t * factor - t) / t) for n, t in th.items()}
+    return ExtractionResult(method=method, force=force, taps=2, estimates=est)
+
+
+FAKE = PointTask(extract=fake_extract)
 
 
 def numeric_equal(a: pd.DataFrame, b: pd.DataFrame) -> None:
@@ -91,30 +99,28 @@ def numeric_equal(a: pd.DataFrame, b: pd.DataFrame) -> None:
 # --------------------------------------------------------------------- job and table
 
 
-def test_failing_point_becomes_a_failed_row_and_the_others_run(tmp_path, monkeypatch):
+def test_failing_point_becomes_a_failed_row_and_the_others_run(tmp_path):
     """One point's simulation raises, another point's true-force extraction raises:
     both become rows with status 'failed' and the error text; the extraction failure
     keeps the simulation's columns; the remaining point is unaffected."""
-    real_simulate = sweep._simulate
 
-    def simulate(cfg):
+    def exploding_simulate(cfg):
         if cfg.surface.cd == 1e-4:
             raise RuntimeError("kernel exploded")
-        return real_simulate(cfg)
+        return simulate(cfg)
 
-    def extract(df, meta, force):
+    def extract(df, meta, force, method):
         if meta["params"]["surface"]["cd"] == 1e-3 and force == "true":
             raise ValueError("no taps found")
-        return fake_extract(df, meta, force)
+        return fake_extract(df, meta, force, method)
 
-    monkeypatch.setattr(sweep, "_simulate", simulate)
-    monkeypatch.setattr(sweep, "_extract", extract)
     st = cheap_study({"surface.cd": [1e-5, 1e-4, 1e-3]})
-    res = sweep.run_sweep(st, tmp_path / "t.parquet", jobs=1, progress=False)
+    task = PointTask(simulate=exploding_simulate, extract=extract)
+    res = run_sweep(st, tmp_path / "t.parquet", jobs=1, progress=False, task=task)
     t = res.table
     assert len(t) == 6
     by = {(r["surface.cd"], r["force_source"]): r for _, r in t.iterrows()}
-    for src in sweep.SOURCES:
+    for src in SOURCES:
         r = by[(1e-4, src)]
         assert r["status"] == "failed" and "simulate: RuntimeError: kernel exploded" in r["error"]
         assert math.isnan(r["e_diss_ev"]) and math.isnan(r["tau_c"])
@@ -124,7 +130,7 @@ def test_failing_point_becomes_a_failed_row_and_the_others_run(tmp_path, monkeyp
     assert r["status"] == "failed" and "extract(true): ValueError: no taps found" in r["error"]
     assert r["e_diss_ev"] > 0 and r["stop_reason"] in ("steady", "max_time")
     assert by[(1e-3, "reconstructed")]["status"] in ("ok", "not_steady")
-    for src in sweep.SOURCES:
+    for src in SOURCES:
         assert by[(1e-5, src)]["status"] in ("ok", "not_steady")
         assert by[(1e-5, src)]["error"] == ""
     # status follows stop_reason for rows that did not fail
@@ -132,11 +138,10 @@ def test_failing_point_becomes_a_failed_row_and_the_others_run(tmp_path, monkeyp
     assert ((ok["status"] == "ok") == (ok["stop_reason"] == "steady")).all()
 
 
-def test_table_has_issue_columns_units_metadata_and_saved_config(tmp_path, monkeypatch):
-    monkeypatch.setattr(sweep, "_extract", fake_extract)
+def test_table_has_issue_columns_units_metadata_and_saved_config(tmp_path):
     st = cheap_study({"surface.cd": [1e-5, 1e-3]}, name="cols")
     out = tmp_path / "res" / "cols.parquet"
-    res = sweep.run_sweep(st, out, jobs=1, progress=False)
+    res = run_sweep(st, out, jobs=1, progress=False, task=FAKE)
     df, meta = read_table(out)
     for c in ["point", "surface.cd", *ISSUE_COLUMNS]:
         assert c in df.columns, c
@@ -163,7 +168,7 @@ def test_acceptance_regime_per_combination_and_source():
     cds = [1e-5, 1e-4, 1e-3, 1e-2, 1e-1]
     for sp, e in errs.items():
         for cd, err in zip(cds, e):
-            for src in sweep.SOURCES:
+            for src in SOURCES:
                 status = "not_steady" if (sp == 0.7 and cd == 1e-1) else "ok"
                 rows.append(
                     {
@@ -174,7 +179,7 @@ def test_acceptance_regime_per_combination_and_source():
                         "tau_c_err_pct": err if src == "true" else 99.0,
                     }
                 )
-    acc = sweep.acceptance_regime(pd.DataFrame(rows), ("operation.setpoint", "surface.cd"))
+    acc = acceptance_regime(pd.DataFrame(rows), ("operation.setpoint", "surface.cd"))
     got = {(e["operation.setpoint"], e["force_source"]): e for e in acc}
     a = got[(0.5, "true")]
     assert (a["cd_min"], a["cd_max"], a["n_accepted"], a["contiguous"]) == (1e-4, 1e-2, 3, True)
@@ -182,9 +187,18 @@ def test_acceptance_regime_per_combination_and_source():
     b = got[(0.7, "true")]
     assert (b["cd_min"], b["cd_max"], b["n_accepted"], b["n_not_steady"], b["contiguous"]) == (1e-5, 1e-2, 3, 1, False)
     assert got[(0.5, "reconstructed")]["n_accepted"] == 0
-    text = sweep.format_acceptance(acc, ("operation.setpoint", "surface.cd"))
+    text = format_acceptance(acc, ("operation.setpoint", "surface.cd"))
     assert "operation.setpoint=0.5, true force: cd 0.0001 .. 0.01 kg/s (2.00 decades)" in text
     assert "with gaps" in text
+
+
+def test_acceptance_regime_takes_the_magnitude_of_signed_errors():
+    """Tables store signed errors (100 (estimate - theory)/theory): an underestimate by
+    50 % is as far outside the 30 % regime (thesis fig. 52) as an overestimate."""
+    t = pd.DataFrame({"surface.cd": [1e-5, 1e-4, 1e-3, 1e-2], "force_source": "true", "status": "ok",
+                      "tau_c_err_pct": [-50.0, -20.0, 25.0, 45.0]})  # fmt: skip
+    (a,) = acceptance_regime(t, ("surface.cd",))
+    assert (a["cd_min"], a["cd_max"], a["n_accepted"], a["contiguous"]) == (1e-4, 1e-3, 2, True)
 
 
 # --------------------------------------------------------------------- resume and determinism
@@ -194,26 +208,26 @@ RESUME_SCRIPT = textwrap.dedent(
     import os, sys, time
     sys.path.insert(0, {tests!r})
     from test_sweep import cheap_study, fake_extract
-    from vetica_cli import sweep
+    from vetica_cli.study.sweep import run_sweep
+    from vetica_cli.study.task import PointTask
 
-    def slow_extract(df, meta, force):
+    def slow_extract(df, meta, force, method):
         time.sleep(float(os.environ.get("FAKE_SLEEP", "0")))
-        return fake_extract(df, meta, force)
+        return fake_extract(df, meta, force, method)
 
-    sweep._extract = slow_extract
     st = cheap_study({{"surface.cd": {{"logspace": [-5, -3, 5]}}}})
-    sweep.run_sweep(st, sys.argv[1], jobs=1, progress=False)
+    run_sweep(st, sys.argv[1], jobs=1, progress=False, task=PointTask(extract=slow_extract))
     """
 )
 
 
-def test_killed_sweep_resumes_only_missing_points_and_ends_with_the_same_table(tmp_path, monkeypatch):
+def test_killed_sweep_resumes_only_missing_points_and_ends_with_the_same_table(tmp_path):
     """kill -9 a sweep after some parts are persisted; the rerun computes only the
     missing points; its table equals an uninterrupted run's (wall_s excluded)."""
     script = tmp_path / "run.py"
     script.write_text(RESUME_SCRIPT.format(tests=str(Path(__file__).parent)))
     out = tmp_path / "a" / "t.parquet"
-    parts = sweep.parts_dir(out)
+    parts = parts_dir(out)
     env = dict(os.environ, FAKE_SLEEP="0.8")
     proc = subprocess.Popen([sys.executable, str(script), str(out)], env=env, start_new_session=True)
     try:
@@ -228,60 +242,64 @@ def test_killed_sweep_resumes_only_missing_points_and_ends_with_the_same_table(t
     assert 2 <= len(persisted) < 5, persisted
     assert not out.exists()
 
-    monkeypatch.setattr(sweep, "_extract", fake_extract)
     st = cheap_study({"surface.cd": {"logspace": [-5, -3, 5]}})
-    res = sweep.run_sweep(st, out, jobs=1, progress=False)
+    res = run_sweep(st, out, jobs=1, progress=False, task=FAKE)
     assert set(res.reused) == persisted
     assert set(res.computed) == {p.key for p in st.points} - persisted
 
-    ref = sweep.run_sweep(st, tmp_path / "b" / "t.parquet", jobs=1, progress=False)
+    ref = run_sweep(st, tmp_path / "b" / "t.parquet", jobs=1, progress=False, task=FAKE)
     assert len(ref.computed) == 5
     numeric_equal(res.table, ref.table)
     numeric_equal(read_table(out)[0], read_table(tmp_path / "b" / "t.parquet")[0])
     # a third run reuses everything; --no-resume recomputes everything
-    again = sweep.run_sweep(st, out, jobs=1, progress=False)
+    again = run_sweep(st, out, jobs=1, progress=False, task=FAKE)
     assert again.computed == [] and len(again.reused) == 5
-    fresh = sweep.run_sweep(st, out, jobs=1, resume=False, progress=False)
+    fresh = run_sweep(st, out, jobs=1, resume=False, progress=False, task=FAKE)
     assert len(fresh.computed) == 5
     numeric_equal(fresh.table, ref.table)
 
 
-def test_parts_made_by_other_code_or_config_are_recomputed(tmp_path, monkeypatch):
+def test_parts_made_by_other_code_or_config_are_recomputed(tmp_path):
     """A persisted part whose code fingerprint differs (the simulator or the
     extraction changed since) is stale; so is an unreadable part."""
     from vetica_cli.io import write_table
 
-    monkeypatch.setattr(sweep, "_extract", fake_extract)
     st = cheap_study({"surface.cd": [1e-5, 1e-4, 1e-3]})
     out = tmp_path / "t.parquet"
-    first = sweep.run_sweep(st, out, jobs=1, progress=False)
+    first = run_sweep(st, out, jobs=1, progress=False, task=FAKE)
     assert len(first.computed) == 3
     k0, k1 = st.points[0].key, st.points[1].key
-    part = sweep.parts_dir(out) / f"{k0}.parquet"
+    part = parts_dir(out) / f"{k0}.parquet"
     df, meta = read_table(part)
     write_table(df, part, {**meta, "code": "0000000000000000"})
-    (sweep.parts_dir(out) / f"{k1}.parquet").write_bytes(b"not parquet")
-    again = sweep.run_sweep(st, out, jobs=1, progress=False)
+    (parts_dir(out) / f"{k1}.parquet").write_bytes(b"not parquet")
+    again = run_sweep(st, out, jobs=1, progress=False, task=FAKE)
     assert sorted(again.computed) == sorted([k0, k1])
     assert again.reused == [st.points[2].key]
     numeric_equal(again.table, first.table)
 
 
 def test_code_fingerprint_covers_simulation_and_extraction_only():
-    names = {f.relative_to(ROOT / "vetica_cli").as_posix() for f in sweep.fingerprint_files()}
-    assert {"simulate.py", "core/thc.py", "core/sls.py", "observables.py", "extract.py", "vetica.py",
-            "spectral.py", "sweep.py", "grid.py", "config.py"} <= names  # fmt: skip
-    assert not names & {"cli.py", "plots.py", "report.py", "bench.py"}
+    names = {f.relative_to(ROOT / "vetica_cli").as_posix() for f in fingerprint_files()}
+    assert {"simulation/simulate.py", "core/thc.py", "core/sls.py", "core/prescribed.py", "simulation/observables.py",
+            "simulation/config.py", "simulation/instrument.py", "extraction/__init__.py", "extraction/vetica.py",
+            "extraction/record.py", "extraction/result.py", "extraction/fullfit/model.py",
+            "extraction/fullfit/method.py", "signals/spectral.py", "signals/taps.py", "surfaces/sls.py",
+            "surfaces/base.py", "study/task.py", "study/plan.py", "study/grid.py", "study/schema.py",
+            "study/store.py"} <= names  # fmt: skip
+    assert not {n for n in names if n.startswith("plots/")}
+    assert not names & {"cli.py", "report.py", "bench.py", "study/sweep.py", "study/launch.py", "study/cost.py",
+                        "study/progress.py"}  # fmt: skip
 
 
 def test_same_config_gives_bit_identical_numeric_columns_with_two_workers(tmp_path):
     """Two loky workers, unordered completion: rows are still in grid order and the
     numeric columns are bit-identical across runs (real extraction)."""
     st = cheap_study({"surface.cd": [1e-5, 1e-3], "numerics.print_step": [0.5e-9, 1e-9]})
-    a = sweep.run_sweep(st, tmp_path / "a.parquet", jobs=2, progress=False)
-    b = sweep.run_sweep(st, tmp_path / "b.parquet", jobs=2, progress=False)
+    a = run_sweep(st, tmp_path / "a.parquet", jobs=2, progress=False)
+    b = run_sweep(st, tmp_path / "b.parquet", jobs=2, progress=False)
     assert len(a.computed) == len(b.computed) == 4
-    assert list(a.table["point"]) == [p.key for p in st.points for _ in sweep.SOURCES]
+    assert list(a.table["point"]) == [p.key for p in st.points for _ in SOURCES]
     numeric_equal(a.table, b.table)
 
 
@@ -294,20 +312,18 @@ def test_shared_print_step_simulation_matches_separate_runs():
     exactly the separate runs' sample times; the trajectories differ only through the
     controller's amplitude sampling: by < 1e-12 m (numerics.tol_z, far below the 0.1 nm
     scale of the extraction) and observables by < 1e-4 relative."""
-    from vetica_cli.simulate import simulate
-
     base = {"surface.k0": 64.0, "surface.cd": 1e-4, "numerics.dt": 0.05e-9, "numerics.record_cycles": 2,
             "numerics.max_time": 0.004, "numerics.kp": 0.05, "numerics.ki": 0.03}  # fmt: skip
     cfgs = [load(None, {**base, "numerics.print_step": ps}) for ps in (0.25e-9, 1e-9, 4e-9)]
     st = expand({"numerics": {k.split(".")[1]: v for k, v in base.items() if k.startswith("numerics")},
                  "surface": {"k0": 64.0, "cd": 1e-4},
                  "sweep": {"numerics.print_step": [0.25e-9, 1e-9, 4e-9]}})  # fmt: skip
-    tasks = sweep.plan(st)
+    tasks = plan(st)
     assert len(tasks) == 1 and tasks[0].sim_print_step == 0.25e-9
-    fcfg = sweep.fine_config(cfgs)
+    fcfg = fine_config(cfgs)
     fine = simulate(fcfg)
     for i, c in enumerate(cfgs):
-        sub = sweep._subsample(fine, fcfg, c)
+        sub = subsample(fine, fcfg, c)
         sep = simulate(c)
         assert sub.stop_reason == sep.stop_reason
         np.testing.assert_array_equal(sub.steady[:, 0], sep.steady[:, 0])
@@ -324,28 +340,27 @@ def test_shared_print_step_simulation_matches_separate_runs():
 
 def test_plan_groups_only_points_that_differ_in_print_step():
     st = cheap_study({"surface.cd": [1e-5, 1e-4], "numerics.print_step": [0.5e-9, 1e-9, 2e-9]})
-    tasks = sweep.plan(st)
+    tasks = plan(st)
     assert len(tasks) == 2 and all(len(t.points) == 3 for t in tasks)
-    assert len(sweep.plan(st, share_print_step=False)) == 6
+    assert len(plan(st, share_print_step=False)) == 6
     # 0.75 ns is not a multiple of 0.5 ns: no sharing for that group
     st2 = cheap_study({"numerics.print_step": [0.5e-9, 0.75e-9]})
-    assert len(sweep.plan(st2)) == 2
+    assert len(plan(st2)) == 2
 
 
 # --------------------------------------------------------------------- Dask
 
 
-def test_dask_backend_on_a_local_cluster(tmp_path, monkeypatch):
+def test_dask_backend_on_a_local_cluster(tmp_path):
     """The same jobs through joblib's dask backend on a distributed.LocalCluster
     (in-process workers) give the same table as the local run."""
     distributed = pytest.importorskip("distributed")
-    monkeypatch.setattr(sweep, "_extract", fake_extract)
     st = cheap_study({"surface.cd": [1e-5, 1e-3]})
     with distributed.LocalCluster(n_workers=1, threads_per_worker=1, processes=False, dashboard_address=None) as cl:
-        res = sweep.run_sweep(st, tmp_path / "d.parquet", backend="dask", scheduler=cl.scheduler_address,
-                              progress=False)  # fmt: skip
+        res = run_sweep(st, tmp_path / "d.parquet", backend="dask", scheduler=cl.scheduler_address,
+                        progress=False, task=FAKE)  # fmt: skip
     assert len(res.computed) == 2 and len(res.table) == 4
-    ref = sweep.run_sweep(st, tmp_path / "l.parquet", jobs=1, progress=False)
+    ref = run_sweep(st, tmp_path / "l.parquet", jobs=1, progress=False, task=FAKE)
     numeric_equal(res.table, ref.table)
 
 
@@ -452,7 +467,7 @@ def test_smoke_sweep_end_to_end(tmp_path):
     assert df.shape[0] == 8
     for c in ["point", "surface.cd", "numerics.print_step", *ISSUE_COLUMNS]:
         assert c in df.columns, c
-    assert set(df["status"]) <= set(sweep.STATUSES)
+    assert set(df["status"]) <= set(STATUSES)
     assert (df["status"] != "failed").all(), df.loc[df.status == "failed", "error"].tolist()
     th = df["surface.cd"] * (64 + 4) / (64 * 4)  # tau_c = cd (k0 + k_inf)/(k0 k_inf)
     np.testing.assert_allclose(df["tau_c_theory"], th, rtol=1e-12)

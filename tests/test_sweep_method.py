@@ -4,7 +4,7 @@ in the instrument keys, and a small end-to-end sweep with both methods.
 
 Reference values: the grammar's definitions (grid.py docstring); for sharing,
 separate simulations of the same points (the instrument model acts after the
-kernel, vetica_cli/simulate.py:apply_instrument, so a shared record with the
+kernel, vetica_cli/simulation/instrument.py:apply_instrument, so a shared record with the
 point's noise applied must equal a separate run bit for bit); for the end to end
 sweep, the SLS theory values of the configured surface.
 """
@@ -16,11 +16,19 @@ import pandas as pd
 import pytest
 from typer.testing import CliRunner
 
-from vetica_cli import sweep
+from vetica_cli import surfaces
 from vetica_cli.cli import app
-from vetica_cli.config import ConfigError, load
-from vetica_cli.grid import expand, point_key
+from vetica_cli.errors import ConfigError
+from vetica_cli.extraction import SOURCES, Estimate, ExtractionResult
 from vetica_cli.io import read_table
+from vetica_cli.simulation.config import load
+from vetica_cli.simulation.instrument import noise_free
+from vetica_cli.simulation.simulate import simulate
+from vetica_cli.study.acceptance import acceptance_regime, format_acceptance
+from vetica_cli.study.grid import expand, point_key
+from vetica_cli.study.plan import fine_config, plan, point_run
+from vetica_cli.study.sweep import run_sweep
+from vetica_cli.study.task import PointTask
 
 runner = CliRunner()
 
@@ -44,12 +52,12 @@ def fake_extract(df, meta, force, method="vetica"):
     th = {"tau_c": s["cd"] * (s["k0"] + s["k_inf"]) / (s["k0"] * s["k_inf"]), "k_g": s["k0"] + s["k_inf"],
           "k_r": s["k_inf"], "tau_r": s["cd"] / s["k0"], "k0": s["k0"], "k_inf": s["k_inf"], "cd": s["cd"]}  # fmt: skip
     f = 1.10 if method == "vetica" else 1.01
-    out = {n: {"value": v * f, "theory": v, "error_pct": 100 * abs(f - 1)} for n, v in th.items()}
-    out.update(force=force, taps=3, method=method)
-    if method == "full":
-        out["uncertainty"] = {"k0": 0.002, "k_inf": 0.003, "cd": 2.0}
-        out["identifiable"] = {"k_inf": True, "k0": True, "cd": False}
-    return out
+    units = {n: q.unit for n, q in surfaces.get("sls").quantities.items()}
+    sigma = {"k0": 0.002, "k_inf": 0.003, "cd": 2.0} if method == "full" else {}
+    ident = {"k_inf": True, "k0": True, "cd": False} if method == "full" else {}
+    est = {n: Estimate(v * f, units[n], v, 100 * abs(f - 1), sigma=sigma.get(n), identifiable=ident.get(n))
+           for n, v in th.items()}  # fmt: skip
+    return ExtractionResult(method=method, force=force, taps=3, estimates=est, fitted=tuple(ident))
 
 
 # --------------------------------------------------------------------- grammar
@@ -114,23 +122,21 @@ def test_bad_method_on_the_command_line_exits_2_and_writes_nothing(tmp_path):
 # --------------------------------------------------------------------- sharing
 
 
-def test_points_differing_in_method_and_noise_share_one_simulation(tmp_path, monkeypatch):
+def test_points_differing_in_method_and_noise_share_one_simulation(tmp_path):
     """2 cd x 2 methods x 2 noise levels = 8 points -> 2 simulations (counted), with the
     print-step sharing switched off too (method/noise sharing is exact and always on)."""
     st = cheap({"surface.cd": [1e-5, 1e-3], "extract.method": ["vetica", "full"],
                 "numerics.position_noise": [0.0, 1e-11]})  # fmt: skip
-    assert [len(t.points) for t in sweep.plan(st)] == [4, 4]
-    assert [len(t.points) for t in sweep.plan(st, share_print_step=False)] == [4, 4]
+    assert [len(t.points) for t in plan(st)] == [4, 4]
+    assert [len(t.points) for t in plan(st, share_print_step=False)] == [4, 4]
     calls = []
-    real = sweep._simulate
 
     def counting(cfg):
         calls.append(cfg)
-        return real(cfg)
+        return simulate(cfg)
 
-    monkeypatch.setattr(sweep, "_simulate", counting)
-    monkeypatch.setattr(sweep, "_extract", fake_extract)
-    res = sweep.run_sweep(st, tmp_path / "t.parquet", jobs=1, progress=False)
+    task = PointTask(simulate=counting, extract=fake_extract)
+    res = run_sweep(st, tmp_path / "t.parquet", jobs=1, progress=False, task=task)
     assert len(calls) == 2 and all(c.numerics.position_noise == 0 for c in calls)
     t = res.table
     assert len(t) == 16 and list(t["method"]) == (["vetica"] * 4 + ["full"] * 4) * 2
@@ -143,11 +149,11 @@ def test_points_differing_in_method_and_noise_share_one_simulation(tmp_path, mon
     assert set(full["unidentified"]) == {"cd"} and set(t[t.method == "vetica"]["unidentified"]) == {""}
     assert t[t.method == "vetica"]["k0_sigma_pct"].isna().all()
     # a rerun reuses all 8 parts
-    again = sweep.run_sweep(st, tmp_path / "t.parquet", jobs=1, progress=False)
+    again = run_sweep(st, tmp_path / "t.parquet", jobs=1, progress=False, task=task)
     assert again.computed == [] and len(again.reused) == 8
 
 
-def test_force_key_restricts_the_sources_and_zips_with_the_noise(tmp_path, monkeypatch):
+def test_force_key_restricts_the_sources_and_zips_with_the_noise(tmp_path):
     """extract.force = true skips the reconstruction (hopeless and slow with detector
     noise at the Nyquist cut-off): one row for that point, two for 'both'."""
     st = cheap({"surface.cd": [1e-4],
@@ -156,14 +162,14 @@ def test_force_key_restricts_the_sources_and_zips_with_the_noise(tmp_path, monke
     # YAML reads a bare `true` as a boolean: it means the force source 'true'
     assert expand({"sweep": {"extract.force": [True]}}).points[0].force == "true"
     assert "extract.force" in st.keys
-    monkeypatch.setattr(sweep, "_extract", fake_extract)
     out = tmp_path / "f.parquet"
-    res = sweep.run_sweep(st, out, jobs=1, progress=False)
+    task = PointTask(extract=fake_extract)
+    res = run_sweep(st, out, jobs=1, progress=False, task=task)
     t = res.table
     assert list(zip(t["numerics.position_noise"], t["force_source"])) == [
         (0.0, "true"), (0.0, "reconstructed"), (1e-11, "true")]  # fmt: skip
     assert "extract.force" not in t.columns and set(read_table(out)[1]["units"]) == set(t.columns)
-    again = sweep.run_sweep(st, out, jobs=1, progress=False)
+    again = run_sweep(st, out, jobs=1, progress=False, task=task)
     assert again.computed == [] and len(again.reused) == 2
 
 
@@ -172,17 +178,15 @@ def test_shared_record_with_noise_equals_a_separate_noisy_simulation():
     the point's noise applied is bit-identical to simulating the noisy point alone;
     also for a coarser print step taken from a finer shared record (same samples as
     a separate run up to the controller's picometre-level difference, test_sweep.py)."""
-    from vetica_cli.simulate import simulate
-
     base = {"surface.k0": 64.0, "surface.cd": 1e-4, "numerics.dt": 0.05e-9, "numerics.record_cycles": 2,
             "numerics.max_time": 0.002, "numerics.kp": 0.05, "numerics.ki": 0.03}  # fmt: skip
     noisy = load(None, {**base, "numerics.print_step": 1e-9, "numerics.position_noise": 1e-11,
                         "numerics.force_noise": 1e-11, "numerics.noise_seed": 3,
                         "numerics.detector_bandwidth": 20e6})  # fmt: skip
-    clean = sweep.fine_config([noisy, load(None, {**base, "numerics.print_step": 1e-9})])
-    assert clean == sweep.noise_free(noisy) and clean.numerics.position_noise == 0
+    clean = fine_config([noisy, load(None, {**base, "numerics.print_step": 1e-9})])
+    assert clean == noise_free(noisy) and clean.numerics.position_noise == 0
     shared = simulate(clean)
-    got = sweep.point_run(shared, clean, noisy)
+    got = point_run(shared, clean, noisy)
     sep = simulate(noisy)
     np.testing.assert_array_equal(got.steady, sep.steady)
     np.testing.assert_array_equal(got.approach, sep.approach)
@@ -191,9 +195,9 @@ def test_shared_record_with_noise_equals_a_separate_noisy_simulation():
     assert np.std(got.steady[:, 2] - shared.steady[:, 2]) > 1e-12  # the noise is really there
     # coarser print step from a finer noise-free record: noise on the subsampled record
     coarse = load(None, {**base, "numerics.print_step": 2e-9, "numerics.position_noise": 1e-11})
-    fcfg = sweep.fine_config([noisy, coarse])
+    fcfg = fine_config([noisy, coarse])
     assert fcfg.numerics.print_step == 1e-9 and fcfg.numerics.position_noise == 0
-    sub = sweep.point_run(simulate(fcfg), fcfg, coarse)
+    sub = point_run(simulate(fcfg), fcfg, coarse)
     sep = simulate(coarse)
     np.testing.assert_array_equal(sub.steady[:, 0], sep.steady[:, 0])
     # same noise draws: the difference is the controller's (< tol_z = 1e-12 m, test_sweep.py)
@@ -231,11 +235,11 @@ def test_tiny_sweep_with_both_methods_end_to_end(tmp_path):
     assert math.isfinite(v["tau_c"]) and math.isfinite(v["k_g"])
     f = df[(df.method == "full") & (df.force_source == "true")].iloc[0]
     for name in ("k0", "k_inf", "cd"):
-        assert f[f"{name}_err_pct"] < 1.0, (name, f[f"{name}_err_pct"])
+        assert abs(f[f"{name}_err_pct"]) < 1.0, (name, f[f"{name}_err_pct"])
         assert math.isfinite(f[f"{name}_sigma_pct"])
     assert f["k0_theory"] == pytest.approx(64.0) and f["cd_theory"] == pytest.approx(1e-4)
     acc = {(e["method"], e["force_source"]): e for e in meta["acceptance"]}
-    assert set(acc) == {(m, s) for m in ("vetica", "full") for s in sweep.SOURCES}
+    assert set(acc) == {(m, s) for m in ("vetica", "full") for s in SOURCES}
 
 
 def test_acceptance_regime_by_cd_error_and_method():
@@ -247,8 +251,8 @@ def test_acceptance_regime_by_cd_error_and_method():
             rows.append({"surface.cd": cd, "method": method, "force_source": "true", "status": "ok",
                          "tau_c_err_pct": e, "cd_err_pct": e})  # fmt: skip
     t = pd.DataFrame(rows)
-    acc = {e["method"]: e for e in sweep.acceptance_regime(t, ("surface.cd",), err_col="cd_err_pct")}
+    acc = {e["method"]: e for e in acceptance_regime(t, ("surface.cd",), err_col="cd_err_pct")}
     assert (acc["vetica"]["cd_min"], acc["vetica"]["cd_max"]) == (1e-4, 1e-3)
     assert acc["full"]["decades"] == pytest.approx(3.0)
-    text = sweep.format_acceptance(list(acc.values()), ("surface.cd",))
+    text = format_acceptance(list(acc.values()), ("surface.cd",))
     assert "method=full, true force: cd 1e-05 .. 0.01 kg/s (3.00 decades)" in text

@@ -12,24 +12,28 @@ import numpy as np
 import pytest
 from scipy.integrate import quad
 
-from vetica_cli.config import load
+from vetica_cli import surfaces
 from vetica_cli.errors import InputError
-from vetica_cli.extract import extract
-from vetica_cli.simulate import simulate
-from vetica_cli.vetica import (
+from vetica_cli.extraction import extract
+from vetica_cli.extraction.vetica import (
     SineFit,
-    Taps,
-    _exp_conv_cos,
     boltzmann_force,
-    find_taps,
+    exp_conv_cos,
     fit_sum_of_sines,
     sls_elements,
     stage1a_tau_c,
     stage2_kr,
-    theory,
 )
+from vetica_cli.signals.taps import Taps, find_taps
+from vetica_cli.simulation.config import load
+from vetica_cli.simulation.simulate import simulate
 
 K0, KINF, CD = 128.0, 4.0, 3e-5  # worked example (thesis tables 2-4)
+
+
+def theory(k0, k_inf, cd):
+    """The SLS model's theory values (vetica_cli.surfaces.sls; thesis eqs. 68, 75-76)."""
+    return surfaces.get("sls").theory({"k0": k0, "k_inf": k_inf, "cd": cd})
 
 
 def test_theory_constants_of_the_worked_example():
@@ -62,7 +66,7 @@ def test_exponential_convolution_closed_form_matches_quadrature():
     """int_0^u exp(-(u-s)/tau) cos(b s + c) ds: closed form against scipy quad, 1e-9."""
     tau, b, c = 2.3e-7, 3.1e6, 0.7
     u = np.array([0.0, 1e-7, 5e-7, 1.3e-6])
-    got = _exp_conv_cos(u, np.array([b]), np.array([c]), tau)[:, 0]
+    got = exp_conv_cos(u, np.array([b]), np.array([c]), tau)[:, 0]
     ref = [quad(lambda s, uu=uu: math.exp(-(uu - s) / tau) * math.cos(b * s + c), 0, uu, epsabs=0, epsrel=1e-12)[0]
            for uu in u]  # fmt: skip
     np.testing.assert_allclose(got, ref, rtol=1e-9, atol=1e-22)
@@ -169,10 +173,10 @@ def test_worked_example_within_issue_bounds(vdw_off, force):
     reconstructed force (vdW off; measured 0.06, 0.13-0.29, 0.09-0.26, 1.42, 1.32 %)."""
     df, meta = vdw_off
     res = extract(df, meta, force=force)
-    assert res["force"] == force
-    assert res["taps"] >= 5
+    assert res.force == force
+    assert res.taps >= 5
     for name, bound in BOUNDS.items():
-        assert res[name]["error_pct"] <= bound, (name, res[name])
+        assert abs(res.estimates[name].error_pct) <= bound, (name, res.estimates[name])
 
 
 def test_spread_over_taps_is_reported_and_small(vdw_off):
@@ -180,10 +184,10 @@ def test_spread_over_taps_is_reported_and_small(vdw_off):
     df, meta = vdw_off
     res = extract(df, meta, force="true")
     for name in ("tau_c", "k_g", "k_r", "k0", "k_inf", "cd"):
-        sp = res[name]["spread"]
-        assert sp["n"] >= res["taps"] - 1
-        assert sp["min"] * (1 - 1e-12) <= res[name]["value"] <= sp["max"] * (1 + 1e-12)
-        assert sp["std"] < 5e-3 * abs(sp["mean"])
+        sp = res.estimates[name].spread
+        assert sp.n >= res.taps - 1
+        assert sp.min * (1 - 1e-12) <= res.value(name) <= sp.max * (1 + 1e-12)
+        assert sp.std < 5e-3 * abs(sp.mean)
 
 
 def test_kg_with_vdw_on_surface_is_the_prestress_relaxation_slope(vdw_on):
@@ -202,6 +206,6 @@ def test_kg_with_vdw_on_surface_is_the_prestress_relaxation_slope(vdw_on):
     v = (z[ic + 6] - z[ic + 1]) / (5 * h)
     vd = (xd[ic + 6] - xd[ic + 1]) / (5 * h)
     apparent = np.mean(K0 + KINF - K0 * vd / v)
-    assert res["k_g"]["error_pct"] > 2.0
-    assert res["k_g"]["value"] == pytest.approx(apparent, rel=3e-3)
+    assert res.estimates["k_g"].error_pct > 2.0
+    assert res.value("k_g") == pytest.approx(apparent, rel=3e-3)
     assert np.mean(K0 * (x[ic] - xd[ic])) == pytest.approx(8.33e-9, rel=0.1)  # ~ Fa(a0) = H R/(6 a0^2)

@@ -10,10 +10,13 @@ import os
 import platform
 import statistics
 
-from .simulate import simulate
+from .simulation.config import load
+from .simulation.simulate import simulate
 
 
-def run_bench(cfg, repeat: int = 3) -> str:
+def run_bench(overrides: dict | None = None, repeat: int = 3) -> str:
+    """Time ``repeat`` runs of the worked example (with dotted ``overrides``) after one warm-up run."""
+    cfg = load(None, overrides)
     simulate(cfg)  # compile / load the numba cache
     walls, ns = [], []
     for _ in range(repeat):

@@ -11,6 +11,7 @@ from typing import List, Optional
 import typer
 
 from .errors import USER_ERRORS
+from .extraction import DEFAULT_METHOD, METHODS
 
 app = typer.Typer(
     add_completion=False,
@@ -52,14 +53,11 @@ def simulate(
     x_dashpot, segment (approach | steady); the Parquet metadata key 'vetica'
     holds the resolved params, units, stop_reason and observables.
     """
-    from . import config as cfgmod
-    from .io import write_run
     from .report import run_summary
-    from .simulate import simulate as _simulate
+    from .simulation.config import parse_set
+    from .simulation.simulate import simulate_file
 
-    cfg = cfgmod.load(config, cfgmod.parse_set(set_))
-    run = _simulate(cfg)
-    write_run(run, output)
+    run = simulate_file(config, output, parse_set(set_))
     if not quiet:
         typer.echo(run_summary(run, output))
 
@@ -72,11 +70,10 @@ def bench(
 ):
     """Time the kernel on the worked example: ns per integration step and
     wall seconds to steady state (one core)."""
-    from . import config as cfgmod
     from .bench import run_bench
+    from .simulation.config import parse_set
 
-    cfg = cfgmod.load(None, cfgmod.parse_set(set_))
-    typer.echo(run_bench(cfg, repeat))
+    typer.echo(run_bench(parse_set(set_), repeat))
 
 
 @app.command()
@@ -104,8 +101,8 @@ def sweep(
     quiet: bool = typer.Option(False, "--quiet", "-q", help="No progress bar."),
 ):
     """Run a parametric study: simulate every point of the grid, extract it
-    with the true and the reconstructed force (extract.force), by VETICA or
-    the whole-cycle fit (extract.method: [vetica, full]), and write one tidy
+    with the true and the reconstructed force (extract.force), by a registered
+    extraction method (extract.method; see vetica extract --help), and write one tidy
     table (one row per point, method and force source) plus <name>.config.yaml.
     Points differing only in print step, method or instrument noise share one
     simulation.
@@ -114,35 +111,17 @@ def sweep(
     other swept keys, the range of surface.cd where the tau_c error is below
     30 %.  A killed sweep run again computes only the missing points.
     """
-    from . import config as cfgmod
-    from .grid import load_study
-    from .sweep import dry_run_text, parts_dir, run_sweep, summary
+    from .simulation.config import parse_set
+    from .study.sweep import SweepInterrupted, sweep_command
 
-    study = load_study(config, cfgmod.parse_set(set_))
-    out = output if output is not None else Path("results") / f"{config.stem}.parquet"
-    if dry_run:
-        typer.echo(dry_run_text(study, out, jobs, share_print_step))
-        return
     try:
-        res = run_sweep(
-            study,
-            out,
-            jobs=jobs,
-            backend=backend,
-            scheduler=scheduler,
-            resume=resume,
-            share_print_step=share_print_step,
-            progress=not quiet,
-        )
-    except KeyboardInterrupt:
-        n = len(list(parts_dir(out).glob("*.parquet")))
-        typer.echo(
-            f"interrupted: {n} of {len(study.points)} points are persisted in {parts_dir(out)}/; "
-            "run the same command again to compute the rest",
-            err=True,
-        )
+        text = sweep_command(config, output, parse_set(set_), dry_run=dry_run, jobs=jobs, backend=backend,
+                             scheduler=scheduler, resume=resume, share_print_step=share_print_step,
+                             progress=not quiet)  # fmt: skip
+    except SweepInterrupted as exc:
+        typer.echo(str(exc), err=True)
         raise typer.Exit(130) from None
-    typer.echo(summary(res, study))
+    typer.echo(text)
 
 
 @app.command()
@@ -194,7 +173,9 @@ def extract(
         10, "--kg-points", help="Samples after the contact minimum in the Kg fit (thesis: 10)."
     ),
     method: str = typer.Option(
-        "vetica", "--method", help="vetica (thesis 3.3) or full (whole-cycle SLS model inversion)."
+        DEFAULT_METHOD,
+        "--method",
+        help="Extraction method: " + "; ".join(f"{k} = {m.description}" for k, m in METHODS.items()) + ".",
     ),
     json_out: bool = typer.Option(False, "--json", help="Print one JSON object instead of the table."),
     k2: Optional[float] = typer.Option(None, "--k2", help="Paddle stiffness, N/m (data without metadata)."),
@@ -211,7 +192,8 @@ def extract(
     ),
 ):
     """Extract k0, k_inf, cd (and tau_c, Kg, Kr, tau_r) from a run with VETICA
-    (or, with --method full, by fitting the SLS surface model to every sample).
+    or another registered method (--method; e.g. full fits the SLS surface model
+    to every sample).
 
     Prints value, theory and error % (theory known only when the file's
     metadata holds the surface parameters), the spread over taps, the
@@ -220,17 +202,12 @@ def extract(
     """
     import json
 
-    from .extract import extract as _extract
-    from .extract import format_table
-    from .io import read_table
+    from .extraction import extract_file
+    from .extraction.format import format_table, to_json
 
-    df, meta = read_table(run)
-    res = _extract(df, meta, force=force, kg_points=kg_points, method=method,
-                   k2=k2, f2=f2, q2=q2, z1=z1, f1=f1, cutoff_hz=cutoff)  # fmt: skip
-    if json_out:
-        typer.echo(json.dumps(res, allow_nan=False))
-    else:
-        typer.echo(format_table(res, run))
+    res = extract_file(run, force=force, method=method, kg_points=kg_points,
+                       k2=k2, f2=f2, q2=q2, z1=z1, f1=f1, cutoff_hz=cutoff)  # fmt: skip
+    typer.echo(json.dumps(to_json(res), allow_nan=False) if json_out else format_table(res, run))
 
 
 def main():  # pragma: no cover - console script entry

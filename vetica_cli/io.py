@@ -54,6 +54,13 @@ def atomic_path(path: str | Path):
         raise
 
 
+def write_text(path: str | Path, text: str) -> Path:
+    """Write ``text`` to ``path`` atomically (:func:`atomic_path`)."""
+    with atomic_path(path) as tmp:
+        Path(tmp).write_text(text)
+    return Path(path)
+
+
 def write_table(df: pd.DataFrame, path: str | Path, meta: dict) -> Path:
     """Write ``df`` to ``path`` atomically with ``meta`` as JSON metadata."""
     table = pa.Table.from_pandas(df, preserve_index=False)

@@ -31,10 +31,13 @@ from dataclasses import dataclass, field
 import numpy as np
 import pandas as pd
 
-from . import __version__
-from .config import Config
-from .core import thc
-
+from .. import __version__
+from ..core import thc
+from ..errors import ConfigError
+from ..io import write_run
+from .config import Config, load
+from .instrument import apply_instrument
+from .observables import compute_observables
 
 UNITS = {
     "t": "s",
@@ -153,16 +156,15 @@ def initial_state(cfg: Config, d: Derived) -> tuple[float, float, float, bool, f
 
 def simulate(cfg: Config) -> Run:
     """Run one point to steady state and record it (SPEC sections 2-5)."""
-    from .observables import compute_observables  # local: keeps import light
-
     d = derive(cfg)
     p, s, n = cfg.probe, cfg.surface, cfg.numerics
+    k_inf, k0, cd = _one_arm(cfg)
     zb0, zc0, vc0, ctrl, rate = initial_state(cfg, d)
     hr6 = s.hamaker * p.tip_radius / 6.0
     t0 = time.perf_counter()
     ring, steady, info_v, code = thc.integrate(
         d.m1, p.k1, d.c1, d.m2, p.k2, d.c2, d.omega1, d.f0,
-        s.k_inf, s.k0, s.cd, hr6, s.a0, s.vdw_on_surface,
+        k_inf, k0, cd, hr6, s.a0, s.vdw_on_surface,
         d.a_sp, zb0, zc0, vc0, 0.0, 0.0, ctrl, n.kp, n.ki, rate,
         n.dt, d.stride, d.samples_per_period, d.max_steps, n.tol_amp, n.tol_z, n.settle_cycles,
         d.n_ring, d.n_steady,
@@ -188,41 +190,21 @@ def simulate(cfg: Config) -> Run:
     return run
 
 
-def _lowpass(x: np.ndarray, fc: float, ts: float, periodic: bool) -> np.ndarray:
-    """One-pole (RC) low-pass ``y_n = a y_(n-1) + (1 - a) x_n``, ``a = exp(-2 pi fc ts)``:
-    a detector of bandwidth ``fc`` [Hz] sampled every ``ts`` [s].  A periodic window
-    is filtered twice and the second pass kept (steady state of the filter)."""
-    from scipy.signal import lfilter
-
-    a = math.exp(-2.0 * math.pi * fc * ts)
-    b, den = [1.0 - a], [1.0, -a]
-    if periodic:
-        y, zf = lfilter(b, den, x, zi=[a * x[-1]])
-        y, _ = lfilter(b, den, x, zi=zf)
-        return y
-    y, _ = lfilter(b, den, x, zi=[a * x[0]]) if len(x) else (x, None)
-    return y
+def simulate_file(config=None, output="run.parquet", overrides: dict | None = None) -> Run:
+    """``vetica simulate``: load a one-point YAML config (None = the defaults) with dotted
+    ``overrides``, simulate it and write the run to ``output`` (Parquet with metadata)."""
+    run = simulate(load(config, overrides))
+    write_run(run, output)
+    return run
 
 
-def apply_instrument(run: Run, cfg: Config) -> None:
-    """Detector realism on the recorded signals (issue 6): a finite position-detector
-    bandwidth, then white Gaussian noise of the given RMS on the deflections
-    (z_tip is rebuilt as z_base + z_cantilever + z_paddle) and on f_ts.
-    x_surface and x_dashpot are the simulator's truth and stay noise-free.
-    Seeded: the same config gives the same noise."""
-    n = cfg.numerics
-    if not (n.position_noise or n.force_noise or n.detector_bandwidth):
-        return
-    rng = np.random.default_rng(n.noise_seed)
-    ic, ip, it, ib, iff = (thc.COLUMNS.index(c) for c in ("z_cantilever", "z_paddle", "z_tip", "z_base", "f_ts"))
-    for arr, periodic in ((run.approach, False), (run.steady, True)):
-        if not len(arr):
-            continue
-        for i in (ic, ip):
-            if n.detector_bandwidth:
-                arr[:, i] = _lowpass(arr[:, i], n.detector_bandwidth, n.print_step, periodic)
-            if n.position_noise:
-                arr[:, i] += rng.normal(0.0, n.position_noise, len(arr))
-        arr[:, it] = arr[:, ib] + arr[:, ic] + arr[:, ip]
-        if n.force_noise:
-            arr[:, iff] += rng.normal(0.0, n.force_noise, len(arr))
+def _one_arm(cfg: Config) -> tuple[float, float, float]:
+    """``(k_inf, k0, cd)`` of the surface for the kernel, from its model's coefficient
+    arrays (:meth:`vetica_cli.surfaces.SurfaceModel.kernel_arms`); the kernel takes one
+    Maxwell arm."""
+    k_inf, k, cd = cfg.surface.surface_model.kernel_arms(cfg.surface.params)
+    if len(k) != 1:
+        raise ConfigError(
+            f"surface.model: {cfg.surface.model!r} has {len(k)} Maxwell arms; the simulation kernel takes one"
+        )
+    return k_inf, float(k[0]), float(cd[0])

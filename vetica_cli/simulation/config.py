@@ -1,7 +1,10 @@
 """Configuration of one simulation point: YAML -> frozen dataclasses.
 
-Every default and every validation lives here.  Defaults are the thesis's
-worked example (thesis tables 2-4, SPEC section 9).  All values are SI.
+Every default and every validation of the probe, operation and numerics
+sections lives here; the ``surface:`` section is validated by its surface model
+(:mod:`vetica_cli.surfaces`: ``surface.model``, default ``sls``, plus the
+model's keys) and the attraction keys common to every model.  Defaults are the
+thesis's worked example (thesis tables 2-4, SPEC section 9).  All values are SI.
 
 A config error raises :class:`ConfigError` with one line naming the key, the
 value and what is allowed; the CLI turns it into exit status 2 before any work.
@@ -9,29 +12,23 @@ value and what is allowed; the CLI turns it into exit status 2 before any work.
 
 from __future__ import annotations
 
+import copy
 import dataclasses
-import math
+import json
 from dataclasses import dataclass, field, fields
 from pathlib import Path
 from typing import Any
 
 import yaml
 
-
-class ConfigError(ValueError):
-    """A configuration problem; the message is one line for the user."""
-
-
-def _positive(v):
-    return v > 0
-
-
-def _nonneg(v):
-    return v >= 0
-
-
-def _open_unit(v):
-    return 0 < v < 1
+from .. import surfaces
+from ..checks import check, coerce, number
+from ..checks import nonneg as _nonneg
+from ..checks import open_unit as _open_unit
+from ..checks import positive as _positive
+from ..constants import TIP_RADIUS
+from ..errors import ConfigError
+from ..surfaces import COMMON_KEYS, DEFAULT_MODEL
 
 
 @dataclass(frozen=True)
@@ -44,7 +41,7 @@ class Probe:
     k2: float = 700.0  # torsional stiffness [N/m]
     q1: float = 100.0  # flexural quality factor (air)
     q2: float = 1000.0  # torsional quality factor (air)
-    tip_radius: float = 10e-9  # [m]
+    tip_radius: float = TIP_RADIUS  # [m]
 
 
 @dataclass(frozen=True)
@@ -56,16 +53,43 @@ class Operation:
     base_height: float | None = None  # fixed Zb [m]; null = PI amplitude control
 
 
+def _default_params() -> dict:
+    return surfaces.get(DEFAULT_MODEL).parse({})
+
+
 @dataclass(frozen=True)
 class Surface:
-    """Zener SLS with van der Waals attraction (thesis 3.2)."""
+    """The sample: a registered surface model with its parameters (``params``; for the
+    default ``sls``: ``k_inf``, ``k0``, ``cd``, read as ``surface.k0`` too) and the van
+    der Waals attraction every model shares (thesis 3.2, eq. 3)."""
 
-    k_inf: float = 4.0  # equilibrium spring [N/m]
-    k0: float = 128.0  # Maxwell-arm spring [N/m]
-    cd: float = 3e-5  # dashpot [kg/s]
-    hamaker: float = 0.2e-18  # Hamaker constant H [J]
-    a0: float = 0.2e-9  # intermolecular distance [m]
-    vdw_on_surface: bool = True  # van der Waals also pulls the surface
+    params: dict = field(default_factory=_default_params)  # the model's keys (surfaces.<model>)
+    hamaker: float = COMMON_KEYS["hamaker"].default  # Hamaker constant H [J]
+    a0: float = COMMON_KEYS["a0"].default  # intermolecular distance [m]
+    vdw_on_surface: bool = COMMON_KEYS["vdw_on_surface"].default  # van der Waals also pulls the surface
+    model: str = DEFAULT_MODEL  # surface.model: key of the surface model (vetica_cli.surfaces)
+
+    def __getattr__(self, name: str):
+        params = self.__dict__.get("params")
+        if params is not None and name in params:
+            return params[name]
+        raise AttributeError(f"surface ({self.__dict__.get('model')}) has no key {name!r}")
+
+    @property
+    def surface_model(self) -> surfaces.SurfaceModel:
+        return surfaces.get(self.model)
+
+    def __hash__(self) -> int:  # params may hold lists (arms): hash the section as written
+        return hash(json.dumps(self.to_dict(), sort_keys=True))
+
+    def to_dict(self) -> dict:
+        """The section as written in YAML and in the metadata: the model's keys, then the
+        common ones; ``model`` only when it is not the default, so an SLS section (and the
+        hashes and metadata made from it) reads exactly as in version 0.1."""
+        d = {} if self.model == DEFAULT_MODEL else {"model": self.model}
+        d.update(copy.deepcopy(self.params))
+        d.update(hamaker=self.hamaker, a0=self.a0, vdw_on_surface=self.vdw_on_surface)
+        return d
 
 
 @dataclass(frozen=True)
@@ -99,7 +123,12 @@ class Config:
     numerics: Numerics = field(default_factory=Numerics)
 
     def to_dict(self) -> dict:
-        return dataclasses.asdict(self)
+        return {
+            "probe": dataclasses.asdict(self.probe),
+            "operation": dataclasses.asdict(self.operation),
+            "surface": self.surface.to_dict(),
+            "numerics": dataclasses.asdict(self.numerics),
+        }
 
     def with_overrides(self, overrides: dict[str, Any]) -> "Config":
         """New config with dotted-key overrides applied and validated."""
@@ -111,7 +140,18 @@ class Config:
 
 SECTIONS = {"probe": Probe, "operation": Operation, "surface": Surface, "numerics": Numerics}
 
-# key -> (predicate, description of what is allowed)
+# derived keys (thesis ch. 4), settable in a study's base sections or swept: key -> (target, source),
+# target = value * source: the probe's f2 = 15 f1 (thesis 4.5.1) and each surface model's own
+DERIVED = {
+    **{
+        f"surface.{name}": (f"surface.{dk.target}", f"surface.{dk.source}")
+        for model in surfaces.MODELS.values()
+        for name, dk in model.derived_keys.items()
+    },
+    "probe.f2_ratio": ("probe.f2", "probe.f1"),
+}
+
+# key -> (predicate, description of what is allowed); the surface's rules are its model's
 RULES = {
     "probe.f1": (_positive, "a frequency > 0 Hz"),
     "probe.f2": (_positive, "a frequency > 0 Hz"),
@@ -123,11 +163,6 @@ RULES = {
     "operation.free_amplitude": (_positive, "an amplitude > 0 m"),
     "operation.setpoint": (_open_unit, "a fraction of the free amplitude in (0, 1)"),
     "operation.base_height": (lambda v: v is None or v > 0, "null (PI control) or a height > 0 m"),
-    "surface.k_inf": (_positive, "a stiffness > 0 N/m"),
-    "surface.k0": (_positive, "a stiffness > 0 N/m"),
-    "surface.cd": (_positive, "a dashpot coefficient > 0 kg/s"),
-    "surface.hamaker": (_positive, "a Hamaker constant > 0 J"),
-    "surface.a0": (_positive, "a distance > 0 m"),
     "numerics.dt": (_positive, "a time step > 0 s"),
     "numerics.print_step": (_positive, "a time > 0 s, an integer multiple of numerics.dt"),
     "numerics.record_cycles": (lambda v: v >= 1, "an integer >= 1"),
@@ -147,41 +182,15 @@ RULES = {
 }
 
 
-def _type_name(tp) -> str:
-    return {"float": "a number", "int": "an integer", "bool": "true or false"}.get(str(tp), str(tp))
-
-
-def _number(value: Any) -> Any:
-    """YAML 1.1 reads '1e-4' (no dot) as a string: turn numeric strings into floats."""
-    if isinstance(value, str):
-        try:
-            return float(value)
-        except ValueError:
-            return value
-    return value
-
-
-def _coerce(key: str, value: Any, tp: str) -> Any:
-    """Coerce a YAML value to the declared field type or raise ConfigError."""
-    if tp != "bool":
-        value = _number(value)
-    if tp == "bool":
-        if isinstance(value, bool):
-            return value
-        raise ConfigError(f"{key}: {value!r} is not allowed; expected true or false")
-    if tp == "int":
-        if isinstance(value, bool) or not isinstance(value, (int, float)) or float(value) != int(value):
-            raise ConfigError(f"{key}: {value!r} is not allowed; expected an integer")
-        return int(value)
-    if tp == "float | None":
-        if value is None:
-            return None
-        tp = "float"
-    if tp == "float":
-        if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
-            raise ConfigError(f"{key}: {value!r} is not allowed; expected a finite number")
-        return float(value)
-    raise AssertionError(tp)
+def section_names(sec: str) -> list[str]:
+    """The keys of a section; for ``surface``: ``model``, every registered model's keys
+    (in registration order), then the keys common to every model."""
+    if sec != "surface":
+        return [f.name for f in fields(SECTIONS[sec])]
+    names = ["model"]
+    for model in surfaces.MODELS.values():
+        names += [k for k in model.config_keys if k not in names]
+    return names + list(COMMON_KEYS)
 
 
 def _set_dotted(d: dict, key: str, value: Any) -> None:
@@ -189,7 +198,7 @@ def _set_dotted(d: dict, key: str, value: Any) -> None:
     if len(parts) != 2 or parts[0] not in SECTIONS:
         raise ConfigError(f"unknown key {key!r}; keys are section.name with section in {sorted(SECTIONS)}")
     sec, name = parts
-    allowed = [f.name for f in fields(SECTIONS[sec])]
+    allowed = section_names(sec)
     if name not in allowed:
         raise ConfigError(f"unknown key {key!r}; allowed in {sec}: {', '.join(allowed)}")
     d.setdefault(sec, {})[name] = value
@@ -208,21 +217,47 @@ def from_dict(d: dict | None) -> Config:
         raw = d.get(sec) or {}
         if not isinstance(raw, dict):
             raise ConfigError(f"section {sec!r} must be a mapping, got {raw!r}")
-        kw = {}
-        names = {f.name: f for f in fields(cls)}
-        for name, value in raw.items():
-            if name not in names:
-                raise ConfigError(f"unknown key '{sec}.{name}'; allowed in {sec}: {', '.join(names)}")
-            key = f"{sec}.{name}"
-            v = _coerce(key, value, str(names[name].type))
-            pred, allowed = RULES.get(key, (lambda _: True, ""))
-            if not pred(v):
-                raise ConfigError(f"{key}: {value!r} is not allowed; expected {allowed}")
-            kw[name] = v
-        built[sec] = cls(**kw)
+        built[sec] = _surface(raw) if sec == "surface" else _section(sec, cls, raw)
     cfg = Config(**built)
     _check_cross(cfg)
     return cfg
+
+
+def _section(sec: str, cls, raw: dict):
+    """A probe, operation or numerics section: each key coerced to its field's type and checked."""
+    kw = {}
+    names = {f.name: f for f in fields(cls)}
+    for name, value in raw.items():
+        if name not in names:
+            raise ConfigError(f"unknown key '{sec}.{name}'; allowed in {sec}: {', '.join(names)}")
+        key = f"{sec}.{name}"
+        kw[name] = check(key, value, coerce(key, value, str(names[name].type)), RULES.get(key))
+    return cls(**kw)
+
+
+def _surface(raw: dict) -> Surface:
+    """The surface section: ``model`` picks the surface model, which validates its own keys
+    (a model may hold non-scalar keys, e.g. a list of arms); the attraction keys are common."""
+    model = surfaces.get(raw.get("model", DEFAULT_MODEL))
+    allowed = ["model", *model.config_keys, *COMMON_KEYS]
+    common, values = {}, {}
+    for name, value in raw.items():
+        key = f"surface.{name}"
+        if name == "model":
+            continue
+        if name in COMMON_KEYS:
+            spec = COMMON_KEYS[name]
+            common[name] = check(key, value, coerce(key, value, spec.type), spec.rule)
+        elif name in model.config_keys:
+            values[name] = model.parse_key(name, value)
+        else:
+            raise ConfigError(f"unknown key {key!r}; allowed in surface: {', '.join(allowed)}")
+    return Surface(params=model.complete(values), model=model.key, **common)
+
+
+def defaults(model: str = DEFAULT_MODEL) -> dict:
+    """The default config as nested dicts, with the default parameters of surface ``model``."""
+    return Config(surface=Surface(params=surfaces.get(model).parse({}), model=model)).to_dict()
 
 
 def _check_cross(cfg: Config) -> None:
@@ -270,7 +305,7 @@ def parse_set(items: list[str] | None) -> dict[str, Any]:
             value = yaml.safe_load(raw) if raw.strip() else None
         except yaml.YAMLError:
             raise ConfigError(f"--set {item!r}: the value is not a valid YAML scalar") from None
-        out[key.strip()] = _number(value)
+        out[key.strip()] = number(value)
     return out
 
 

@@ -1,4 +1,6 @@
-"""Tip-sample force from the paddle signal by spectral inversion (SPEC 6).
+"""Spectral operations on a recorded window: the tip-sample force from the paddle
+signal by spectral inversion (SPEC 6) and the spectral derivative (thesis 5.3.1),
+both with one Bernoulli end correction.
 
 The torsional paddle is driven only by the tip-sample force (thesis eq. 16),
 so in the frequency domain (thesis eqs. 17-20)::
@@ -42,6 +44,10 @@ Any lower cut-off smears those kinks over ~``1/fc``; see
 results/worked_example.md for the reconstruction and VETICA errors against
 ``fc``.  For measured (noisy) data choose ``fc`` from the detector noise
 floor: noise is amplified by ``(w/w2)^2``.
+
+The spectral derivative ``dz/dt = F^-1[i w Z(w)]`` (thesis eqs. 93-94, the tip
+velocity of the "4-D" force curve) needs the same end correction for the same
+reason, to first order (value and slope jumps): :func:`spectral_derivative`.
 """
 
 from __future__ import annotations
@@ -51,7 +57,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .errors import InputError
+from ..errors import InputError
 
 
 @dataclass
@@ -77,6 +83,31 @@ def _bernoulli_poly(m: int, s: np.ndarray) -> np.ndarray:
     b = bernoulli(m)
     coeffs = [comb(m, k, exact=True) * b[k] for k in range(m + 1)]  # of s^(m-k)
     return np.polyval(coeffs, s)
+
+
+def bernoulli_correction(jumps: np.ndarray, n: int, h: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The end-correction polynomial and its first two time derivatives on ``n`` samples
+    ``h`` apart (module docstring)::
+
+        b(t) = sum_j J_j L^j/(j+1)! B_{j+1}(s),   s = (t - t0)/L,   L = n h
+
+    ``jumps`` = ``J_0, J_1, ...`` (:func:`end_jumps`, units [y]/s^j).  Returns
+    ``(b, db/dt, d2b/dt2)`` in [y], [y]/s, [y]/s^2: ``y - b`` has a periodic
+    extension continuous up to derivative ``len(jumps) - 1``.
+    """
+    length = n * h
+    s = np.arange(n) / n
+    b = np.zeros(n)
+    b1 = np.zeros(n)
+    b2 = np.zeros(n)
+    for j, jump in enumerate(jumps):
+        m = j + 1
+        a = jump * length**j / math.factorial(m)
+        b += a * _bernoulli_poly(m, s)
+        b1 += a * m * _bernoulli_poly(m - 1, s) / length
+        if m >= 2:
+            b2 += a * m * (m - 1) * _bernoulli_poly(m - 2, s) / length**2
+    return b, b1, b2
 
 
 def end_jumps(
@@ -143,7 +174,6 @@ def reconstruct_force(
     fc = nyquist if cutoff_hz is None else float(cutoff_hz)
     if not fc > 0:
         raise InputError(f"cut-off {cutoff_hz} Hz not allowed; expected > 0")
-    length = n * h
     w2 = 2.0 * math.pi * f2
     m2 = k2 / w2**2
     c2 = m2 * w2 / q2
@@ -154,17 +184,7 @@ def reconstruct_force(
     # one only rings near the window's ends.
     jumps, se = end_jumps(zp, h, order=order, points=points)
     jumps = np.where(np.abs(jumps) > 3.0 * se, jumps, 0.0)
-    s = np.arange(n) / n
-    b = np.zeros(n)
-    b1 = np.zeros(n)
-    b2 = np.zeros(n)
-    for j, jump in enumerate(jumps):
-        m = j + 1
-        a = jump * length**j / math.factorial(m)
-        b += a * _bernoulli_poly(m, s)
-        b1 += a * m * _bernoulli_poly(m - 1, s) / length
-        if m >= 2:
-            b2 += a * m * (m - 1) * _bernoulli_poly(m - 2, s) / length**2
+    b, b1, b2 = bernoulli_correction(jumps, n, h)
 
     spec = np.fft.rfft(zp - b)
     freq = np.fft.rfftfreq(n, h)
@@ -195,3 +215,33 @@ def reconstruction_error(f_rec: np.ndarray, f_true: np.ndarray) -> dict:
         "max_pct": float(100.0 * np.max(np.abs(e)) / peak),
         "peak_pct": float(100.0 * (np.max(f_rec) - peak) / peak),
     }
+
+
+def spectral_derivative(z: np.ndarray, h: float, cutoff_hz: float | None = None, points: int = 12) -> np.ndarray:
+    """Time derivative by the spectral derivative ``dz/dt = F^-1[i w Z(w)]`` (thesis eqs. 93-94, 5.3.1).
+
+    ``z`` sampled every ``h`` [s] over a window that need not be periodic: a
+    run steady to the simulator's tolerance still drifts by picometres per
+    period, and the DFT's periodic extension turns that mismatch into a step
+    whose derivative rings over the window.  The value and slope jumps across
+    the wrap (:func:`end_jumps`, order 1, every jump kept) are removed first by
+    the Bernoulli end correction (:func:`bernoulli_correction`: ``b(t) = J0
+    B1(s) + J1 L B2(s)/2``) and ``b'`` is added back analytically; windows
+    shorter than ``2 points`` samples are transformed as they are.  The Nyquist
+    bin of an even-length signal is dropped (its derivative is not real).
+    ``cutoff_hz``: bins above it are dropped (brick wall; None keeps the whole
+    band), which noisy records need, since differentiation multiplies noise by
+    ``w``.  Units: [z]/s.
+    """
+    z = np.asarray(z, float)
+    n = len(z)
+    jumps = end_jumps(z, h, order=1, points=points)[0] if n >= 2 * points else np.zeros(2)
+    b, db, _ = bernoulli_correction(jumps, n, h)
+    spec = np.fft.rfft(z - b)
+    w = 2 * np.pi * np.fft.rfftfreq(n, h)
+    deriv = 1j * w * spec
+    if n % 2 == 0:
+        deriv[-1] = 0.0
+    if cutoff_hz is not None:
+        deriv[w > 2 * np.pi * cutoff_hz] = 0.0
+    return np.fft.irfft(deriv, n) + db

@@ -10,9 +10,10 @@ import math
 
 import numpy as np
 
-from .core import thc
-
-EV = 1.602176634e-19  # J per eV
+from ..constants import EV
+from ..core import thc
+from ..errors import InputError
+from ..signals.taps import first_contact_minimum
 
 OBSERVABLE_UNITS = {
     "e_diss_ev": "eV per drive cycle: -(closed integral of f_ts dz_tip), energy the sample takes",
@@ -31,12 +32,9 @@ OBSERVABLE_UNITS = {
 
 def first_force_minimum(t: np.ndarray, z_tip: np.ndarray, f_ts: np.ndarray) -> tuple[float, float, int]:
     """Tip position and time at the first force minimum of an approach record:
-    the first adhesion well, as VETICA finds it (:func:`vetica_cli.vetica.first_contact_minimum`,
+    the first adhesion well, as VETICA finds it (:func:`vetica_cli.signals.taps.first_contact_minimum`,
     thesis 3.3.1, eq. 84).  Returns ``(z1, t1, index)``; nan, -1 if there is no contact.
     """
-    from .errors import InputError
-    from .vetica import first_contact_minimum
-
     if len(f_ts) == 0:
         return math.nan, math.nan, -1
     try:

@@ -1,17 +1,15 @@
 """VETICA: the SLS surface's k0, k_inf, cd from time, tip position and force
-(thesis 3.3 and 4.3; SPEC section 7).
+(thesis 3.3 and 4.3; SPEC section 7).  Registered as extraction method ``vetica``.
 
 Inputs are plain arrays of one record of consecutive taps: ``t`` [s],
 ``z_tip`` [m] (up positive, undeformed surface at ``z_tip = a0``), ``f``
 [N] the tip-sample force (repulsive positive), and ``Z1`` [m], the tip
 position at the first force minimum of the initial approach.
 
-Theory of a Zener SLS (thesis eqs. 43-44, 68, 75-76)::
-
-    Kg = k0 + k_inf            glassy stiffness     [N/m]
-    Kr = k_inf                 rubbery stiffness    [N/m]
-    tau_r = cd / k0            relaxation time      [s]
-    tau_c = cd Kg / (k0 k_inf) retardation time     [s]   (tau_r = tau_c Kr / Kg)
+It measures the characteristic constants of a Zener SLS
+(:class:`vetica_cli.surfaces.sls.SLS`, thesis eqs. 43-44, 68, 75-76:
+``Kg = k0 + k_inf``, ``Kr = k_inf``, ``tau_r = cd/k0``, ``tau_c = cd Kg/(k0 k_inf)``)
+and inverts them for the elements.
 
 Stage 1a (thesis eq. 73): creep between the separation of tap i (tip at
 ``Z'i``) and the contact of tap i+1 (tip at ``Z(i+1)``, ``dt`` later)::
@@ -39,39 +37,27 @@ thesis's MATLAB ``lsqnonlin``), bounded to ``0 < Kr < Kg``.  Then
 ``k_inf = Kr``, ``k0 = Kg - Kr``, ``cd = tau_r k0`` (thesis eqs. 81-83).
 
 The superposition integral of a sum of sines against the exponential kernel
-has a closed form (:func:`_exp_conv_cos`), so stage 2 costs a few
+has a closed form (:func:`exp_conv_cos`), so stage 2 costs a few
 milliseconds per tap.
 """
 
 from __future__ import annotations
 
-import itertools
 import math
 import time
 from dataclasses import dataclass, field
+from typing import Any, ClassVar
 
 import numpy as np
 from scipy.optimize import least_squares
 
-from .errors import InputError
+from ..errors import InputError
+from ..signals.taps import Taps, find_taps
+from .base import ExtractionMethod, register
+from .record import Record
+from .result import ExtractionResult, Spread, estimates
 
 MIN_CONTACT_SAMPLES = 20  # stage 2 needs the contact resolved: 3 sines + constant = 10 parameters
-NAMES = ("tau_c", "k_g", "k_r", "tau_r", "k0", "k_inf", "cd")
-UNITS = {"tau_c": "s", "k_g": "N/m", "k_r": "N/m", "tau_r": "s", "k0": "N/m", "k_inf": "N/m", "cd": "kg/s"}
-
-
-def theory(k0: float, k_inf: float, cd: float) -> dict:
-    """Characteristic constants of a Zener SLS (SPEC 7; thesis eqs. 68, 75-76)."""
-    kg = k0 + k_inf
-    return {
-        "tau_c": cd * kg / (k0 * k_inf),
-        "k_g": kg,
-        "k_r": k_inf,
-        "tau_r": cd / k0,
-        "k0": k0,
-        "k_inf": k_inf,
-        "cd": cd,
-    }
 
 
 def sls_elements(tau_c: float, k_g: float, k_r: float) -> dict:
@@ -79,103 +65,6 @@ def sls_elements(tau_c: float, k_g: float, k_r: float) -> dict:
     tau_r = tau_c * k_r / k_g
     k0 = k_g - k_r
     return {"tau_c": tau_c, "k_g": k_g, "k_r": k_r, "tau_r": tau_r, "k0": k0, "k_inf": k_r, "cd": tau_r * k0}
-
-
-# ----------------------------------------------------------------------------- taps
-
-
-@dataclass
-class Taps:
-    """Sample indices of the complete taps of a record (one row per tap)."""
-
-    contact: np.ndarray  # force minimum at contact
-    separation: np.ndarray  # force minimum at separation
-    peak: np.ndarray  # largest repulsive force
-    spacing: float  # median number of samples between peaks
-    incomplete: int = 0  # taps cut by the record's ends (dropped)
-
-
-def find_taps(f: np.ndarray) -> Taps:
-    """Locate every tap's contact and separation force minimum (thesis 4.3.1, fig. 32).
-
-    A tap is a run of samples above half the peak repulsive force (runs
-    split by ringing inside one contact are merged); its contact minimum is the smallest force in the half tap-spacing
-    before its peak, its separation minimum the smallest in the half spacing
-    after.  Taps whose search range is cut by the record's ends are dropped.
-    Raises InputError when the force has no repulsive peak or fewer than two taps.
-    """
-    f = np.asarray(f, dtype=float)
-    n = len(f)
-    above = _repulsive(f, "the record")
-    edges = np.flatnonzero(np.diff(above.astype(np.int8)))
-    starts = list(edges[~above[edges]] + 1)
-    ends = list(edges[above[edges]] + 1)
-    if above[0]:
-        starts.insert(0, 0)
-    if above[-1]:
-        ends.append(n)
-    runs = list(zip(starts, ends))
-    if len(runs) >= 2:
-        # merge runs split inside one contact (paddle ringing): gaps much shorter than the longest one
-        gaps = np.array([a - b for (_, b), (a, _) in itertools.pairwise(runs)])
-        merged = [runs[0]]
-        for (a, b), gap in zip(runs[1:], gaps):
-            if gap < 0.25 * gaps.max():
-                merged[-1] = (merged[-1][0], b)
-            else:
-                merged.append((a, b))
-        runs = merged
-    peaks = [a + int(np.argmax(f[a:b])) for a, b in runs]
-    if len(peaks) < 2:
-        raise InputError(f"too few taps: found {len(peaks)} contact(s) in the record, need at least 2")
-    spacing = float(np.median(np.diff(peaks)))
-    half = int(0.5 * spacing)
-    contact, separation, peak = [], [], []
-    incomplete = 0
-    for p in peaks:
-        lo, hi = p - half, p + half
-        if lo < 0 or hi >= n:
-            incomplete += 1
-            continue
-        ic = lo + int(np.argmin(f[lo : p + 1]))
-        isep = p + int(np.argmin(f[p : hi + 1]))
-        if ic == lo or isep == hi:  # minimum at the search edge: not a clean tap
-            incomplete += 1
-            continue
-        contact.append(ic)
-        separation.append(isep)
-        peak.append(p)
-    return Taps(np.array(contact, int), np.array(separation, int), np.array(peak, int), spacing, incomplete)
-
-
-def _repulsive(f: np.ndarray, where: str) -> np.ndarray:
-    """Samples above half the peak repulsive force; InputError if there is no
-    repulsive peak of at least a tenth of the deepest attraction."""
-    fmax, fmin = float(np.max(f)), float(np.min(f))
-    if not (fmax > 0 and fmax > 0.1 * max(-fmin, 0.0)):
-        raise InputError(f"no contact found in {where}: the force has no repulsive peak")
-    return f > 0.5 * fmax
-
-
-def first_contact_minimum(f: np.ndarray) -> int:
-    """Index of the force minimum at the first contact of an approach record.
-
-    Z1 is the tip position at the very first adhesion well (thesis 3.3.1,
-    eq. 84).  Before the first sample above half the peak repulsive force,
-    the first run of samples within 10 % of the deepest attraction is the first
-    well (a first contact can be a graze that never turns repulsive, and then
-    the next tap's well is as deep); its smallest sample is the minimum.
-    Raises InputError when no contact is found.
-    """
-    f = np.asarray(f, dtype=float)
-    first = int(np.argmax(_repulsive(f, "the approach segment")))
-    if first == 0:
-        raise InputError("the approach segment starts in contact: cannot measure Z1")
-    before = f[:first]
-    deep = before <= before.min() + 0.10 * abs(before.min())
-    start = int(np.argmax(deep))
-    stop = start + (int(np.argmin(deep[start:])) if not deep[start:].all() else len(deep) - start)
-    return start + int(np.argmin(before[start:stop]))
 
 
 # ----------------------------------------------------------------------------- stage 1
@@ -281,12 +170,7 @@ def fit_sum_of_sines(u: np.ndarray, z: np.ndarray, terms: int = 3, max_points: i
 
     best = None
     for freqs in STARTS:
-        b0 = np.pi * np.array(freqs[:terms])
-        design = np.hstack([np.sin(np.outer(x, b0)), np.cos(np.outer(x, b0)), np.ones((len(x), 1))])
-        lin, *_ = np.linalg.lstsq(design, y, rcond=None)
-        amp = np.hypot(lin[:terms], lin[terms : 2 * terms])
-        phase = np.arctan2(lin[terms : 2 * terms], lin[:terms])  # p sin + q cos = A sin(. + atan2(q, p))
-        p0 = np.concatenate([amp, b0, phase, [lin[-1]]])
+        p0 = _linear_start(x, y, np.pi * np.array(freqs[:terms]))
         try:  # short run from each start, then the best one to convergence
             sol = least_squares(resid, p0, jac=jac, method="lm", max_nfev=SCOUT_NFEV)
         except (ValueError, np.linalg.LinAlgError):  # pragma: no cover - degenerate start
@@ -296,21 +180,37 @@ def fit_sum_of_sines(u: np.ndarray, z: np.ndarray, terms: int = 3, max_points: i
     if best is None:
         raise InputError(f"sum-of-sines fit failed on a contact of {len(u)} samples")
     best = least_squares(resid, best.x, jac=jac, method="lm", max_nfev=NFEV)
-    a, b, c = best.x[:terms], best.x[terms : 2 * terms], best.x[2 * terms : 3 * terms]
-    # back to physical units: z = zm + zs (c0 + sum a sin(b (u - u0)/span + c))
-    bu = b / span
-    ph = c - bu * u[0]
-    fit = SineFit(
-        b=np.append(bu, 0.0),
-        p=np.append(zs * a * np.cos(ph), 0.0),
-        q=np.append(zs * a * np.sin(ph), zm + zs * best.x[-1]),
-        rms=0.0,
-    )
+    fit = _physical(best.x, terms, u[0], span, zm, zs)
     fit.rms = float(np.sqrt(np.mean((fit(u) - z) ** 2)))
     return fit
 
 
-def _exp_conv_cos(u: np.ndarray, b: np.ndarray, c: np.ndarray, tau: float) -> np.ndarray:
+def _linear_start(x: np.ndarray, y: np.ndarray, b0: np.ndarray) -> np.ndarray:
+    """Starting ``(a, b, c, c0)`` at the frequencies ``b0``: amplitudes and phases from a
+    linear least-squares fit of sines and cosines at those frequencies."""
+    terms = len(b0)
+    design = np.hstack([np.sin(np.outer(x, b0)), np.cos(np.outer(x, b0)), np.ones((len(x), 1))])
+    lin, *_ = np.linalg.lstsq(design, y, rcond=None)
+    amp = np.hypot(lin[:terms], lin[terms : 2 * terms])
+    phase = np.arctan2(lin[terms : 2 * terms], lin[:terms])  # p sin + q cos = A sin(. + atan2(q, p))
+    return np.concatenate([amp, b0, phase, [lin[-1]]])
+
+
+def _physical(params: np.ndarray, terms: int, u0: float, span: float, zm: float, zs: float) -> SineFit:
+    """The scaled fit back in physical units: ``z = zm + zs (c0 + sum a sin(b (u - u0)/span + c))``
+    as a :class:`SineFit` (rms not yet set)."""
+    a, b, c = params[:terms], params[terms : 2 * terms], params[2 * terms : 3 * terms]
+    bu = b / span
+    ph = c - bu * u0
+    return SineFit(
+        b=np.append(bu, 0.0),
+        p=np.append(zs * a * np.cos(ph), 0.0),
+        q=np.append(zs * a * np.sin(ph), zm + zs * params[-1]),
+        rms=0.0,
+    )
+
+
+def exp_conv_cos(u: np.ndarray, b: np.ndarray, c: np.ndarray, tau: float) -> np.ndarray:
     """``int_0^u exp(-(u-s)/tau) cos(b s + c) ds`` for each (b, c) column.
 
     Closed form: ``tau/(1+(b tau)^2) [cos(bu+c) + b tau sin(bu+c)
@@ -322,13 +222,13 @@ def _exp_conv_cos(u: np.ndarray, b: np.ndarray, c: np.ndarray, tau: float) -> np
     return tau / (1.0 + bt * bt) * (np.cos(ph) + bt * np.sin(ph) - np.exp(-u / tau) * (np.cos(c) + bt * np.sin(c)))
 
 
-class _Superposition:
+class Superposition:
     """Parts of the Boltzmann integral of one tap that do not depend on Kr.
 
     ``delta(u) = z(0) - z(u)`` and ``delta'(u) = -sum_j b_j (p_j cos(b_j u) -
     q_j sin(b_j u))`` from the sum-of-sines fit; the convolution with
     ``exp(-u/tau)`` of each cosine column has the closed form of
-    :func:`_exp_conv_cos`, whose trigonometric parts are computed once here.
+    :func:`exp_conv_cos`, whose trigonometric parts are computed once here.
     """
 
     def __init__(self, u: np.ndarray, fit: SineFit):
@@ -361,7 +261,7 @@ def boltzmann_force(u: np.ndarray, fit: SineFit, kg: float, kr: float, tau_r: fl
     with ``delta(u) = z(0) - z(u)`` from the sum-of-sines fit, ``u`` [s] from
     the contact instant.
     """
-    return _Superposition(u, fit).force(kg, kr, tau_r, fc)
+    return Superposition(u, fit).force(kg, kr, tau_r, fc)
 
 
 def stage2_kr(
@@ -371,7 +271,7 @@ def stage2_kr(
     (thesis eqs. 79-80), ``0 < Kr < Kg``, over at most ``max_points`` evenly
     spaced contact samples.  Returns ``(Kr, residual RMS [N], nfev)``."""
     step = max(1, len(u) // max_points)
-    sup = _Superposition(np.asarray(u)[::step], fit)
+    sup = Superposition(np.asarray(u)[::step], fit)
     f = np.asarray(f)[::step]
     lo, hi = 1e-12 * kg, kg * (1.0 - 1e-9)
     x0 = min(max(kr_guess if kr_guess is not None else 0.1 * kg, lo * 10), hi * 0.999)
@@ -388,26 +288,12 @@ def stage2_kr(
 # ----------------------------------------------------------------------------- driver
 
 
-def _spread(values: np.ndarray) -> dict:
-    v = np.asarray(values, dtype=float)
-    v = v[np.isfinite(v)]
-    if len(v) == 0:
-        return {"n": 0, "mean": None, "std": None, "min": None, "max": None}
-    return {
-        "n": len(v),
-        "mean": float(np.mean(v)),
-        "std": float(np.std(v, ddof=1)) if len(v) > 1 else 0.0,
-        "min": float(np.min(v)),
-        "max": float(np.max(v)),
-    }
-
-
 @dataclass
-class Extraction:
-    """VETICA result: values (means over taps), per-tap values and diagnostics."""
+class VeticaResult:
+    """VETICA on one record: values (means over taps), per-tap values and diagnostics."""
 
-    values: dict  # NAMES -> float | None
-    per_tap: dict  # NAMES -> array (tau_c: one per creep interval)
+    values: dict  # tau_c, k_g, k_r, tau_r, k0, k_inf, cd -> float (nan if not measured)
+    per_tap: dict  # the same -> array (tau_c: one per creep interval)
     taps: int
     z1: float
     timing_s: dict
@@ -415,7 +301,58 @@ class Extraction:
     warnings: list = field(default_factory=list)
 
     def spread(self) -> dict:
-        return {k: _spread(v) for k, v in self.per_tap.items()}
+        return {k: Spread.of(v) for k, v in self.per_tap.items()}
+
+
+def _mean(values: np.ndarray) -> float:
+    return float(np.nanmean(values)) if np.any(np.isfinite(values)) else math.nan
+
+
+def _stage1(t, z, f, z1, kg_points):
+    """Taps, then stages 1a and 1b: ``(taps, tau_c per interval, Kg per tap, warnings)``."""
+    taps = find_taps(f)
+    n_taps = len(taps.contact)
+    if n_taps < 2:
+        raise InputError(
+            f"too few taps: {n_taps} complete tap(s) in the record ({taps.incomplete} cut by its ends), need at least 2"
+        )
+    warnings = []
+    pk = np.diff(taps.peak)
+    if len(pk) and np.ptp(pk) > 0.1 * np.median(pk):
+        warnings.append("irregular tap spacing (chatter or several contacts per drive period?)")
+    return taps, stage1a_tau_c(t, z, taps, z1), stage1b_kg(z, f, taps, kg_points), warnings
+
+
+def _stage1_warnings(tau_c: float, kg: float, z1: float, kg_points: int) -> list[str]:
+    out = []
+    if math.isnan(tau_c):
+        out.append(
+            "stage 1a: no creep interval gives a retardation time (positions at separation and next contact "
+            f"not both below Z1 = {z1:.4g} m with the surface recovering); tau_c and stage 2 skipped"
+        )
+    if math.isnan(kg):
+        out.append(f"stage 1b: contacts shorter than kg_points = {kg_points} samples; Kg and stage 2 skipped")
+    elif kg <= 0:
+        out.append(f"stage 1b: the initial contact slope gives Kg = {kg:.4g} N/m <= 0; stage 2 skipped")
+    return out
+
+
+def _stage2(t, z, f, taps: Taps, kg: float, tau_c: float, kr_guess):
+    """Kr of every tap long enough (nan otherwise) and the fit residuals of those fitted."""
+    kr_i, fit_rms, f_rms, nfev = [], [], [], []
+    for ic, isep in zip(taps.contact, taps.separation):
+        if isep - ic < MIN_CONTACT_SAMPLES:
+            kr_i.append(math.nan)
+            continue
+        sl = slice(ic, isep + 1)
+        u = t[sl] - t[ic]
+        fit = fit_sum_of_sines(u, z[sl])
+        kr, rms, nf = stage2_kr(u, f[sl], fit, kg, tau_c, float(f[ic]), kr_guess)
+        kr_i.append(kr)
+        fit_rms.append(fit.rms)
+        f_rms.append(rms)
+        nfev.append(nf)
+    return kr_i, fit_rms, f_rms, nfev
 
 
 def vetica(
@@ -425,7 +362,7 @@ def vetica(
     z1: float,
     kg_points: int = 10,
     kr_guess: float | None = None,
-) -> Extraction:
+) -> VeticaResult:
     """Run VETICA stages 1a, 1b and 2 on a record of consecutive taps.
 
     Values are the means over taps (``tau_c`` over creep intervals); stage 2
@@ -442,51 +379,17 @@ def vetica(
     if kg_points < 2:
         raise InputError(f"kg_points {kg_points} not allowed; expected an integer >= 2")
     t0 = time.perf_counter()
-    taps = find_taps(f)
+    taps, tau_c_i, kg_i, warnings = _stage1(t, z, f, z1, kg_points)
     n_taps = len(taps.contact)
-    if n_taps < 2:
-        raise InputError(
-            f"too few taps: {n_taps} complete tap(s) in the record ({taps.incomplete} cut by its ends), need at least 2"
-        )
-    warnings = []
-    pk = np.diff(taps.peak)
-    if len(pk) and np.ptp(pk) > 0.1 * np.median(pk):
-        warnings.append("irregular tap spacing (chatter or several contacts per drive period?)")
-    tau_c_i = stage1a_tau_c(t, z, taps, z1)
-    kg_i = stage1b_kg(z, f, taps, kg_points)
     t1 = time.perf_counter()
-    tau_c = float(np.nanmean(tau_c_i)) if np.any(np.isfinite(tau_c_i)) else math.nan
-    kg = float(np.nanmean(kg_i)) if np.any(np.isfinite(kg_i)) else math.nan
-    if math.isnan(tau_c):
-        warnings.append(
-            "stage 1a: no creep interval gives a retardation time (positions at separation and next contact "
-            f"not both below Z1 = {z1:.4g} m with the surface recovering); tau_c and stage 2 skipped"
-        )
-    if math.isnan(kg):
-        warnings.append(f"stage 1b: contacts shorter than kg_points = {kg_points} samples; Kg and stage 2 skipped")
-    elif kg <= 0:
-        warnings.append(f"stage 1b: the initial contact slope gives Kg = {kg:.4g} N/m <= 0; stage 2 skipped")
-
-    kr_i, fit_rms, f_rms, nfev = [], [], [], []
+    tau_c, kg = _mean(tau_c_i), _mean(kg_i)
+    warnings += _stage1_warnings(tau_c, kg, z1, kg_points)
     stage2 = not (math.isnan(tau_c) or math.isnan(kg)) and kg > 0
-    if stage2:
-        for ic, isep in zip(taps.contact, taps.separation):
-            if isep - ic < MIN_CONTACT_SAMPLES:
-                kr_i.append(math.nan)
-                continue
-            sl = slice(ic, isep + 1)
-            u = t[sl] - t[ic]
-            fit = fit_sum_of_sines(u, z[sl])
-            kr, rms, nf = stage2_kr(u, f[sl], fit, kg, tau_c, float(f[ic]), kr_guess)
-            kr_i.append(kr)
-            fit_rms.append(fit.rms)
-            f_rms.append(rms)
-            nfev.append(nf)
+    kr_i, fit_rms, f_rms, nfev = _stage2(t, z, f, taps, kg, tau_c, kr_guess) if stage2 else ([], [], [], [])
     t2 = time.perf_counter()
     kr_i = np.array(kr_i) if kr_i else np.full(n_taps, math.nan)
     if stage2 and not fit_rms:
         warnings.append(f"stage 2: every contact is shorter than {MIN_CONTACT_SAMPLES} samples; Kr skipped")
-    values = sls_elements(tau_c, kg, float(np.nanmean(kr_i)) if np.any(np.isfinite(kr_i)) else math.nan)
     per = [sls_elements(tau_c, kg, k) for k in kr_i]
     per_tap = {
         "tau_c": tau_c_i,
@@ -501,8 +404,8 @@ def vetica(
             force_fit_rms_n=float(np.max(f_rms)),
             kr_nfev_max=int(np.max(nfev)),
         )
-    return Extraction(
-        values=values,
+    return VeticaResult(
+        values=sls_elements(tau_c, kg, _mean(kr_i)),
         per_tap=per_tap,
         taps=n_taps,
         z1=float(z1),
@@ -510,3 +413,40 @@ def vetica(
         diagnostics=diagnostics,
         warnings=warnings,
     )
+
+
+@register
+class Vetica(ExtractionMethod):
+    """VETICA (thesis 3.3): Z1 from the approach, then stages 1a, 1b and 2 on the steady taps."""
+
+    key = "vetica"
+    description = "VETICA (thesis 3.3): creep between taps, initial contact slope, superposition fit"
+    title = "VETICA"
+    surface_models = ("sls",)
+    options_default: ClassVar[dict[str, Any]] = {"kg_points": 10, "kr_guess": None}
+    seconds_per_point = 1.4  # 0.6 s (true force) + 0.8 s (reconstructed), 10 periods at 0.125 ns, 2 cores
+
+    def run(self, record: Record, options: dict) -> ExtractionResult:
+        ex = vetica(record.t, record.z, record.f, record.z1, kg_points=options["kg_points"],
+                    kr_guess=options["kr_guess"])  # fmt: skip
+        units = {k: q.unit for k, q in self.quantities(record.model).items()}
+        timing = {"reconstruction": record.reconstruction_s, **ex.timing_s,
+                  "total": time.perf_counter() - record.t_start}  # fmt: skip
+        return ExtractionResult(
+            method=self.key,
+            force=record.force,
+            taps=ex.taps,
+            estimates=estimates(ex.values, units, record.truth, spreads=ex.spread()),
+            model=record.model.key,
+            info=record.info,
+            diagnostics=ex.diagnostics,
+            warnings=ex.warnings + record.meta_warnings,
+            timing_s=timing,
+        )
+
+    def timing_line(self, timing_s: dict) -> str:
+        tm = timing_s
+        return (
+            f"time: reconstruction {tm.get('reconstruction', 0):.2f} s, stage 1 {tm.get('stage1', 0):.3f} s, "
+            f"stage 2 {tm.get('stage2', 0):.3f} s ({tm.get('stage2_per_tap', 0) * 1e3:.0f} ms per tap)"
+        )

@@ -1,7 +1,7 @@
 """Expand a study config (single-point schema + ``sweep:`` block) into points.
 
 A study config is a single-point config (sections ``probe``, ``operation``,
-``surface``, ``numerics``; see :mod:`vetica_cli.config`) plus, optionally,
+``surface``, ``numerics``; see :mod:`vetica_cli.simulation.config`) plus, optionally,
 ``name``/``description`` strings and a ``sweep:`` block that maps dotted keys
 to values::
 
@@ -32,9 +32,10 @@ table shows ``1e-05``, not ``1.0000000000000001e-05``.
 Extraction keys (issue 6) name how each point is analysed, not what is
 simulated; they may be swept or set in an ``extract:`` section of the base:
 
-* ``extract.method``: ``vetica`` (thesis 3.3, the default) or ``full`` (the
-  whole-cycle model inversion of :mod:`vetica_cli.fullfit`).  Points that
-  differ only in the method share one simulation (see :mod:`vetica_cli.sweep`).
+* ``extract.method``: a registered extraction method (:mod:`vetica_cli.extraction`:
+  ``vetica``, thesis 3.3, the default; ``full``, the whole-cycle model
+  inversion).  Points that differ only in the method share one simulation
+  (see :mod:`vetica_cli.study.plan`).
 * ``extract.force``: ``both`` (the default: the simulator's true force and the
   force reconstructed from the paddle signal, one row each), ``true`` or
   ``reconstructed`` (one row).  E.g. with detector noise the reconstruction at
@@ -51,23 +52,21 @@ import hashlib
 import itertools
 import json
 import math
-from dataclasses import dataclass, fields
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from . import __version__
-from .config import SECTIONS, Config, ConfigError, from_dict, read_yaml
+from .. import __version__
+from ..errors import ConfigError
+from ..extraction import DEFAULT_METHOD, METHODS, SOURCES
+from ..simulation.config import DERIVED, SECTIONS, Config, defaults, from_dict, read_yaml, section_names
+from ..surfaces import DEFAULT_MODEL, MODELS
 
-# derived key -> (target key, source key): target = value * source
-DERIVED = {
-    "surface.stiffness_ratio": ("surface.k0", "surface.k_inf"),
-    "probe.f2_ratio": ("probe.f2", "probe.f1"),
-}
 META_KEYS = ("name", "description")
 # extraction keys: not part of the simulated config; key -> (allowed values, default)
 EXTRACT_KEYS = {
-    "extract.method": (("vetica", "full"), "vetica"),
-    "extract.force": (("both", "true", "reconstructed"), "both"),
+    "extract.method": (tuple(METHODS), DEFAULT_METHOD),
+    "extract.force": (("both", *SOURCES), "both"),
 }
 EXTRACT_SECTION = "extract"
 RANGE_FORMS = ("logspace", "linspace")
@@ -75,7 +74,7 @@ RANGE_FORMS = ("logspace", "linspace")
 
 def config_keys() -> list[str]:
     """Every dotted key of the single-point schema, in declaration order."""
-    return [f"{sec}.{f.name}" for sec, cls in SECTIONS.items() for f in fields(cls)]
+    return [f"{sec}.{name}" for sec in SECTIONS for name in section_names(sec)]
 
 
 def sweepable_keys() -> list[str]:
@@ -101,7 +100,7 @@ class Point:
     values: dict  # swept key -> value, in column order
     config: Config
     key: str  # hash of the resolved config and the extraction method (names the persisted part)
-    method: str = "vetica"  # extract.method: how the point's run is analysed
+    method: str = DEFAULT_METHOD  # extract.method: how the point's run is analysed
     force: str = "both"  # extract.force: which force sources are extracted
 
     def label(self) -> str:
@@ -123,7 +122,7 @@ class Study:
         # defaults filled in without validating the base alone: only the points
         # (base + sweep values) need to be valid configs
         clean, derived = _split_derived(self.base)
-        base = Config().to_dict()
+        base = defaults(_model_of(clean))
         for sec, body in clean.items():
             base[sec].update(body or {})
         for dkey, value in derived.items():
@@ -141,7 +140,7 @@ class Study:
         return out
 
 
-def point_key(cfg: Config, method: str = "vetica", force: str = "both") -> str:
+def point_key(cfg: Config, method: str = DEFAULT_METHOD, force: str = "both") -> str:
     """Stable 16-hex hash of a resolved point config (and the package version),
     and of the extraction keys that are not the default (so points with the
     default extraction keep the keys they had before extraction keys existed)."""
@@ -312,14 +311,14 @@ def _resolve(base_clean: dict, base_derived: dict, assign: dict) -> dict:
                 raise ConfigError(f"section {sec!r} must be a mapping, got {d[sec]!r}")
             d[sec][name] = value
     if derived:
-        defaults = Config().to_dict()
+        dflt = defaults(_model_of(d))
         for dkey, value in derived.items():
             target, source = DERIVED[dkey]
             v = _num(dkey, value, "value")
             if not v > 0:
                 raise ConfigError(f"{dkey}: {value!r} is not allowed; expected a ratio > 0")
             ssec, sname = source.split(".")
-            src = (d.get(ssec) or {}).get(sname, defaults[ssec][sname])
+            src = (d.get(ssec) or {}).get(sname, dflt[ssec][sname])
             src = _num(source, src, "value")
             tsec, tname = target.split(".")
             d.setdefault(tsec, {})[tname] = _clean(v * src)
@@ -341,7 +340,29 @@ def expand(raw: dict, name: str = "study", overrides: dict | None = None) -> Stu
     base = {k: (dict(v) if isinstance(v, dict) else v) for k, v in raw.items() if k in SECTIONS}
     extract = _extract_section(raw.get(EXTRACT_SECTION))
     keys, factors = _factors(sweep)
-    for key, value in (overrides or {}).items():
+    _apply_overrides(base, extract, keys, overrides or {})
+    base_clean, base_derived = _split_derived(base)
+    points = []
+    seen: dict[str, int] = {}
+    for i, combo in enumerate(itertools.product(*factors)):
+        assign: dict = {}
+        for part in combo:
+            assign.update(part)
+        p = _point(i, keys, assign, extract, base_clean, base_derived)
+        if p.key in seen:
+            label = ", ".join(f"{k}={assign[k]!r}" for k in keys)
+            raise ConfigError(
+                f"points {seen[p.key]} and {i} ({label}) resolve to the same config; remove the duplicate"
+            )
+        seen[p.key] = i
+        points.append(p)
+    return Study(name=name, description=description, keys=tuple(keys), points=tuple(points), base=base, sweep=sweep,
+                 extract=extract)  # fmt: skip
+
+
+def _apply_overrides(base: dict, extract: dict, keys: list, overrides: dict) -> None:
+    """``--set`` overrides into the base sections and the extract section (not on swept keys)."""
+    for key, value in overrides.items():
         if key in keys:
             raise ConfigError(f"--set {key}: the key is swept by the study; change its sweep entry instead")
         if key not in sweepable_keys():
@@ -354,40 +375,38 @@ def expand(raw: dict, name: str = "study", overrides: dict | None = None) -> Stu
         if not isinstance(base[sec], dict):
             raise ConfigError(f"section {sec!r} must be a mapping, got {base[sec]!r}")
         base[sec][kname] = value
-    base_clean, base_derived = _split_derived(base)
-    points = []
-    seen: dict[str, int] = {}
-    for i, combo in enumerate(itertools.product(*factors)):
-        assign: dict = {}
-        for part in combo:
-            assign.update(part)
-        values = {k: assign[k] for k in keys}
-        label = ", ".join(f"{k}={v!r}" for k, v in values.items())
-        ext = {**{k: extract.get(k.split(".")[1], d) for k, (_, d) in EXTRACT_KEYS.items()},
-               **{k: v for k, v in assign.items() if k in EXTRACT_KEYS}}  # fmt: skip
-        assign = {k: v for k, v in assign.items() if k not in EXTRACT_KEYS}
-        try:
-            cfg = from_dict(_resolve(base_clean, base_derived, assign))
-        except ConfigError as exc:
-            raise ConfigError(f"point {i} ({label}): {exc}") from None
-        method, force = ext["extract.method"], ext["extract.force"]
-        key = point_key(cfg, method, force)
-        if key in seen:
-            raise ConfigError(f"points {seen[key]} and {i} ({label}) resolve to the same config; remove the duplicate")
-        seen[key] = i
-        # swept values as the config resolved them (e.g. '1e-4' -> 1e-4)
-        resolved = {}
-        for k in keys:
-            if k in DERIVED:
-                resolved[k] = _num(k, values[k], "value")
-            elif k in EXTRACT_KEYS:
-                resolved[k] = values[k]
-            else:
-                sec, nm = k.split(".")
-                resolved[k] = getattr(getattr(cfg, sec), nm)
-        points.append(Point(index=i, values=resolved, config=cfg, key=key, method=method, force=force))
-    return Study(name=name, description=description, keys=tuple(keys), points=tuple(points), base=base, sweep=sweep,
-                 extract=extract)  # fmt: skip
+
+
+def _point(i: int, keys: list, assign: dict, extract: dict, base_clean: dict, base_derived: dict) -> Point:
+    """Point ``i`` of the grid from its swept assignments: config resolved and validated,
+    extraction keys from the assignment or the base ``extract:`` section."""
+    values = {k: assign[k] for k in keys}
+    label = ", ".join(f"{k}={v!r}" for k, v in values.items())
+    ext = {**{k: extract.get(k.split(".")[1], d) for k, (_, d) in EXTRACT_KEYS.items()},
+           **{k: v for k, v in assign.items() if k in EXTRACT_KEYS}}  # fmt: skip
+    try:
+        cfg = from_dict(_resolve(base_clean, base_derived, {k: v for k, v in assign.items() if k not in EXTRACT_KEYS}))
+    except ConfigError as exc:
+        raise ConfigError(f"point {i} ({label}): {exc}") from None
+    method, force = ext["extract.method"], ext["extract.force"]
+    # swept values as the config resolved them (e.g. '1e-4' -> 1e-4)
+    resolved = {}
+    for k in keys:
+        if k in DERIVED:
+            resolved[k] = _num(k, values[k], "value")
+        elif k in EXTRACT_KEYS:
+            resolved[k] = values[k]
+        else:
+            sec, nm = k.split(".")
+            resolved[k] = getattr(getattr(cfg, sec), nm)
+    return Point(index=i, values=resolved, config=cfg, key=point_key(cfg, method, force), method=method, force=force)
+
+
+def _model_of(sections: dict) -> str:
+    """The surface model a study's (base or point) sections name (the default when they name none)."""
+    surface = sections.get("surface")
+    model = surface.get("model") if isinstance(surface, dict) else None
+    return model if isinstance(model, str) and model in MODELS else DEFAULT_MODEL
 
 
 def _extract_section(body: Any) -> dict:

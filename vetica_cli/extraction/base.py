@@ -1,0 +1,80 @@
+"""The convention every extraction method follows, and the registry that collects them.
+
+A method is one module (or package) under :mod:`vetica_cli.extraction` defining a
+subclass of :class:`ExtractionMethod` decorated with :func:`register`: it
+declares its ``key`` (the ``--method`` / ``extract.method`` value), a one-line
+description, the surface models it can extract, its options with their
+defaults, and ``run(record, options) -> ExtractionResult``.  The CLI's
+``--method`` choices, the sweep's ``extract.method`` values and the table's
+``method`` column all come from :data:`METHODS`.
+"""
+
+from __future__ import annotations
+
+from abc import ABC, abstractmethod
+from typing import Any, ClassVar
+
+import numpy as np
+
+from ..errors import InputError
+from ..surfaces import Quantity, SurfaceModel
+from .record import Record
+from .result import ExtractionResult
+
+
+class ExtractionMethod(ABC):
+    """Base of every extraction method (one subclass per module; see the module docstring)."""
+
+    key: ClassVar[str]  # e.g. "vetica"
+    description: ClassVar[str]  # one line, e.g. "VETICA (thesis 3.3): creep, initial slope, superposition fit"
+    title: ClassVar[str]  # heading of the text table, e.g. "VETICA"
+    surface_models: ClassVar[tuple[str, ...]]  # surface models (vetica_cli.surfaces) it can extract
+    options_default: ClassVar[dict[str, Any]] = {"kg_points": 10}  # every option the method takes
+    needs_approach: ClassVar[bool] = False  # analyse the approach segment even when Z1 is given
+    uniform_sampling: ClassVar[bool] = False  # needs a constant time step in the steady record
+    seconds_per_point: ClassVar[float] = 1.0  # both force sources, 10 periods at 0.125 ns (dry-run estimate)
+
+    def quantities(self, model: SurfaceModel) -> dict[str, Quantity]:
+        """The quantities the method reports for a surface of ``model``, in table order."""
+        return model.quantities
+
+    def options(self, given: dict) -> dict:
+        """``given`` options checked and completed with the defaults; InputError (one line)
+        for an option the method does not take or a bad value."""
+        unknown = [k for k in given if k not in self.options_default]
+        if unknown:
+            raise InputError(
+                f"method {self.key!r} takes no option {unknown[0]!r}; options: {', '.join(self.options_default)}"
+            )
+        opts = {**self.options_default, **given}
+        kg = opts.get("kg_points")
+        if "kg_points" in opts and (isinstance(kg, bool) or not isinstance(kg, (int, np.integer)) or kg < 2):
+            raise InputError(f"kg_points {kg!r} not allowed; expected an integer >= 2")
+        return opts
+
+    @abstractmethod
+    def run(self, record: Record, options: dict) -> ExtractionResult:
+        """Extract the surface from one prepared record (options as :meth:`options` returns them)."""
+
+    def timing_line(self, timing_s: dict) -> str:
+        """One line of the text table: where the time went."""
+        return "time: " + ", ".join(f"{k} {v:.2f} s" for k, v in timing_s.items() if isinstance(v, (int, float)))
+
+
+METHODS: dict[str, ExtractionMethod] = {}
+DEFAULT_METHOD = "vetica"  # --method and extract.method when not given
+
+
+def register(cls: type[ExtractionMethod]) -> type[ExtractionMethod]:
+    """Class decorator: add one instance of the method to :data:`METHODS` under its ``key``."""
+    if cls.key in METHODS:
+        raise ValueError(f"extraction method {cls.key!r} is registered twice")
+    METHODS[cls.key] = cls()
+    return cls
+
+
+def get(key: str) -> ExtractionMethod:
+    """The registered method ``key``; InputError listing the registered ones."""
+    if key not in METHODS:
+        raise InputError(f"method {key!r} not available; choose one of: {', '.join(METHODS)}")
+    return METHODS[key]

@@ -1,0 +1,109 @@
+"""The one formatter of extraction results: the text table of ``vetica extract`` and
+its ``--json`` object (same keys for every method)."""
+
+from __future__ import annotations
+
+from .. import surfaces
+from .base import get
+from .result import ExtractionResult, Spread, finite_or_none
+
+
+def _num(v, fmt=".5g"):
+    return "-" if v is None else format(v, fmt)
+
+
+def _spread_text(sp: Spread | None) -> str:
+    if sp is None or not sp.n:
+        return "-"
+    return f"{_num(sp.std, '.2g')}; {_num(sp.min)} .. {_num(sp.max)} (n={sp.n})"
+
+
+def _sigma_text(e) -> str:
+    u = finite_or_none(e.sigma)
+    text = f"1-sigma {_num(u * 100 if u is not None else None, '.2g')} %"
+    return text + ("  NOT IDENTIFIABLE" if e.identifiable is False else "")
+
+
+def format_table(res: ExtractionResult, source=None) -> str:
+    """Plain-text table of an extraction: value, theory, error % and the spread over taps
+    (or, for a method that reports them, the 1-sigma uncertainty and identifiability),
+    plus the force reconstruction, Z1, warnings and timing."""
+    info = res.info
+    method = get(res.method)
+    head = f"{method.title} on {source}" if source is not None else method.title
+    z1 = info.get("z1")
+    with_sigma = any(e.sigma is not None for e in res.estimates.values())
+    labels = surfaces.get(res.model).quantities
+    lines = [
+        (
+            f"{head}: force {res.force}, {res.taps} taps, "
+            f"Z1 = {_num(z1 * 1e9 if z1 is not None else None, '.4f')} nm ({info.get('z1_source', '?')})"
+        ),
+        f"{'quantity':<14}{'value':>13}{'theory':>13}{'error %':>10}   "
+        + ("fit uncertainty" if with_sigma else "spread over taps (std; min .. max)"),
+    ]
+    for key, e in res.estimates.items():
+        label = labels[key].label if key in labels else key
+        extra = _sigma_text(e) if with_sigma else _spread_text(e.spread)
+        lines.append(
+            f"{label + ' [' + e.unit + ']':<14}{_num(e.value):>13}{_num(e.theory):>13}"
+            f"{_num(e.error_pct, '.2f'):>10}   {extra}"
+        )
+    lines += _reconstruction_lines(info)
+    for k in res.fitted:
+        e = res.estimates[k]
+        if e.reason and e.identifiable is False:
+            lines.append(f"{k} not identifiable: {e.reason}")
+    if res.timing_s:
+        lines.append(method.timing_line(res.timing_s))
+    for w in res.warnings:
+        lines.append(f"warning: {w}")
+    return "\n".join(lines)
+
+
+def _reconstruction_lines(info: dict) -> list[str]:
+    lines = []
+    if "cutoff_hz" in info:
+        harm = f" = {info['cutoff_harmonic']:.4g} f1" if "cutoff_harmonic" in info else ""
+        lines.append(
+            f"force reconstruction: spectral inversion of z_paddle, low-pass cut-off {info['cutoff_hz']:.4g} Hz{harm}"
+        )
+    if "reconstruction_error" in info:
+        r = info["reconstruction_error"]
+        lines.append(
+            f"reconstructed vs true f_ts (% of peak force): RMS {r['rms_pct']:.2g}, max {r['max_pct']:.2g}, "
+            f"peak {r['peak_pct']:+.2g}"
+        )
+    return lines
+
+
+def to_json(res: ExtractionResult) -> dict:
+    """The JSON object of ``vetica extract --json``: ``{quantity: {value, theory, error_pct,
+    spread[, sigma][, identifiable, reason]}, ..., force, taps, method[, uncertainty,
+    identifiable, identifiable_reason], info}`` (the keys of version 0.1 plus ``sigma``,
+    ``identifiable`` and ``reason`` per quantity where the method reports them)."""
+    out: dict = {}
+    for name, e in res.estimates.items():
+        entry = {
+            "value": e.value,
+            "theory": e.theory,
+            "error_pct": e.error_pct,
+            "spread": (e.spread or Spread()).as_dict(),
+        }
+        if e.sigma is not None:
+            entry["sigma"] = finite_or_none(e.sigma)
+        if e.identifiable is not None:
+            entry.update(identifiable=e.identifiable, reason=e.reason)
+        out[name] = entry
+    out.update(force=res.force, taps=res.taps, method=res.method)
+    if any(e.sigma is not None for e in res.estimates.values()):  # None = unbounded
+        out["uncertainty"] = {k: finite_or_none(e.sigma) for k, e in res.estimates.items() if e.sigma is not None}
+    if res.fitted:
+        out["identifiable"] = {k: bool(res.estimates[k].identifiable) for k in res.fitted}
+        out["identifiable_reason"] = {k: res.estimates[k].reason for k in res.fitted}
+    info = {**res.info, "timing_s": res.timing_s}
+    if res.diagnostics is not None:
+        info["diagnostics"] = res.diagnostics
+    info["warnings"] = list(res.warnings)
+    out["info"] = info
+    return out

@@ -1,0 +1,90 @@
+"""Whole-cycle model inversion: ``vetica extract RUN --method full`` (issue 6).
+
+VETICA (thesis 3.3) reads a few samples of each tap.  This method uses every
+sample of the recorded steady periods: the measured tip trajectory
+``z_tip(t)`` drives the massless Zener SLS surface of SPEC section 3 (thesis
+3.2, appendix C: contact when the gap is <= a0, creep out of contact,
+separation when the surface would have to hold the tip with more than the
+adhesion), and bounded least squares finds ``k_inf, k0, cd`` (optionally
+the Hamaker constant ``H``) for which the predicted force matches the
+measured one::
+
+    minimise  sum_i ( Fts_model(t_i; k_inf, k0, cd[, H]) - F_i )^2 / F_peak^2
+    over      ln k_inf, ln k0, ln cd [, ln H]       (scipy least_squares, 'trf')
+
+Choices (see the module functions for details):
+
+* **Forward model** (:mod:`vetica_cli.core.prescribed`, :mod:`.model`): the simulator's own surface
+  updates (:mod:`vetica_cli.core.sls`), once per sample of the record, with their
+  exact tangent-linear derivatives (the Jacobian of the fit comes out of the
+  same pass).  Where the simulator's lagged gap -> attraction -> surface
+  feedback matters (out of contact within ~1 nm, and across a separation)
+  the sample interval is split into the simulator's own steps
+  (``substeps = print_step/dt`` from the metadata, else 1), the tip
+  interpolated linearly: without this the snap-off transients differ by up
+  to 2.6 % of the peak force over a few samples and bias cd by ~6 % at
+  cd = 1e-2 kg/s.  Elsewhere in contact the dashpot is updated once per
+  sample, so its relaxation leads the simulator's by ``(h - dt)/2`` (a
+  ~4 pN offset on the worked example, 5e-5 of the peak force).
+* **Surface height** ``s0`` (the undeformed surface in the record's tip
+  coordinate, which for an instrument has an unknown offset).  Start value
+  from ``Z1``, the tip position at the first force minimum of the approach
+  (thesis eq. 84): there the gap is ``a0`` and the surface is pulled up to
+  ``X1 = (k0 Xd1 + Fa(a0))/Kg`` (``vdw_on_surface``; ``k0 Xd1/Kg`` without
+  the pull), so ``s0 = Z1 - a0 - X1``, with ``Xd1`` (the dashpot's creep
+  under the attraction during the approach, ~15 pm on the worked example)
+  from the same model run over the approach record (surface undeformed at
+  its start).  ``Z1`` is only known to within the tip's travel in one
+  sample (the minimum is the last sample out of contact or the first in
+  it): 2.8 pm at cd = 1e-2, which alone gives a 0.1 % RMS force misfit.
+  So, when the record has its approach segment, ``s0`` is fitted too, with
+  the approach samples (the first tap, on an undeformed surface) added to
+  the residuals; without one it stays at the ``Z1`` value.
+* **State at the window start.**  The steady window spans whole drive
+  periods with the base fixed, so the surface state at its start equals the
+  state at its end.  The dashpot position ``Xd0`` there is solved for with
+  Newton's method on ``Xd_end(Xd0) = Xd0`` (``dXd_end/dXd0`` from the
+  tangent-linear kernel; the map is affine for a fixed contact schedule, so
+  one or two passes do even when nothing relaxes within the window, where
+  iterating the window would need ~tau/window repetitions); the periodicity
+  residual is reported.  A record taken before the surface settled (tau_c
+  comparable to the run's 3-30 ms) is not periodic: ``state='auto'`` (the
+  default) then frees ``Xd0`` as one more fit parameter when a linearised
+  step says that removes more than half the residual; ``'periodic'`` and
+  ``'free'`` force either.
+* **Decimation.**  The forward model runs over every sample; far from the
+  surface (gap > 5 nm, attraction < 0.2 % of Fa(a0)) it advances in exact
+  steps of ``block`` samples.  Residuals are taken at every
+  ``near_stride``-th sample (4) where the measured tip is within 5 nm of Z1
+  (contact and the van der Waals range) and every ``far_stride``-th (256)
+  elsewhere: ~66 000 residuals for 1.6e6 samples.  Coarse to fine: the
+  start scan and a first fit use the first drive period only (its periodic
+  state is the window's), then the whole window refines it.
+* **Start.**  VETICA's answer on the first 3 taps when it has a plausible
+  one, else ``k0 = 0.9 Kg``, ``k_inf = 0.1 Kg`` from the loading slope; a
+  start whose Kg is more than a decade off that slope is rescaled onto it.
+  Then a scan of cd over 1e-10 .. 1e2 kg/s (every two decades) with one
+  Gauss-Newton step on the other parameters at each cd picks the start.
+* **Uncertainty.**  ``cov = s^2 (J^T J)^-1`` with ``s^2`` the residual
+  variance, J in log-parameters (square roots of the diagonal = relative
+  1-sigma), with ``Xd0`` counted as unknown (conservative: it does not lean
+  on the periodic state; the periodic-state values are in ``info``).  For
+  noise-free simulations ``s`` is systematic model mismatch, and the actual
+  errors exceed the 1-sigma values by ~10x (cd = 1e-2 kg/s; 1 pm position
+  noise) up to ~5000x (worked example: 1-sigma 4e-8, error 2e-4 from the
+  contact-step lead above).  A parameter is flagged not identifiable when
+  its 1-sigma exceeds 100 %, when it sits at a bound, when the fit stopped
+  far from converged, or when the fitted dashpot does not act within the
+  record (its force signature within a tap is below 10x the RMS residual:
+  cd has only a lower bound and only Kg = k0 + k_inf is determined; or it
+  relaxes within one sample: cd has only an upper bound).
+
+Modules: :mod:`.model` (the forward model and its periodic state), :mod:`.fit`
+(least squares and the cd scan), :mod:`.start` (starting point),
+:mod:`.uncertainty` (covariance, identifiability), :mod:`.method` (the
+registered method ``full``: coarse-to-fine stages and the result).
+"""
+
+from .method import FullFit  # registers 'full'
+
+__all__ = ["FullFit"]

@@ -1,0 +1,153 @@
+"""Bounded least squares of the force residuals of a :class:`~.model.SurfaceFit`
+(trust-region reflective over the log-parameters), with the starting-cd scan."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from scipy.optimize import least_squares
+
+from ...core.prescribed import NDIR
+from .model import SurfaceFit
+
+CD_SCAN = np.logspace(-10, 2, 7)  # [kg/s] starting-cd scan, every two decades
+HAMAKER_BOUNDS = (1e-24, 1e-14)  # [J] fit range of the Hamaker constant (fit_hamaker)
+OFFSET_UNIT = 1e-10  # [m] unit of the surface height in the fit vector
+OFFSET_RANGE = 5e-9  # [m] the fitted surface height stays within this of the Z1 value
+XD0_RANGE = 1e-6  # [m] bound of a fitted dashpot start position
+
+
+class FitVector:
+    """The fit vector ``ln k_inf, ln k0, ln cd [, ln(H R/6)] [, s0/OFFSET_UNIT] [, xd0/OFFSET_UNIT]``
+    of one model: its names, bounds and start, and the scaled residuals and Jacobian at a
+    point (each point evaluated once: least squares asks for both)."""
+
+    def __init__(self, model: SurfaceFit, theta0, bounds: dict, fit_hamaker: bool, s0, xd0):
+        self.model = model
+        self.fit_idx = [0, 1, 2] + ([3] if fit_hamaker else [])
+        self.ndir = NDIR if fit_hamaker else NDIR - 1
+        self.base = np.array(theta0, dtype=float)
+        names = [list(bounds)[i] for i in self.fit_idx]
+        r = model.radius
+        lo = list(np.log([bounds[n][0] * (r / 6 if n == "hamaker" else 1.0) for n in names]))
+        hi = list(np.log([bounds[n][1] * (r / 6 if n == "hamaker" else 1.0) for n in names]))
+        x0 = list(np.log(self.base[self.fit_idx]))
+        s0_z1 = model.z1_offset(*self.base, tangents=False)[0]
+        if model.fit_offset:
+            s0 = s0_z1 if s0 is None else s0
+            names.append("s0")
+            x0.append(s0 / OFFSET_UNIT)
+            lo.append((s0_z1 - OFFSET_RANGE) / OFFSET_UNIT)
+            hi.append((s0_z1 + OFFSET_RANGE) / OFFSET_UNIT)
+        self.free = xd0 is not None
+        if self.free:
+            names.append("xd0")
+            x0.append(xd0 / OFFSET_UNIT)
+            lo.append(-XD0_RANGE / OFFSET_UNIT)
+            hi.append(XD0_RANGE / OFFSET_UNIT)
+        self.names = names
+        self.lo, self.hi = np.array(lo), np.array(hi)
+        self.x0 = np.clip(np.array(x0), self.lo + 1e-9, self.hi - 1e-9)
+        self.cols = self.fit_idx + ([4] if model.fit_offset else []) + ([5] if self.free else [])
+        self.scale = np.ones(len(self.cols))
+        self.scale[len(self.fit_idx) :] = OFFSET_UNIT
+        self._cache = {}
+
+    def unpack(self, x):
+        """``(theta, s0 or None, xd0 or None)`` [SI] of a fit vector."""
+        theta = self.base.copy()
+        theta[self.fit_idx] = np.exp(x[: len(self.fit_idx)])
+        return (
+            theta,
+            x[len(self.fit_idx)] * OFFSET_UNIT if self.model.fit_offset else None,
+            x[-1] * OFFSET_UNIT if self.free else None,
+        )
+
+    def evaluate(self, x):
+        """Scaled residuals, their Jacobian, and the column of the window's start state."""
+        key = x.tobytes()
+        if key not in self._cache:
+            self._cache.clear()
+            model = self.model
+            theta, s0x, xd0x = self.unpack(x)
+            f, jac = model.evaluate(theta, s0x, ndir=self.ndir, xd0=xd0x)
+            self._cache[key] = (
+                (f - model.f) / model.scale,
+                jac[:, self.cols] * self.scale / model.scale,
+                jac[:, 5] * OFFSET_UNIT / model.scale,
+            )
+        return self._cache[key]
+
+    def cost(self, x) -> float:
+        """Sum of squared scaled residuals, without derivatives."""
+        theta, s0x, xd0x = self.unpack(x)
+        f, _ = self.model.evaluate(theta, s0x, ndir=0, xd0=xd0x)
+        return float(np.sum(((f - self.model.f) / self.model.scale) ** 2))
+
+
+def scan_cd(vec: FitVector) -> tuple[np.ndarray, list]:
+    """Starting cd: scan ``CD_SCAN`` (and the start) with one Gauss-Newton step on the other
+    parameters at each cd (a cheap profile: a wrong starting k_inf must not make the
+    glassy plateau of large cd look best).  Returns the best point and ``[(cost, x)]``."""
+    lo, hi = vec.lo, vec.hi
+    others = [i for i in range(len(vec.x0)) if i != 2]
+    scanned = []
+    for cd in [math.exp(vec.x0[2])] + list(CD_SCAN):
+        x = vec.x0.copy()
+        x[2] = np.clip(math.log(cd), lo[2] + 1e-9, hi[2] - 1e-9)
+        vec.model.reset()
+        res, jac, _ = vec.evaluate(x)
+        step = np.linalg.lstsq(jac[:, others], -res, rcond=None)[0]
+        step = np.clip(step, -2.0, 2.0)
+        x[others] = np.clip(x[others] + step, lo[others] + 1e-9, hi[others] - 1e-9)
+        scanned.append((vec.cost(x), x))
+    vec.model.reset()
+    return min(scanned, key=lambda c: c[0])[1], scanned
+
+
+def fit_surface(
+    model: SurfaceFit, theta0, bounds: dict, fit_hamaker=False, scan=True, max_nfev=60, xtol=1e-10, s0=None, xd0=None
+) -> dict:
+    """Bounded least squares of the force residuals (trust-region reflective).
+
+    Fit vector: ``ln k_inf, ln k0, ln cd [, ln(H R/6)] [, s0/OFFSET_UNIT]``
+    (:class:`FitVector`).  ``theta0`` = starting ``(k_inf, k0, cd, hr6)`` [SI;
+    hr6 = H R/6 in J m, held fixed unless ``fit_hamaker``]; ``bounds`` = fit range
+    [SI] of each of ``k_inf, k0, cd, hamaker`` in that order; ``s0`` the starting
+    surface height (default: from Z1; fitted when the model has an approach
+    record).  ``xd0``: None = periodic state at the window start, else the
+    starting dashpot position [m] of a fitted start state (``state='free'``).
+    ``scan``: first replace the starting cd by the best of ``CD_SCAN`` (and
+    itself) at the starting stiffnesses (:func:`scan_cd`).  Returns the fit
+    (parameters, residuals, Jacobian, counts).
+    """
+    vec = FitVector(model, theta0, bounds, fit_hamaker, s0, xd0)
+    x0, scanned = scan_cd(vec) if scan else (vec.x0, [])
+    sol = least_squares(
+        lambda x: vec.evaluate(x)[0], x0, jac=lambda x: vec.evaluate(x)[1], bounds=(vec.lo, vec.hi), method="trf",
+        x_scale="jac", xtol=xtol, ftol=1e-12, gtol=1e-12, max_nfev=max_nfev,
+    )  # fmt: skip
+    res, jac, jac_xd0 = vec.evaluate(sol.x)
+    theta, s0_fit, _ = vec.unpack(sol.x)
+    # Jacobian with the window's start state as one more unknown (already so when it is fitted)
+    jac_free = jac if vec.free else np.column_stack([jac, jac_xd0])
+    return {
+        "names": vec.names,
+        "x": sol.x,
+        "theta": theta,
+        "s0": s0_fit if s0_fit is not None else model.z1_offset(*theta, tangents=False)[0],
+        "s0_z1": model.z1_offset(*theta, tangents=False)[0],
+        "residual": res,
+        "xd0": float(model.window_start_xd),
+        "periodic_residual": float(model.periodic_residual),
+        "jac": jac,
+        "jac_free": jac_free,
+        "lo": vec.lo,
+        "hi": vec.hi,
+        "nfev": int(sol.nfev),
+        "njev": int(sol.njev or 0),
+        "status": int(sol.status),
+        "message": str(sol.message),
+        "scan": [(c, float(math.exp(x[2]))) for c, x in scanned],
+    }

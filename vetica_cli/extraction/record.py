@@ -1,0 +1,248 @@
+"""One record ready for any extraction method: the input checks every method shares.
+
+Input: a table with at least ``t`` [s], ``z_tip`` [m] and ``f_ts`` [N] (the
+true force) or ``z_paddle`` [m] (from which the force is reconstructed by
+spectral inversion, SPEC 6), optionally a ``segment`` column ('approach' =
+the window around the first contact, 'steady' = the taps to analyse), and the
+``vetica`` metadata dict written by ``vetica simulate`` ({} for measured
+data: then the probe's ``k2, f2, q2`` and ``Z1`` come as keyword arguments).
+
+:func:`build_record` checks the columns, picks the segments, builds the force
+(true or reconstructed), finds ``Z1`` and the surface's theory values, and
+raises :class:`~vetica_cli.errors.InputError` (one line) for whatever is missing.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+import pandas as pd
+
+from .. import surfaces
+from ..errors import ConfigError, InputError
+from ..signals.spectral import reconstruct_force, reconstruction_error
+from ..signals.taps import first_contact_minimum
+
+SOURCES = ("true", "reconstructed")  # force sources: the f_ts column, or rebuilt from the paddle signal
+FORCES = ("auto", *SOURCES)  # auto = reconstructed when z_paddle is present
+
+
+@dataclass
+class Record:
+    """The steady record of one run (or measurement) and what is known about it."""
+
+    t: np.ndarray  # [s] steady record
+    z: np.ndarray  # [m] tip position
+    f: np.ndarray  # [N] force analysed (true or reconstructed)
+    force: str  # 'true' | 'reconstructed'
+    z1: float  # [m] tip position at the first force minimum of the approach (thesis eq. 84)
+    approach: tuple | None  # (z_tip, force, index of Z1) of the approach segment when it was analysed
+    model: surfaces.SurfaceModel  # the surface the metadata describes (default: the SLS)
+    truth: dict | None  # theory values of the model's quantities, when the metadata holds its parameters
+    params: dict = field(default_factory=dict)  # resolved parameters of the metadata ({} for measured data)
+    info: dict = field(default_factory=dict)  # cutoff_hz, reconstruction_error, cutoff_harmonic, z1, z1_source
+    meta_warnings: list = field(default_factory=list)  # warnings the simulation recorded
+    t_start: float = 0.0  # perf_counter when the record was started
+    t_force: float = 0.0  # perf_counter when the force was ready
+
+    @property
+    def probe(self) -> dict:
+        return self.params.get("probe") or {}
+
+    @property
+    def surface(self) -> dict:
+        return self.params.get("surface") or {}
+
+    @property
+    def reconstruction_s(self) -> float:
+        """Wall seconds spent reconstructing the force (0 for the true force)."""
+        return (self.t_force - self.t_start) if self.force == "reconstructed" else 0.0
+
+
+def segment(df: pd.DataFrame, name: str) -> pd.DataFrame | None:
+    """Rows of one segment, or None if the table has no such rows.  A categorical column
+    is compared by its codes, not through a string copy of the whole column."""
+    if "segment" not in df.columns:
+        return None
+    seg = df["segment"]
+    sel = df[(seg == name).to_numpy()] if not hasattr(seg, "cat") or name in seg.cat.categories else df.iloc[:0]
+    return sel if len(sel) else None
+
+
+def column(df: pd.DataFrame, name: str, where: str) -> np.ndarray:
+    """A column as floats; InputError for missing or non-finite values."""
+    a = df[name].to_numpy(dtype=float)
+    if not np.all(np.isfinite(a)):
+        raise InputError(f"column {name!r} has missing or non-finite values in {where}")
+    return a
+
+
+def check_time(t: np.ndarray, where: str) -> None:
+    if len(t) < 2 or not np.all(np.diff(t) > 0):
+        raise InputError(f"time column 't' is not strictly increasing in {where}")
+
+
+def resolve_force(df: pd.DataFrame, force: str) -> str:
+    """Check the columns an extraction needs and resolve ``force='auto'`` (reconstructed
+    when ``z_paddle`` is present); InputError names what is missing."""
+    if force not in FORCES:
+        raise InputError(f"force {force!r} not allowed; choose one of: {', '.join(FORCES)}")
+    cols = set(df.columns)
+    missing = [c for c in ("t", "z_tip") if c not in cols]
+    if missing or not ({"f_ts", "z_paddle"} & cols):
+        need = missing + ([] if {"f_ts", "z_paddle"} & cols else ["f_ts or z_paddle"])
+        raise InputError(f"missing column(s): {', '.join(need)} (need t, z_tip and f_ts or z_paddle)")
+    if force == "auto":
+        force = "reconstructed" if "z_paddle" in cols else "true"
+    fcol = "f_ts" if force == "true" else "z_paddle"
+    if fcol not in cols:
+        raise InputError(f"--force {force} needs the column {fcol!r}, which the table does not have")
+    return force
+
+
+@dataclass
+class _ForceSource:
+    """The force of a segment: the ``f_ts`` column ('true'), or the spectral inversion of
+    ``z_paddle`` ('reconstructed', thesis eqs. 17-20) with the probe's ``k2, f2, q2`` from
+    the keywords or else the metadata's probe section."""
+
+    force: str
+    probe: dict
+    info: dict
+    k2: float | None = None
+    f2: float | None = None
+    q2: float | None = None
+    cutoff_hz: float | None = None
+    taper: float = 0.0
+
+    def __call__(self, seg: pd.DataFrame, where: str) -> np.ndarray:
+        if self.force == "true":
+            return column(seg, "f_ts", where)
+        p = {
+            k: v if v is not None else self.probe.get(k) for k, v in (("k2", self.k2), ("f2", self.f2), ("q2", self.q2))
+        }
+        absent = [k for k, v in p.items() if v is None]
+        if absent:
+            raise InputError(
+                f"the force reconstruction needs the probe's {', '.join(absent)} (not in the file's metadata): "
+                f"pass {' '.join('--' + k for k in absent)}, or use --force true"
+            )
+        rec = reconstruct_force(seg["t"].to_numpy(float), column(seg, "z_paddle", where),
+                                p["k2"], p["f2"], p["q2"], cutoff_hz=self.cutoff_hz, taper=self.taper)  # fmt: skip
+        self.info["cutoff_hz"] = rec.cutoff_hz
+        return rec.f
+
+
+def _steady_segment(df: pd.DataFrame) -> pd.DataFrame:
+    """The 'steady' segment; for measured data every row not labelled 'approach'."""
+    steady = segment(df, "steady")
+    if steady is None:
+        steady = df if "segment" not in df.columns else df[(df["segment"] != "approach").to_numpy()]
+        if not len(steady):
+            raise InputError("the table has no rows outside the 'approach' segment to analyse")
+    return steady
+
+
+def _steady_force(steady, force_of: _ForceSource, f1: float | None) -> np.ndarray:
+    """The force of the steady record; for a reconstructed force also its error against
+    ``f_ts`` (when present) and the cut-off in drive harmonics, in ``force_of.info``."""
+    info = force_of.info
+    f = force_of(steady, "the steady record")
+    if force_of.force == "reconstructed" and "f_ts" in steady.columns:
+        info["reconstruction_error"] = reconstruction_error(f, column(steady, "f_ts", "the steady record"))
+    drive = f1 if f1 is not None else force_of.probe.get("f1")
+    if "cutoff_hz" in info and drive:
+        info["cutoff_harmonic"] = info["cutoff_hz"] / drive
+    return f
+
+
+def _z1_reference(approach, z1, meta, force_of: _ForceSource, need_approach: bool):
+    """Z1, the undeformed-surface reference (thesis eq. 84): ``z1`` if given, else the tip
+    position at the first force minimum of the approach segment, else the metadata's
+    observable.  Returns ``(z1, approach_record)`` with ``approach_record = (z_tip, force,
+    index of Z1)`` when the approach segment was analysed (always with ``need_approach``,
+    else only when Z1 comes from it); records the value and its source in the info."""
+    rec = None
+    if approach is not None and (z1 is None or need_approach):
+        ta = column(approach, "t", "the approach segment")
+        check_time(ta, "the approach segment")
+        fa = force_of(approach, "the approach segment")
+        i1 = first_contact_minimum(fa)
+        rec = (column(approach, "z_tip", "the approach segment"), fa, i1)
+    if z1 is not None:
+        value, source = float(z1), "given"
+    elif rec is not None:
+        value, source = float(rec[0][rec[2]]), "approach segment"
+    elif (meta.get("observables") or {}).get("z1") is not None:
+        value, source = float(meta["observables"]["z1"]), "metadata"
+    else:
+        raise InputError("Z1 unknown: the table has no 'approach' segment and no metadata; pass --z1")
+    force_of.info["z1"] = value
+    force_of.info["z1_source"] = source
+    return value, rec
+
+
+def surface_of(params: dict) -> tuple[surfaces.SurfaceModel, dict | None]:
+    """The surface model of a run's resolved parameters (the default for measured data) and
+    its theory values, or None when the parameters do not hold every key of the model."""
+    surface = params.get("surface") or {}
+    try:
+        model = surfaces.get(surface.get("model", surfaces.DEFAULT_MODEL))
+    except ConfigError as exc:
+        raise InputError(f"the file's metadata: {exc}") from None
+    if not all(surface.get(k) is not None for k in model.config_keys):
+        return model, None
+    return model, model.theory(surface)
+
+
+def build_record(
+    df: pd.DataFrame,
+    meta: dict | None = None,
+    force: str = "auto",
+    *,
+    need_approach: bool = False,
+    uniform: str | None = None,
+    k2: float | None = None,
+    f2: float | None = None,
+    q2: float | None = None,
+    z1: float | None = None,
+    f1: float | None = None,
+    cutoff_hz: float | None = None,
+    taper: float = 0.0,
+) -> Record:
+    """Check a run table and prepare its steady record (module docstring).
+
+    ``force``: 'true' uses the ``f_ts`` column, 'reconstructed' rebuilds the force
+    from ``z_paddle`` (probe ``k2, f2, q2`` from the metadata or the keywords;
+    low-pass ``cutoff_hz``, default the Nyquist frequency, with a raised-cosine
+    ``taper``); 'auto' = reconstructed when ``z_paddle`` is present.  ``Z1`` comes
+    from ``z1`` if given, else from the first force minimum of the 'approach'
+    segment (with the chosen force), else from the metadata; ``need_approach``
+    analyses the approach segment even when ``z1`` is given.  ``uniform``: the name
+    of a method that needs a constant time step (checked before the force is
+    built).  ``f1`` (drive frequency, Hz) only labels the cut-off in harmonics.
+    """
+    meta = meta or {}
+    force = resolve_force(df, force)
+    t_start = time.perf_counter()
+    steady = _steady_segment(df)
+    approach = segment(df, "approach")
+    t = column(steady, "t", "the steady record")
+    check_time(t, "the steady record")
+    z = column(steady, "z_tip", "the steady record")
+    if uniform:
+        h = (t[-1] - t[0]) / (len(t) - 1)
+        if np.max(np.abs(np.diff(t) - h)) > 1e-3 * h:
+            raise InputError(f"--method {uniform} needs uniformly sampled t (constant time step) in the steady record")
+    params = meta.get("params") or {}
+    info: dict = {}
+    force_of = _ForceSource(force, params.get("probe") or {}, info, k2, f2, q2, cutoff_hz, taper)
+    f = _steady_force(steady, force_of, f1)
+    t_force = time.perf_counter()
+    z1_value, approach_rec = _z1_reference(approach, z1, meta, force_of, need_approach)
+    model, truth = surface_of(params)
+    return Record(t=t, z=z, f=f, force=force, z1=z1_value, approach=approach_rec, model=model, truth=truth,
+                  params=params, info=info, meta_warnings=list(meta.get("warnings") or []),
+                  t_start=t_start, t_force=t_force)  # fmt: skip

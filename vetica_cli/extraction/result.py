@@ -1,0 +1,110 @@
+"""The typed result every extraction method returns (:class:`ExtractionResult`), and
+the one place extracted values meet the theory (:func:`estimates`)."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+
+def finite_or_none(v) -> float | None:
+    """``float(v)``, or None for None, NaN and infinities (JSON has no NaN)."""
+    if v is None:
+        return None
+    v = float(v)
+    return v if math.isfinite(v) else None
+
+
+def error_pct(value: float | None, theory: float | None) -> float | None:
+    """Signed error of an extracted value against its theory value [%]:
+    ``100 (value - theory) / theory`` (positive = overestimate; SPEC 7 states its
+    magnitude); None when either is unknown."""
+    if value is None or not theory:
+        return None
+    return 100.0 * (value - theory) / theory
+
+
+@dataclass(frozen=True)
+class Spread:
+    """Spread of a quantity over the taps of a record (VETICA: one value per tap)."""
+
+    n: int = 0
+    mean: float | None = None
+    std: float | None = None
+    min: float | None = None
+    max: float | None = None
+
+    @classmethod
+    def of(cls, values) -> Spread:
+        """Spread of the finite ``values`` (standard deviation with ddof 1; 0 for one value)."""
+        v = np.asarray(values, dtype=float)
+        v = v[np.isfinite(v)]
+        if len(v) == 0:
+            return cls()
+        return cls(
+            n=len(v),
+            mean=float(np.mean(v)),
+            std=float(np.std(v, ddof=1)) if len(v) > 1 else 0.0,
+            min=float(np.min(v)),
+            max=float(np.max(v)),
+        )
+
+    def as_dict(self) -> dict:
+        return {"n": self.n, "mean": self.mean, "std": self.std, "min": self.min, "max": self.max}
+
+
+@dataclass(frozen=True)
+class Estimate:
+    """One extracted quantity with what is known about it."""
+
+    value: float | None  # extracted [unit]; None when the method could not produce one
+    unit: str  # SI unit
+    theory: float | None = None  # the surface model's theory value when the metadata knows the surface
+    error_pct: float | None = None  # 100 (value - theory)/theory [%]
+    sigma: float | None = None  # relative 1-sigma uncertainty (fraction; inf = unbounded); None = not reported
+    spread: Spread | None = None  # over taps; None = one value for the whole record
+    identifiable: bool | None = None  # for fitted parameters: does the record determine it?
+    reason: str | None = None  # why (not) identifiable
+
+
+@dataclass
+class ExtractionResult:
+    """What any extraction method returns for one record (rendered by :mod:`.format`)."""
+
+    method: str  # key of the extraction method (vetica_cli.extraction registry)
+    force: str  # force source analysed: 'true' (f_ts) or 'reconstructed' (spectral inversion)
+    taps: int  # complete taps in the record
+    estimates: dict[str, Estimate]  # quantity -> estimate, in the surface model's table order
+    model: str = "sls"  # surface model whose quantities these are (vetica_cli.surfaces)
+    fitted: tuple[str, ...] = ()  # parameters fitted, in fit order (identifiability reported for these)
+    info: dict = field(default_factory=dict)  # Z1 and its source, reconstruction, method details
+    diagnostics: dict | None = None  # per-method fit quality numbers
+    warnings: list = field(default_factory=list)
+    timing_s: dict = field(default_factory=dict)  # wall seconds per stage and 'total'
+
+    def value(self, name: str) -> float | None:
+        e = self.estimates.get(name)
+        return None if e is None else e.value
+
+
+def estimates(
+    values: dict, units: dict, truth: dict | None = None, spreads: dict | None = None, sigmas: dict | None = None
+) -> dict[str, Estimate]:
+    """Estimates of the quantities in ``units`` (their order): value, theory and error
+    (:func:`error_pct`) where ``truth`` knows the quantity, per-tap spread and
+    relative 1-sigma where given.  Non-finite values become None."""
+    out = {}
+    for name, unit in units.items():
+        v = finite_or_none(values.get(name))
+        th = finite_or_none(truth[name]) if truth and name in truth else None
+        out[name] = Estimate(
+            value=v,
+            unit=unit,
+            theory=th,
+            error_pct=error_pct(v, th),
+            sigma=None if sigmas is None else sigmas.get(name),
+            spread=None if spreads is None else spreads.get(name),
+        )
+    return out

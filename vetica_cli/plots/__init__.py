@@ -1,0 +1,100 @@
+"""Figures from vetica tables (``vetica plot``), headless (matplotlib Agg).
+
+Two kinds of input, told apart by their columns and metadata:
+
+* a **run** written by ``vetica simulate`` (columns ``t, z_tip, f_ts,
+  x_surface, z_paddle, segment``; metadata ``params``) gives the per-run
+  figures of the thesis: tip and surface trajectories with the transition
+  points (thesis fig. 33), force against tip position with the dissipation
+  loop (fig. 28), reconstructed against true force (spectral inversion,
+  thesis 2.3) and the "4-D" force curve, force against distance and tip
+  velocity (fig. 62, thesis 5.3.1);
+* a **sweep table** written by ``vetica sweep`` (one row per point and force
+  source) gives the parametric-study figures of thesis chapter 4, chosen from
+  the keys that were swept (see :func:`.study.select_sweep_figures`).
+
+Displayed units are the engineering ones a researcher reads (nm, nN, us, eV,
+kHz, ns); the tables stay SI.  Conventions shared by every sweep figure:
+true force = solid line, filled marker; reconstructed force = dashed line,
+open marker; ``not_steady`` points are drawn with a grey cross over the
+marker and do not count for the acceptance regime; ``failed`` points are
+excluded and counted in the note at the bottom of the figure.
+
+Modules: :mod:`.style` (conventions and helpers), :mod:`.run` (run figures),
+:mod:`.data` (the sweep rows the study figures draw), :mod:`.study` (which
+study figures a table calls for), and one module per family of study figures:
+:mod:`.errors`, :mod:`.acceptance`, :mod:`.maps`, :mod:`.observables`.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import pandas as pd
+
+from ..errors import InputError
+from ..io import read_table
+from .run import run_figures
+from .study import sweep_figures
+from .style import save_png
+
+RUN_COLUMNS = ("t", "z_tip", "f_ts", "x_surface", "segment")
+
+
+SWEEP_COLUMNS = ("force_source", "status")
+
+
+@dataclass
+class PlotResult:
+    """Files written and remarks for the user (figures skipped and why)."""
+
+    paths: list = field(default_factory=list)
+    notes: list = field(default_factory=list)
+
+
+def plot(path: str | Path, outdir: str | Path | None = None, cutoff_hz: float | None = None) -> PlotResult:
+    """Write the figures for a run or sweep table into ``outdir``.
+
+    ``outdir`` defaults to ``figures/`` next to the table.  ``cutoff_hz`` is
+    the low-pass cut-off of the run figures' spectral operations (force
+    reconstruction and tip velocity; None = Nyquist, as ``vetica extract``).  Files are named
+    ``<table stem>_<figure>.png``, so several studies can share one folder.
+    The input is read and checked completely before any file is written;
+    each PNG is written to a temporary file and renamed into place.
+    Raises InputError (one line) for a missing, corrupt or non-vetica file.
+    """
+    path = Path(path)
+    if cutoff_hz is not None and not (math.isfinite(cutoff_hz) and cutoff_hz > 0):
+        raise InputError(f"--cutoff {cutoff_hz!r} is not allowed; expected a frequency > 0 Hz")
+    df, meta = read_table(path)
+    kind = table_kind(df, meta, path)
+    if kind == "run":
+        figures, notes = run_figures(df, meta, cutoff_hz)
+    else:
+        figures, notes = sweep_figures(df, meta)
+    outdir = Path(outdir) if outdir is not None else path.parent / "figures"
+    result = PlotResult(notes=notes)
+    for name, fig in figures:
+        result.paths.append(save_png(fig, outdir / f"{path.stem}_{name}.png"))
+    return result
+
+
+def table_kind(df: pd.DataFrame, meta: dict, path: Path | str = "table") -> str:
+    """'run' or 'sweep'; InputError naming what is missing otherwise."""
+    if not meta:
+        raise InputError(
+            f"{path}: no 'vetica' metadata; expected a run from 'vetica simulate' or a table from 'vetica sweep'"
+        )
+    if all(c in df.columns for c in SWEEP_COLUMNS):
+        return "sweep"
+    if all(c in df.columns for c in RUN_COLUMNS):
+        if not isinstance(meta.get("params"), dict):
+            raise InputError(f"{path}: run table without 'params' in its metadata; rewrite it with 'vetica simulate'")
+        return "run"
+    missing_run = [c for c in RUN_COLUMNS if c not in df.columns]
+    raise InputError(
+        f"{path}: neither a run (missing columns {', '.join(missing_run)}) "
+        f"nor a sweep table (needs columns {', '.join(SWEEP_COLUMNS)})"
+    )

@@ -1,0 +1,119 @@
+"""Taps of a force record: contact and separation at the force minima (thesis 3.3.1,
+4.3.1, fig. 32; SPEC 3 and 7).
+
+In the massless Zener SLS of SPEC 3 the tip-sample force ``Fts`` is continuous at
+contact and at separation and smallest there (``-Fa(a0)``, the adhesion), so the
+force minima either side of each repulsive peak mark the tap's contact and
+separation, and the first adhesion well of the approach gives ``Z1``, the
+undeformed-surface reference (thesis eq. 84).  Used by VETICA, the whole-cycle
+fit, the simulation's ``z1`` observable and the run figures.
+"""
+
+from __future__ import annotations
+
+import itertools
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..errors import InputError
+
+
+@dataclass
+class Taps:
+    """Sample indices of the complete taps of a record (one row per tap)."""
+
+    contact: np.ndarray  # force minimum at contact
+    separation: np.ndarray  # force minimum at separation
+    peak: np.ndarray  # largest repulsive force
+    spacing: float  # median number of samples between peaks
+    incomplete: int = 0  # taps cut by the record's ends (dropped)
+
+
+def find_taps(f: np.ndarray) -> Taps:
+    """Locate every tap's contact and separation force minimum (thesis 4.3.1, fig. 32).
+
+    A tap is a run of samples above half the peak repulsive force (runs
+    split by ringing inside one contact are merged); its contact minimum is the smallest force in the half tap-spacing
+    before its peak, its separation minimum the smallest in the half spacing
+    after.  Taps whose search range is cut by the record's ends are dropped.
+    Raises InputError when the force has no repulsive peak or fewer than two taps.
+    """
+    f = np.asarray(f, dtype=float)
+    peaks = [a + int(np.argmax(f[a:b])) for a, b in _contact_runs(f)]
+    if len(peaks) < 2:
+        raise InputError(f"too few taps: found {len(peaks)} contact(s) in the record, need at least 2")
+    spacing = float(np.median(np.diff(peaks)))
+    half = int(0.5 * spacing)
+    n = len(f)
+    contact, separation, peak = [], [], []
+    incomplete = 0
+    for p in peaks:
+        lo, hi = p - half, p + half
+        if lo < 0 or hi >= n:
+            incomplete += 1
+            continue
+        ic = lo + int(np.argmin(f[lo : p + 1]))
+        isep = p + int(np.argmin(f[p : hi + 1]))
+        if ic == lo or isep == hi:  # minimum at the search edge: not a clean tap
+            incomplete += 1
+            continue
+        contact.append(ic)
+        separation.append(isep)
+        peak.append(p)
+    return Taps(np.array(contact, int), np.array(separation, int), np.array(peak, int), spacing, incomplete)
+
+
+def _contact_runs(f: np.ndarray) -> list[tuple[int, int]]:
+    """[start, end) of each run of samples above half the peak repulsive force, runs split
+    by paddle ringing inside one contact merged (gaps much shorter than the longest one)."""
+    n = len(f)
+    above = _repulsive(f, "the record")
+    edges = np.flatnonzero(np.diff(above.astype(np.int8)))
+    starts = list(edges[~above[edges]] + 1)
+    ends = list(edges[above[edges]] + 1)
+    if above[0]:
+        starts.insert(0, 0)
+    if above[-1]:
+        ends.append(n)
+    runs = list(zip(starts, ends))
+    if len(runs) >= 2:
+        gaps = np.array([a - b for (_, b), (a, _) in itertools.pairwise(runs)])
+        merged = [runs[0]]
+        for (a, b), gap in zip(runs[1:], gaps):
+            if gap < 0.25 * gaps.max():
+                merged[-1] = (merged[-1][0], b)
+            else:
+                merged.append((a, b))
+        runs = merged
+    return runs
+
+
+def _repulsive(f: np.ndarray, where: str) -> np.ndarray:
+    """Samples above half the peak repulsive force; InputError if there is no
+    repulsive peak of at least a tenth of the deepest attraction."""
+    fmax, fmin = float(np.max(f)), float(np.min(f))
+    if not (fmax > 0 and fmax > 0.1 * max(-fmin, 0.0)):
+        raise InputError(f"no contact found in {where}: the force has no repulsive peak")
+    return f > 0.5 * fmax
+
+
+def first_contact_minimum(f: np.ndarray) -> int:
+    """Index of the force minimum at the first contact of an approach record.
+
+    Z1 is the tip position at the very first adhesion well (thesis 3.3.1,
+    eq. 84).  Before the first sample above half the peak repulsive force,
+    the first run of samples within 10 % of the deepest attraction is the first
+    well (a first contact can be a graze that never turns repulsive, and then
+    the next tap's well is as deep); its smallest sample is the minimum.
+    Raises InputError when no contact is found.
+    """
+    f = np.asarray(f, dtype=float)
+    first = int(np.argmax(_repulsive(f, "the approach segment")))
+    if first == 0:
+        raise InputError("the approach segment starts in contact: cannot measure Z1")
+    before = f[:first]
+    deep = before <= before.min() + 0.10 * abs(before.min())
+    start = int(np.argmax(deep))
+    stop = start + (int(np.argmin(deep[start:])) if not deep[start:].all() else len(deep) - start)
+    return start + int(np.argmin(before[start:stop]))

@@ -1,0 +1,71 @@
+"""The detector model (issue 6): what the instrument adds to the recorded signals
+after the kernel -- a finite position-detector bandwidth and white noise.
+
+The amplitude controller inside the kernel sees the noise-free signal, so a run
+with the instrument model is the noise-free run with :func:`apply_instrument`
+applied to its records; a study shares one simulation between points that
+differ only in these keys (:func:`noise_free`).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from ..core import thc
+from .config import Config, from_dict
+
+INSTRUMENT_KEYS = ("position_noise", "force_noise", "noise_seed", "detector_bandwidth")  # numerics, post-kernel
+
+
+def noise_free(cfg: Config) -> Config:
+    """``cfg`` without the instrument model (the config the kernel sees: the
+    instrument keys act only after it, in :func:`apply_instrument`)."""
+    n = cfg.numerics
+    if not any(getattr(n, k) for k in INSTRUMENT_KEYS):
+        return cfg
+    d = cfg.to_dict()
+    for k in INSTRUMENT_KEYS:
+        d["numerics"][k] = 0
+    return from_dict(d)
+
+
+def _lowpass(x: np.ndarray, fc: float, ts: float, periodic: bool) -> np.ndarray:
+    """One-pole (RC) low-pass ``y_n = a y_(n-1) + (1 - a) x_n``, ``a = exp(-2 pi fc ts)``:
+    a detector of bandwidth ``fc`` [Hz] sampled every ``ts`` [s].  A periodic window
+    is filtered twice and the second pass kept (steady state of the filter)."""
+    from scipy.signal import lfilter
+
+    a = math.exp(-2.0 * math.pi * fc * ts)
+    b, den = [1.0 - a], [1.0, -a]
+    if periodic:
+        y, zf = lfilter(b, den, x, zi=[a * x[-1]])
+        y, _ = lfilter(b, den, x, zi=zf)
+        return y
+    y, _ = lfilter(b, den, x, zi=[a * x[0]]) if len(x) else (x, None)
+    return y
+
+
+def apply_instrument(run, cfg: Config) -> None:
+    """Detector realism on the recorded signals (issue 6): a finite position-detector
+    bandwidth, then white Gaussian noise of the given RMS on the deflections
+    (z_tip is rebuilt as z_base + z_cantilever + z_paddle) and on f_ts.
+    x_surface and x_dashpot are the simulator's truth and stay noise-free.
+    Seeded: the same config gives the same noise."""
+    n = cfg.numerics
+    if not (n.position_noise or n.force_noise or n.detector_bandwidth):
+        return
+    rng = np.random.default_rng(n.noise_seed)
+    ic, ip, it, ib, iff = (thc.COLUMNS.index(c) for c in ("z_cantilever", "z_paddle", "z_tip", "z_base", "f_ts"))
+    for arr, periodic in ((run.approach, False), (run.steady, True)):
+        if not len(arr):
+            continue
+        for i in (ic, ip):
+            if n.detector_bandwidth:
+                arr[:, i] = _lowpass(arr[:, i], n.detector_bandwidth, n.print_step, periodic)
+            if n.position_noise:
+                arr[:, i] += rng.normal(0.0, n.position_noise, len(arr))
+        arr[:, it] = arr[:, ib] + arr[:, ic] + arr[:, ip]
+        if n.force_noise:
+            arr[:, iff] += rng.normal(0.0, n.force_noise, len(arr))

@@ -1,0 +1,118 @@
+"""The acceptance regime (thesis fig. 52, SPEC 7): the range of the dashpot ``cd`` whose
+points have status 'ok' and a ``tau_c`` error of magnitude below 30 %.
+
+One definition for ``vetica sweep`` (printed, and stored in the table's metadata),
+``vetica plot`` (shaded regions, interval bars, the 30 % contour) and the scripts.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import pandas as pd
+
+ACCEPT_ERR_PCT = 30.0  # [%] tau_c error below which a point is accepted (thesis fig. 52)
+CD_KEY = "surface.cd"  # the swept key the regime is a range of
+ERR_COL = "tau_c_err_pct"  # the error that decides (any *_err_pct column may be asked for)
+
+
+def accepted(d: pd.DataFrame, err_col: str = ERR_COL) -> pd.Series:
+    """Rows accepted: status 'ok' and ``|err_col| < ACCEPT_ERR_PCT`` (signed or unsigned errors)."""
+    return (d["status"].astype(str) == "ok") & (d[err_col].abs() < ACCEPT_ERR_PCT)
+
+
+@dataclass
+class Regime:
+    """Acceptance regime of one force source at one setting of the other keys."""
+
+    lo: float  # lowest accepted cd [kg/s]
+    hi: float  # highest accepted cd [kg/s]
+    accepted: np.ndarray  # every accepted cd
+    contiguous: bool  # the accepted points are one unbroken run of the cd grid
+
+    @property
+    def decades(self) -> float:
+        return float(np.log10(self.hi / self.lo))
+
+
+def regime(d: pd.DataFrame, err_col: str = ERR_COL, cd_key: str = CD_KEY) -> Regime | None:
+    """The range of cd whose points are :func:`accepted`: lowest to highest accepted cd, and
+    whether the accepted points are one unbroken run of the cd grid (a not-steady, failed
+    or inaccurate point in between breaks it).  None when no point is accepted."""
+    grid = np.sort(d[cd_key].to_numpy(float))
+    acc = np.sort(d.loc[accepted(d, err_col), cd_key].to_numpy(float))
+    if not len(acc):
+        return None
+    i0 = int(np.searchsorted(grid, acc[0]))
+    contiguous = bool(np.array_equal(grid[i0 : i0 + len(acc)], acc))
+    return Regime(float(acc[0]), float(acc[-1]), acc, contiguous)
+
+
+_FIELDS = ("n_points", "n_accepted", "n_not_steady", "n_failed", "cd_min", "cd_max", "decades", "contiguous")
+
+
+def acceptance_regime(table: pd.DataFrame, keys, cd_key: str = CD_KEY, err_col: str = ERR_COL) -> list[dict]:
+    """:func:`regime` for every combination of the other swept keys (the extraction method
+    is the 'method' column) and each force source, with point counts."""
+    if cd_key not in keys:
+        return []
+    # extraction keys are columns of their own: extract.method -> 'method', extract.force -> 'force_source'
+    others = ["method" if k == "extract.method" else k for k in keys if k != cd_key and k != "extract.force"]
+    if "method" not in others and "method" in table.columns and table["method"].nunique() > 1:
+        others.append("method")
+    out = []
+    group_cols = [*others, "force_source"]
+    for combo, g in table.groupby(group_cols, sort=False, dropna=False):
+        combo = combo if isinstance(combo, tuple) else (combo,)
+        r = regime(g, err_col, cd_key)
+        entry = {k: _plain(v) for k, v in zip(group_cols, combo)}
+        entry.update(
+            n_points=len(g),
+            n_accepted=len(r.accepted) if r else 0,
+            n_not_steady=int((g["status"] == "not_steady").sum()),
+            n_failed=int((g["status"] == "failed").sum()),
+            cd_min=r.lo if r else None,
+            cd_max=r.hi if r else None,
+            decades=r.decades if r else None,
+            contiguous=r.contiguous if r else False,
+        )
+        out.append(entry)
+    return out
+
+
+def _plain(v):
+    if isinstance(v, (np.floating,)):
+        return float(v)
+    if isinstance(v, (np.integer,)):
+        return int(v)
+    if isinstance(v, np.bool_):
+        return bool(v)
+    return v
+
+
+def format_acceptance(acc: list[dict], keys) -> str:
+    """Human-readable acceptance regime, one line per combination and force source."""
+    if CD_KEY not in keys:
+        return "acceptance regime: surface.cd is not swept, so there is no cd range to report"
+    lines = [f"acceptance regime (status ok and tau_c error < {ACCEPT_ERR_PCT:g} %):"]
+    for e in acc:
+        where = ", ".join(f"{k}={_g(v)}" for k, v in e.items() if k not in _FIELDS and k != "force_source")
+        head = f"  {where + ', ' if where else ''}{e['force_source']} force: "
+        if e["n_accepted"] == 0:
+            body = "none"
+        else:
+            body = f"cd {e['cd_min']:.3g} .. {e['cd_max']:.3g} kg/s ({e['decades']:.2f} decades)"
+            if not e["contiguous"]:
+                body += ", with gaps"
+        extra = f"{e['n_accepted']}/{e['n_points']} points"
+        if e["n_not_steady"]:
+            extra += f", {e['n_not_steady']} not steady"
+        if e["n_failed"]:
+            extra += f", {e['n_failed']} failed"
+        lines.append(f"{head}{body} [{extra}]")
+    return "\n".join(lines)
+
+
+def _g(v):
+    return f"{v:g}" if isinstance(v, float) else str(v)

@@ -1,0 +1,141 @@
+"""Launchers: where a study's tasks run.  A launcher gets the task function passed in
+(hydra's ``Launcher.launch(job)``): ``launch(fn, args, on_result)`` calls
+``fn(a)`` for every ``a`` of ``args`` and hands each result to ``on_result(i,
+result)`` in this process as it finishes, in any order.
+
+* :class:`SerialLauncher`: in this process, in order (``--jobs 1``);
+* :class:`LokyLauncher`: ``jobs`` loky worker processes (joblib);
+* :class:`DaskLauncher`: a Dask cluster through joblib's dask backend (a given
+  scheduler, or a local cluster of ``jobs`` single-threaded worker processes).
+
+Inner numba/BLAS threads are capped at one per worker (:data:`THREAD_VARS`) so
+two workers use two cores.  A launcher is opened before any output is written,
+so an unreachable scheduler exits with one line and leaves nothing.
+"""
+
+from __future__ import annotations
+
+import os
+from abc import ABC, abstractmethod
+from collections.abc import Callable
+from typing import Any
+
+from ..errors import InputError
+
+THREAD_VARS = ("NUMBA_NUM_THREADS", "OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS")
+BACKENDS = ("loky", "dask")
+
+
+def cap_threads() -> None:
+    """One numba/BLAS thread per process unless the user chose otherwise."""
+    for var in THREAD_VARS:
+        os.environ.setdefault(var, "1")
+
+
+def indexed_call(fn: Callable, i: int, arg: Any) -> tuple[int, Any]:
+    """``(i, fn(arg))``: a job that names its own place in the argument list (module level:
+    joblib pickles it)."""
+    return i, fn(arg)
+
+
+class Launcher(ABC):
+    """Runs a task function over a list of arguments (module docstring)."""
+
+    @abstractmethod
+    def launch(self, fn: Callable, args: list, on_result: Callable[[int, Any], None]) -> None:
+        """Call ``fn(args[i])`` for every i; ``on_result(i, result)`` in this process as each finishes."""
+
+    def close(self) -> None:
+        """Release workers or the cluster connection."""
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        self.close()
+        return False
+
+
+class SerialLauncher(Launcher):
+    """In this process, in order."""
+
+    def launch(self, fn, args, on_result) -> None:
+        for i, a in enumerate(args):
+            on_result(i, fn(a))
+
+
+class _JoblibLauncher(Launcher):
+    """Unordered results through a joblib backend (subclasses choose the backend)."""
+
+    def _config(self):
+        raise NotImplementedError
+
+    def launch(self, fn, args, on_result) -> None:
+        from joblib import Parallel, delayed
+
+        if not args:
+            return
+        config, par_kw = self._config()
+        with config:
+            par = Parallel(return_as="generator_unordered", batch_size=1, **par_kw)
+            for i, res in par(delayed(indexed_call)(fn, i, a) for i, a in enumerate(args)):
+                on_result(i, res)
+
+
+class LokyLauncher(_JoblibLauncher):
+    """``jobs`` loky worker processes, one inner thread each."""
+
+    def __init__(self, jobs: int):
+        self.jobs = jobs
+
+    def _config(self):
+        from joblib import parallel_config
+
+        return parallel_config(backend="loky", n_jobs=self.jobs, inner_max_num_threads=1), {"pre_dispatch": "n_jobs"}
+
+
+class DaskLauncher(_JoblibLauncher):
+    """A Dask cluster: the scheduler at ``scheduler``, or a local cluster of ``jobs``
+    single-threaded worker processes.  Connects on construction."""
+
+    def __init__(self, jobs: int, scheduler: str | None = None):
+        try:
+            from dask.distributed import Client, LocalCluster
+        except ImportError:
+            raise InputError("--backend dask needs dask and distributed: pip install -e '.[dask]'") from None
+        self.client = self.cluster = None
+        if scheduler:
+            try:
+                self.client = Client(scheduler, timeout="10s")
+            except (OSError, TimeoutError, ValueError) as exc:
+                raise InputError(f"--scheduler {scheduler!r}: cannot connect ({type(exc).__name__})") from None
+        else:
+            self.cluster = LocalCluster(n_workers=jobs, threads_per_worker=1, processes=True, dashboard_address=None,
+                                        env={v: "1" for v in THREAD_VARS})  # fmt: skip
+            self.client = Client(self.cluster)
+
+    def _config(self):
+        from joblib import parallel_config
+
+        return parallel_config(backend="dask", n_jobs=-1, wait_for_workers_timeout=60), {}
+
+    def close(self) -> None:
+        if self.client is not None:
+            self.client.close()
+        if self.cluster is not None:
+            self.cluster.close()
+
+
+def make_launcher(backend: str = "loky", jobs: int = 2, scheduler: str | None = None) -> Launcher:
+    """The launcher for the CLI's ``--backend``, ``--jobs`` and ``--scheduler``; InputError
+    (one line) for a bad combination or an unreachable scheduler."""
+    if jobs < 1:
+        raise InputError(f"--jobs {jobs}: expected an integer >= 1")
+    if backend not in BACKENDS:
+        raise InputError(f"--backend {backend!r} is not allowed; expected loky or dask")
+    if scheduler and backend != "dask":
+        raise InputError("--scheduler needs --backend dask")
+    cap_threads()
+    if backend == "dask":
+        return DaskLauncher(jobs, scheduler)
+    return SerialLauncher() if jobs == 1 else LokyLauncher(jobs)

@@ -1,0 +1,131 @@
+"""Persisted points: one Parquet part per finished point in ``<output>.parts/``, written
+atomically as it completes, so a killed sweep run again computes only the missing
+points (STYLE: sweeps behave like hydra's multirun).
+
+A part records the point key (a hash of the resolved point config and the
+package version) and a fingerprint of the source that computed it
+(:func:`code_fingerprint`); a part made by other code, for another print-step
+group, method or force sources is stale and recomputed.
+"""
+
+from __future__ import annotations
+
+import ast
+import functools
+import hashlib
+import math
+from pathlib import Path
+
+import pandas as pd
+
+from .. import __version__
+from ..errors import InputError
+from ..io import read_table, write_table
+from .grid import Point
+from .schema import point_sources, result_columns
+
+PACKAGE = Path(__file__).resolve().parent.parent
+# the modules whose import closure computes a point's rows: the task (simulation and extraction),
+# the planning that shares simulations, the points and their keys, the row schema, and this store
+FINGERPRINT_ROOTS = ("study/task.py", "study/plan.py", "study/grid.py", "study/schema.py", "study/store.py")
+
+
+def _local_imports(path: Path, root: Path) -> set[Path]:
+    """Package files imported by ``path`` (relative or ``vetica_cli.`` imports, at any depth in the file)."""
+    out: set[Path] = set()
+    for node in ast.walk(ast.parse(path.read_bytes())):
+        if not isinstance(node, ast.ImportFrom):
+            continue
+        if node.level:
+            base = path.parent
+            for _ in range(node.level - 1):
+                base = base.parent
+            parts = node.module.split(".") if node.module else []
+        elif node.module and node.module.split(".")[0] == root.name:
+            base, parts = root, node.module.split(".")[1:]
+        else:
+            continue
+        base = base.joinpath(*parts)
+        candidates = [base.with_suffix(".py"), base / "__init__.py"]
+        candidates += [base / f"{a.name}.py" for a in node.names]  # from .core import thc
+        candidates += [base / a.name / "__init__.py" for a in node.names]  # from .. import surfaces
+        out.update(c.resolve() for c in candidates if c.is_file() and root in c.resolve().parents)
+    return out
+
+
+def fingerprint_files() -> list[Path]:
+    """The import closure of :data:`FINGERPRINT_ROOTS`: simulation, extraction, surfaces,
+    signals, kernels, and the study code that turns them into rows."""
+    todo = [PACKAGE / name for name in FINGERPRINT_ROOTS]
+    missing = [str(f) for f in todo if not f.is_file()]
+    if missing:  # a moved module must not silently drop out of the fingerprint
+        raise FileNotFoundError(f"fingerprint roots missing: {', '.join(missing)}")
+    seen: set[Path] = set()
+    while todo:
+        f = todo.pop()
+        if f in seen:
+            continue
+        seen.add(f)
+        todo.extend(_local_imports(f, PACKAGE) - seen)
+    return sorted(seen)
+
+
+@functools.lru_cache(maxsize=1)
+def code_fingerprint() -> str:
+    """Hash of the package source that computes a point (:func:`fingerprint_files`).
+    A part made by different code is stale and is recomputed, so a resumed sweep
+    never mixes results of two code versions; editing e.g. the plots leaves
+    parts valid."""
+    h = hashlib.sha256()
+    for f in fingerprint_files():
+        h.update(str(f.relative_to(PACKAGE)).encode())
+        h.update(f.read_bytes())
+    return h.hexdigest()[:16]
+
+
+def parts_dir(output: Path) -> Path:
+    return Path(output).with_name(Path(output).name + ".parts")
+
+
+def part_path(pdir: Path, key: str) -> Path:
+    return pdir / f"{key}.parquet"
+
+
+def read_part(path: Path, point: Point, sim_print_step: float) -> pd.DataFrame | None:
+    """A persisted point, or None if absent, unreadable or made differently."""
+    if not path.is_file():
+        return None
+    try:
+        df, meta = read_table(path)
+    except InputError:
+        return None
+    if meta.get("point") != point.key or meta.get("code") != code_fingerprint():
+        return None
+    if not math.isclose(float(meta.get("sim_print_step", -1)), sim_print_step, rel_tol=1e-12):
+        return None
+    if list(df["force_source"]) != list(point_sources(point.force)):
+        return None
+    if "method" not in df.columns or set(df["method"]) != {point.method}:
+        return None
+    return df
+
+
+def rows_frame(point: Point, rows: list[dict]) -> pd.DataFrame:
+    """A point's rows as a frame with the columns of its surface model."""
+    return pd.DataFrame(rows, columns=result_columns([point.config.surface.surface_model]))
+
+
+def write_part(pdir: Path, point: Point, rows: list[dict], sim_print_step: float) -> Path:
+    """Persist a finished point (atomically)."""
+    meta = {
+        "point": point.key,
+        "index": point.index,
+        "values": point.values,
+        "params": point.config.to_dict(),
+        "method": point.method,
+        "force": point.force,
+        "sim_print_step": sim_print_step,
+        "version": __version__,
+        "code": code_fingerprint(),
+    }
+    return write_table(rows_frame(point, rows), part_path(pdir, point.key), meta)

@@ -1,0 +1,165 @@
+"""The task a launcher runs: simulate one point, or one group of points sharing a
+simulation (:mod:`.plan`), and extract each point with each of its force sources,
+giving the rows of the study table (:mod:`.schema`).
+
+:class:`PointTask` holds the simulation and extraction functions it calls, so a
+test passes a fake extraction (``PointTask(extract=fake)``) to
+:func:`vetica_cli.study.sweep.run_sweep` instead of patching this module.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from collections.abc import Callable
+from dataclasses import dataclass
+
+from ..extraction import DEFAULT_METHOD, ExtractionResult, extract
+from ..simulation.config import Config, from_dict
+from ..simulation.simulate import Run, simulate
+from .plan import fine_config, point_run
+from .schema import OBSERVABLES, point_sources, sigma_names
+
+Item = tuple  # (point key, resolved config dict, extract.method, extract.force)
+Rows = list  # of dicts keyed by schema.result_columns()
+
+
+def extract_point(df, meta: dict, force: str, method: str) -> ExtractionResult:
+    """The extraction a study row records: :func:`vetica_cli.extraction.extract` with the
+    CLI's defaults (kg_points 10, low-pass at Nyquist)."""
+    return extract(df, meta, force=force, method=method, kg_points=10)
+
+
+def _err_text(exc: BaseException) -> str:
+    text = f"{type(exc).__name__}: {exc}".strip()
+    return " ".join(text.split())[:500]
+
+
+def _float(v) -> float:
+    try:
+        return float(v)
+    except (TypeError, ValueError):
+        return math.nan
+
+
+def nan_row(cfg: Config, source: str, method: str = DEFAULT_METHOD) -> dict:
+    """A row of a point that produced nothing yet: theory values from the point's surface
+    model, everything else empty, status 'failed'."""
+    model = cfg.surface.surface_model
+    th = model.theory(cfg.surface.params)
+    row: dict = {"method": method, "force_source": source}
+    for name in model.quantities:
+        row[name] = math.nan
+        row[f"{name}_theory"] = float(th[name])
+        row[f"{name}_err_pct"] = math.nan
+    for name in sigma_names(model):
+        row[f"{name}_sigma_pct"] = math.nan
+    row["unidentified"] = ""
+    row["taps"] = -1
+    for name in OBSERVABLES:
+        row[name] = math.nan
+    row.update(stop_reason="", sim_time=math.nan, status="failed", error="", wall_s=0.0)
+    return row
+
+
+def fill_row(row: dict, res: ExtractionResult, fitted: tuple[str, ...]) -> None:
+    """Copy an extraction's estimates into a row (``fitted``: the sigma columns)."""
+    for name, e in res.estimates.items():
+        if f"{name}_err_pct" not in row:  # a quantity the table has no column for (e.g. a fitted H)
+            continue
+        row[name] = _float(e.value)
+        if e.theory is not None:
+            row[f"{name}_theory"] = _float(e.theory)
+        row[f"{name}_err_pct"] = _float(e.error_pct)
+    for name in fitted:
+        e = res.estimates.get(name)
+        sigma = _float(e.sigma if e is not None else None)
+        row[f"{name}_sigma_pct"] = 100.0 * sigma if math.isfinite(sigma) else math.nan
+    row["unidentified"] = ",".join(k for k in fitted if k in res.estimates and res.estimates[k].identifiable is False)
+    row["taps"] = int(res.taps if res.taps is not None else -1)
+
+
+def failed_rows(cfg: Config, exc: BaseException, where: str, wall: float, method: str, force: str) -> Rows:
+    rows = []
+    for source in point_sources(force):
+        row = nan_row(cfg, source, method)
+        row["error"] = f"{where}: {_err_text(exc)}"
+        row["wall_s"] = wall
+        rows.append(row)
+    return rows
+
+
+@dataclass(frozen=True)
+class PointTask:
+    """Simulate and extract the points of one planned task (picklable: module-level functions).
+
+    ``simulate(cfg) -> Run`` and ``extract(df, meta, force, method) -> ExtractionResult``
+    default to the real ones."""
+
+    simulate: Callable[[Config], Run] = simulate
+    extract: Callable[..., ExtractionResult] = extract_point
+
+    def __call__(self, items: list[Item]) -> list[tuple[str, Rows, float]]:
+        """``items`` = ``(point key, resolved config dict, extract.method, extract.force)`` of
+        the task's points; several items share one simulation (:func:`.plan.fine_config`).
+        Returns ``[(point key, rows, print step simulated at), ...]``.  Never raises for a
+        point: errors become rows with status 'failed'."""
+        cfgs = [from_dict(d) for _, d, _, _ in items]
+        if len(items) == 1:
+            (key, _, method, force), cfg = items[0], cfgs[0]
+            return [(key, self.simulate_point(cfg, method, force), cfg.numerics.print_step)]
+        fcfg = fine_config(cfgs)
+        t0 = time.perf_counter()
+        fine, fine_exc = None, None
+        if fcfg is not None:
+            try:
+                fine = self.simulate(fcfg)
+            except Exception as exc:  # noqa: BLE001
+                fine_exc = exc
+        sim_wall = time.perf_counter() - t0
+        out = []
+        for (key, _, method, force), cfg in zip(items, cfgs):
+            ps = fcfg.numerics.print_step if fcfg is not None else cfg.numerics.print_step
+            if fine_exc is not None:
+                out.append((key, failed_rows(cfg, fine_exc, "simulate", sim_wall, method, force), ps))
+                continue
+            run = point_run(fine, fcfg, cfg) if fine is not None else None
+            if run is None:  # the shared record does not cover this point: run it alone
+                out.append((key, self.simulate_point(cfg, method, force), cfg.numerics.print_step))
+            else:
+                out.append((key, self.rows_for_run(cfg, run, sim_wall, method, force), ps))
+        return out
+
+    def simulate_point(self, cfg: Config, method: str, force: str) -> Rows:
+        """One point on its own: simulate, then extract."""
+        t0 = time.perf_counter()
+        try:
+            run = self.simulate(cfg)
+        except Exception as exc:  # noqa: BLE001
+            return failed_rows(cfg, exc, "simulate", time.perf_counter() - t0, method, force)
+        return self.rows_for_run(cfg, run, time.perf_counter() - t0, method, force)
+
+    def rows_for_run(self, cfg: Config, run: Run, sim_wall: float, method: str, force: str) -> Rows:
+        """Extract a finished run with each force source -> one row each."""
+        df, meta = run.frame(), run.metadata()
+        fitted = sigma_names(cfg.surface.surface_model)
+        rows = []
+        for source in point_sources(force):
+            row = nan_row(cfg, source, method)
+            for name in OBSERVABLES:
+                v = run.observables.get(name)
+                row[name] = math.nan if v is None else float(v)
+            row["stop_reason"] = run.stop_reason
+            row["sim_time"] = float(run.info["t_end"])
+            t0 = time.perf_counter()
+            try:
+                fill_row(row, self.extract(df, meta, source, method), fitted)
+                row["status"] = "ok" if run.stop_reason == "steady" else "not_steady"
+                row["error"] = ""
+            except Exception as exc:  # noqa: BLE001 - a failed point becomes a row
+                row["status"] = "failed"
+                where = source if method == DEFAULT_METHOD else f"{source}, {method}"
+                row["error"] = f"extract({where}): {_err_text(exc)}"
+            row["wall_s"] = sim_wall + (time.perf_counter() - t0)
+            rows.append(row)
+        return rows

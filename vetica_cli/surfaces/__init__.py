@@ -1,0 +1,21 @@
+"""Registry of surface models (:mod:`.base` states the convention each follows).
+
+``MODELS`` maps ``surface.model`` values to model instances; :func:`get` looks
+one up.  Each model module registers itself on import: adding a model is adding
+its module and one import line below.
+"""
+
+from . import sls  # noqa: F401  (registers "sls")
+from .base import COMMON_KEYS, DEFAULT_MODEL, MODELS, CommonKey, DerivedKey, Quantity, SurfaceModel, get, register
+
+__all__ = [
+    "COMMON_KEYS",
+    "DEFAULT_MODEL",
+    "MODELS",
+    "CommonKey",
+    "DerivedKey",
+    "Quantity",
+    "SurfaceModel",
+    "get",
+    "register",
+]

@@ -1,0 +1,173 @@
+"""The convention every surface model follows, and the registry that collects them.
+
+A surface model is one module (``surfaces/<key>.py``) defining a subclass of
+:class:`SurfaceModel` decorated with :func:`register`, in the manner of nanite's
+model modules: it declares its ``key``, ``parameter_keys`` and
+``parameter_units``, carries its equation and thesis reference in its
+docstring, validates its keys of the config's ``surface:`` section, gives the
+theory values of the quantities an extraction reports, the fit bounds of its
+parameters, the derived sweep keys it offers, and the coefficient arrays the
+numba kernel needs (:meth:`SurfaceModel.kernel_arms`).  Adding a model is adding
+a module and one import line in :mod:`vetica_cli.surfaces`;
+``tests/test_registries.py`` checks every registered model against this
+convention.
+
+The van der Waals attraction is common to every model (thesis eq. 3, SPEC 3):
+its keys (:data:`COMMON_KEYS`) live in the same ``surface:`` section.
+"""
+
+from __future__ import annotations
+
+import copy
+import inspect
+from abc import ABC, abstractmethod
+from collections.abc import Callable
+from dataclasses import dataclass
+from typing import Any, ClassVar
+
+import numpy as np
+
+from ..checks import Rule, check, coerce, positive
+from ..errors import ConfigError
+
+DEFAULT_MODEL = "sls"  # the model of a surface section without a 'model' key (every v0.1 config)
+
+
+@dataclass(frozen=True)
+class Quantity:
+    """A quantity an extraction reports for a surface: its SI unit and how tables and figures name it."""
+
+    unit: str  # SI unit, e.g. "N/m"
+    label: str  # plain-text name for tables, e.g. "Kg"
+    tex: str  # matplotlib name, e.g. r"$K_g$"
+    display_unit: str = ""  # unit the figures show (default: the SI unit)
+    display_scale: float = 1.0  # SI -> display factor
+    plotted: bool = True  # drawn in the study figures of errors and values (thesis figs. 43-47)
+    description: str = ""  # one phrase, e.g. "glassy stiffness"
+
+    @property
+    def shown_unit(self) -> str:
+        return self.display_unit or self.unit
+
+
+@dataclass(frozen=True)
+class DerivedKey:
+    """A sweep/config key that sets one model key from another: ``target = value * source``."""
+
+    target: str  # model key it sets, e.g. "k0"
+    source: str  # model key it multiplies, e.g. "k_inf"
+    description: str  # e.g. "k0 = ratio * k_inf (thesis 4.4.2)"
+    label: str = ""  # axis label (matplotlib)
+    short: str = ""  # short label for legends (matplotlib)
+    fmt: Callable[[float], str] | None = None  # how a value is written (e.g. a ratio as 16:1)
+
+
+@dataclass(frozen=True)
+class CommonKey:
+    """A surface key every model has (the attraction of thesis eq. 3)."""
+
+    default: Any
+    type: str  # 'float' | 'bool'
+    unit: str
+    rule: Rule | None = None
+
+
+# surface keys shared by every model: van der Waals attraction Fa(d) = H R/(6 d^2) (thesis eq. 3, SPEC 3)
+COMMON_KEYS: dict[str, CommonKey] = {
+    "hamaker": CommonKey(0.2e-18, "float", "J", (positive, "a Hamaker constant > 0 J")),  # H
+    "a0": CommonKey(0.2e-9, "float", "m", (positive, "a distance > 0 m")),  # intermolecular distance
+    "vdw_on_surface": CommonKey(True, "bool", ""),  # the attraction also pulls the surface (SPEC 3)
+}
+
+
+class SurfaceModel(ABC):
+    """Base of every surface model (one subclass per module; see the module docstring).
+
+    Subclasses set the class attributes and implement :meth:`theory`,
+    :meth:`kernel_arms` and :meth:`log_gradients`.  ``params`` is always the
+    dict :meth:`parse` returns (SI values keyed by the model's config keys).
+    """
+
+    key: ClassVar[str]  # the surface.model value, e.g. "sls"
+    name: ClassVar[str]  # short name for titles and units, e.g. "SLS"
+    parameter_keys: ClassVar[tuple[str, ...]]  # fitted/physical parameters, e.g. ("k_inf", "k0", "cd")
+    parameter_units: ClassVar[dict[str, str]]
+    parameter_labels: ClassVar[dict[str, str]]  # matplotlib labels of the parameters
+    parameter_axis_labels: ClassVar[dict[str, str]] = {}  # longer axis labels where they differ
+    defaults: ClassVar[dict[str, Any]]  # default value of every config key of the model
+    rules: ClassVar[dict[str, Rule]]  # scalar config key -> (predicate, what is allowed)
+    quantities: ClassVar[dict[str, Quantity]]  # what an extraction reports, in table order
+    fit_bounds: ClassVar[dict[str, tuple[float, float]]]  # parameter -> (lower, upper) [SI]
+    derived_keys: ClassVar[dict[str, DerivedKey]] = {}  # e.g. stiffness_ratio -> k0 = ratio * k_inf
+    theory_source: ClassVar[str]  # what the theory values are, for the table units
+
+    @property
+    def config_keys(self) -> tuple[str, ...]:
+        """The model's keys of the ``surface:`` section (besides ``model`` and :data:`COMMON_KEYS`)."""
+        return tuple(self.defaults)
+
+    def parse_key(self, name: str, value: Any) -> Any:
+        """One config key's value, coerced and checked (ConfigError names ``surface.<name>``).
+        Default: a finite number that satisfies ``rules[name]``; a model with
+        non-scalar keys (a list of arms) overrides this."""
+        key = f"surface.{name}"
+        return check(key, value, coerce(key, value, "float"), self.rules.get(name))
+
+    def complete(self, values: dict) -> dict:
+        """The full parameter dict: ``values`` (already parsed) with defaults for the missing
+        keys, in declaration order; cross-key checks raise ConfigError."""
+        return {k: values[k] if k in values else copy.deepcopy(d) for k, d in self.defaults.items()}
+
+    def parse(self, raw: dict) -> dict:
+        """Validated parameters from the model's keys of a ``surface:`` section."""
+        return self.complete({name: self.parse_key(name, value) for name, value in raw.items()})
+
+    @abstractmethod
+    def theory(self, params: dict) -> dict[str, float]:
+        """Theory value of every quantity in :attr:`quantities` [SI]."""
+
+    @abstractmethod
+    def kernel_arms(self, params: dict) -> tuple[float, np.ndarray, np.ndarray]:
+        """The surface for the numba kernel: ``(k_inf [N/m], k [N/m] per Maxwell arm,
+        cd [kg/s] per arm)``; ``k`` and ``cd`` are float arrays of equal length >= 1."""
+
+    @abstractmethod
+    def log_gradients(self, params: dict) -> dict[str, tuple[float, ...]]:
+        """``d ln q / d ln p`` for every quantity q, p over :attr:`parameter_keys` in order
+        (propagates a fit's covariance of the log-parameters to every quantity)."""
+
+    def title_items(self, params: dict, swept: set | frozenset = frozenset()) -> list[str]:
+        """The surface's parameters for a figure title (matplotlib), leaving out swept keys."""
+        return [
+            f"{self.parameter_labels[k]} {params[k]:g} {self.parameter_units[k]}"
+            for k in self.parameter_keys
+            if f"surface.{k}" not in swept and isinstance(params.get(k), (int, float))
+        ]
+
+    def study_title_items(self, section: dict, swept: set | frozenset = frozenset()) -> list[str]:
+        """The fixed surface of a study (its base ``surface:`` section as written, derived
+        keys included) for its figure titles, leaving out swept keys."""
+        return self.title_items(section, swept)
+
+
+MODELS: dict[str, SurfaceModel] = {}
+
+
+def register(cls: type[SurfaceModel]) -> type[SurfaceModel]:
+    """Class decorator: add one instance of the model to :data:`MODELS` under its ``key``."""
+    if cls.key in MODELS:
+        raise ValueError(f"surface model {cls.key!r} is registered twice")
+    MODELS[cls.key] = cls()
+    return cls
+
+
+def get(key: str) -> SurfaceModel:
+    """The registered model ``key``; ConfigError (surface.model) listing the registered ones."""
+    if not isinstance(key, str) or key not in MODELS:
+        raise ConfigError(f"surface.model: {key!r} is not allowed; expected one of: {', '.join(MODELS)}")
+    return MODELS[key]
+
+
+def doc(model: SurfaceModel) -> str:
+    """The model's docstring (equation and thesis reference)."""
+    return inspect.getdoc(type(model)) or ""
