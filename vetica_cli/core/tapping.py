@@ -487,6 +487,7 @@ def _far(s, n_end, zb_step, p, a, lad, lemi, lg, buf, r, o, energy, rec_mode):
     m1, m2, c1, c2, f0 = p[P_M1], p[P_M2], p[P_C1], p[P_C2], p[P_F0]
     zr, zi, omega = p[P_ZR], p[P_ZI], p[P_OMEGA]
     hr6, dsw, dt, invkg = p[P_HR6], p[P_DSW], p[P_DT], p[P_INVKG]
+    ihr6 = p[P_IHR6]
     w2 = math.sqrt(p[P_K2] / m2)
     curv = p[P_K1] / m1  # omega1^2: bound on the cantilever's curvature per unit deflection
     lam1 = -0.5 * c1 / m1
@@ -550,13 +551,20 @@ def _far(s, n_end, zb_step, p, a, lad, lemi, lg, buf, r, o, energy, rec_mode):
                 xs += k_arm[i] * xd_new[i]
             fa1 = fa
             x1 = (xs + (fa1 if vdw else 0.0)) * invkg
-            for _ in range(3):
+            # the attraction at the end, consistent with the surface it pulls (fixed point; the
+            # gain 2 Fa/(d Kg) is small this far out; without the pull one evaluation is exact)
+            for _ in range(4):
                 d1 = z1 - x1
                 if d1 <= 0.0:
                     break
-                fa1 = hr6 / (d1 * d1)
-                if vdw:
-                    x1 = (xs + fa1) * invkg
+                fa_new = vdw_force(d1, fa1, hr6, ihr6)
+                converged = abs(fa_new - fa1) <= 1e-12 * fa_new
+                fa1 = fa_new
+                if not vdw:
+                    break
+                x1 = (xs + fa1) * invkg
+                if converged:
+                    break
             d1 = z1 - x1
             vc3 = vc2 - hh * fa1 / m1
             vp3 = vp2 - hh * fa1 / m2
