@@ -5,7 +5,7 @@ import math
 import numpy as np
 import pytest
 
-from vetica_cli.core.thc import COLUMNS
+from vetica_cli.core.tapping import COLUMNS
 from vetica_cli.errors import ConfigError
 from vetica_cli.simulation.config import load
 from vetica_cli.simulation.observables import harmonic

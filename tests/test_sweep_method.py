@@ -26,7 +26,7 @@ from vetica_cli.simulation.instrument import noise_free
 from vetica_cli.simulation.simulate import simulate
 from vetica_cli.study.acceptance import acceptance_regime, format_acceptance
 from vetica_cli.study.grid import expand, point_key
-from vetica_cli.study.plan import fine_config, plan, point_run
+from vetica_cli.study.plan import plan, point_run
 from vetica_cli.study.sweep import run_sweep
 from vetica_cli.study.task import PointTask
 
@@ -123,12 +123,10 @@ def test_bad_method_on_the_command_line_exits_2_and_writes_nothing(tmp_path):
 
 
 def test_points_differing_in_method_and_noise_share_one_simulation(tmp_path):
-    """2 cd x 2 methods x 2 noise levels = 8 points -> 2 simulations (counted), with the
-    print-step sharing switched off too (method/noise sharing is exact and always on)."""
+    """2 cd x 2 methods x 2 noise levels = 8 points -> 2 simulations (counted)."""
     st = cheap({"surface.cd": [1e-5, 1e-3], "extract.method": ["vetica", "full"],
                 "numerics.position_noise": [0.0, 1e-11]})  # fmt: skip
     assert [len(t.points) for t in plan(st)] == [4, 4]
-    assert [len(t.points) for t in plan(st, share_print_step=False)] == [4, 4]
     calls = []
 
     def counting(cfg):
@@ -175,33 +173,21 @@ def test_force_key_restricts_the_sources_and_zips_with_the_noise(tmp_path):
 
 def test_shared_record_with_noise_equals_a_separate_noisy_simulation():
     """The instrument model acts after the kernel, so the shared noise-free record with
-    the point's noise applied is bit-identical to simulating the noisy point alone;
-    also for a coarser print step taken from a finer shared record (same samples as
-    a separate run up to the controller's picometre-level difference, test_sweep.py)."""
+    the point's noise applied is bit-identical to simulating the noisy point alone."""
     base = {"surface.k0": 64.0, "surface.cd": 1e-4, "numerics.dt": 0.05e-9, "numerics.record_cycles": 2,
-            "numerics.max_time": 0.002, "numerics.kp": 0.05, "numerics.ki": 0.03}  # fmt: skip
-    noisy = load(None, {**base, "numerics.print_step": 1e-9, "numerics.position_noise": 1e-11,
-                        "numerics.force_noise": 1e-11, "numerics.noise_seed": 3,
-                        "numerics.detector_bandwidth": 20e6})  # fmt: skip
-    clean = fine_config([noisy, load(None, {**base, "numerics.print_step": 1e-9})])
-    assert clean == noise_free(noisy) and clean.numerics.position_noise == 0
+            "numerics.print_step": 1e-9}  # fmt: skip
+    noisy = load(None, {**base, "numerics.position_noise": 1e-11, "numerics.force_noise": 1e-11,
+                        "numerics.noise_seed": 3, "numerics.detector_bandwidth": 20e6})  # fmt: skip
+    clean = noise_free(noisy)
+    assert clean.numerics.position_noise == 0 and clean == load(None, base)
     shared = simulate(clean)
-    got = point_run(shared, clean, noisy)
+    got = point_run(shared, noisy)
     sep = simulate(noisy)
     np.testing.assert_array_equal(got.steady, sep.steady)
     np.testing.assert_array_equal(got.approach, sep.approach)
     assert got.params == sep.params and got.stop_reason == sep.stop_reason
     np.testing.assert_equal(got.observables, sep.observables)  # NaN == NaN here
     assert np.std(got.steady[:, 2] - shared.steady[:, 2]) > 1e-12  # the noise is really there
-    # coarser print step from a finer noise-free record: noise on the subsampled record
-    coarse = load(None, {**base, "numerics.print_step": 2e-9, "numerics.position_noise": 1e-11})
-    fcfg = fine_config([noisy, coarse])
-    assert fcfg.numerics.print_step == 1e-9 and fcfg.numerics.position_noise == 0
-    sub = point_run(simulate(fcfg), fcfg, coarse)
-    sep = simulate(coarse)
-    np.testing.assert_array_equal(sub.steady[:, 0], sep.steady[:, 0])
-    # same noise draws: the difference is the controller's (< tol_z = 1e-12 m, test_sweep.py)
-    assert np.max(np.abs(sub.steady[:, 2] - sep.steady[:, 2])) < 1e-12
 
 
 # --------------------------------------------------------------------- end to end

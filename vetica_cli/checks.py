@@ -26,6 +26,11 @@ def open_unit(v) -> bool:
     return 0 < v < 1
 
 
+def one_of(*names: str) -> "Rule":
+    """Rule: the value is one of ``names``."""
+    return (lambda v: v in names, "one of: " + ", ".join(names))
+
+
 def number(value: Any) -> Any:
     """YAML 1.1 reads '1e-4' (no dot) as a string: turn numeric strings into floats."""
     if isinstance(value, str):
@@ -37,8 +42,12 @@ def number(value: Any) -> Any:
 
 
 def coerce(key: str, value: Any, tp: str) -> Any:
-    """Coerce a YAML value to the declared type ('float', 'int', 'bool', 'float | None')
-    or raise ConfigError."""
+    """Coerce a YAML value to the declared type ('float', 'int', 'bool', 'float | None',
+    'str') or raise ConfigError."""
+    if tp == "str":
+        if isinstance(value, str):
+            return value
+        raise ConfigError(f"{key}: {value!r} is not allowed; expected a name")
     if tp != "bool":
         value = number(value)
     if tp == "bool":

@@ -91,11 +91,6 @@ def sweep(
     resume: bool = typer.Option(
         True, "--resume/--no-resume", help="Reuse points persisted in <output>.parts/ by an earlier (killed) run."
     ),
-    share_print_step: bool = typer.Option(
-        True,
-        "--share-print-step/--no-share-print-step",
-        help="Points differing only in print step share one simulation recorded at the finest step.",
-    ),
     set_: Optional[List[str]] = typer.Option(None, "--set", help=SET_HELP + " Applies to the base; not to swept keys."),
     dry_run: bool = typer.Option(False, "--dry-run", help="Print the points and a cost bound, run nothing."),
     quiet: bool = typer.Option(False, "--quiet", "-q", help="No progress bar."),
@@ -104,8 +99,7 @@ def sweep(
     with the true and the reconstructed force (extract.force), by a registered
     extraction method (extract.method; see vetica extract --help), and write one tidy
     table (one row per point, method and force source) plus <name>.config.yaml.
-    Points differing only in print step, method or instrument noise share one
-    simulation.
+    Points differing only in method or instrument noise share one simulation.
 
     Prints the acceptance regime at the end: for every combination of the
     other swept keys, the range of surface.cd where the tau_c error is below
@@ -116,8 +110,7 @@ def sweep(
 
     try:
         text = sweep_command(config, output, parse_set(set_), dry_run=dry_run, jobs=jobs, backend=backend,
-                             scheduler=scheduler, resume=resume, share_print_step=share_print_step,
-                             progress=not quiet)  # fmt: skip
+                             scheduler=scheduler, resume=resume, progress=not quiet)  # fmt: skip
     except SweepInterrupted as exc:
         typer.echo(str(exc), err=True)
         raise typer.Exit(130) from None

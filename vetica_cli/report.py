@@ -13,9 +13,21 @@ def run_summary(run, path=None) -> str:
     """A few lines describing a simulate() run."""
     o = run.observables
     i = run.info
+    st = i.get("steady") or {}
+    how = st.get("method", "")
+    orbit = st.get("orbit") or {}
+    proof = st.get("proof") or {}
+    solve = (
+        f", orbit solved in {orbit.get('periods')} period evaluations (residual {orbit.get('residual', 0):.2g} m)"
+        if how == "orbit" and orbit.get("converged")
+        else ""
+    )
+    stretch = max((abs(v) for v in proof.get("mean_arm_stretch_m") or [0.0]), default=0.0)
     lines = [
-        f"stop_reason: {run.stop_reason} after {i['t_end'] * 1e3:.3f} ms simulated "
-        f"({int(i['steps']):,} steps, {run.wall_s:.2f} s wall, {run.wall_s / i['steps'] * 1e9:.1f} ns/step)",
+        f"stop_reason: {run.stop_reason} ({how}{solve}; {int(i['periods_evaluated'])} periods evaluated, "
+        f"{run.wall_s:.2f} s wall)",
+        f"periodicity of the recorded window: state change per period {proof.get('state_change_m', float('nan')):.2g} m, "
+        f"mean arm stretch {stretch:.2g} m",
         f"amplitude {_fmt(o['amplitude'], 'nm', 1e9)}, phase {_fmt(o['phase_deg'], 'deg')}, "
         f"E_diss {_fmt(o['e_diss_ev'], 'eV/cycle')}, virial {_fmt(o['virial_ev'], 'eV')}",
         f"peak force {_fmt(o['peak_force'], 'nN', 1e9)}, max penetration {_fmt(o['max_penetration'], 'nm', 1e9)}, "

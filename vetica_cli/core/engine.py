@@ -328,8 +328,7 @@ class _Scaled:
         s[T.S_ZC], s[T.S_VC], s[T.S_ZP], s[T.S_VP] = y[0], y[1], y[2], y[3]
         s[T.S_XD:] = y[4:-1]
         s[T.S_ZB] = y[-1]
-        s[T.S_IDX] = 0
-        return s
+        return s  # at the template's step index: a period start
 
     def vars(self, s):
         y = np.concatenate([[s[T.S_ZC], s[T.S_VC], s[T.S_ZP], s[T.S_VP]], s[T.S_XD:], [s[T.S_ZB]]])
@@ -577,30 +576,52 @@ class RunSpec:
 
 @dataclass
 class RunResult:
-    approach: np.ndarray
-    steady: np.ndarray
+    approach: np.ndarray  # samples of the first-approach window
+    steady: np.ndarray  # samples of the recorded window
     stop_reason: str
     info: dict
     warnings: list
+    window: "Window"  # the recorded window (outputs, period-boundary states, proof)
 
 
-def _record(kern: Kernel, s, cycles: int):
+def record_periods(kern: Kernel, s, cycles: int):
     """Record ``cycles`` whole periods from ``s`` at the print step with the base held.
 
     Returns the samples, the outputs accumulated over the window (energies, mean
-    arm stretch, first harmonic) and the state at the start of every period and
-    after the last (``cycles + 1`` rows)."""
+    arm stretch, first harmonic; ``O_MAXCPP`` = the most contact events in one
+    period) and the state at the start of every period and after the last
+    (``cycles + 1`` rows)."""
     st = kern.setup
-    n_samples = cycles * kern.nt // st.stride
+    n_samples = int(round(cycles * kern.nt / st.stride))
     buf = np.zeros((n_samples, 7 + kern.n_arms))
     rec = T.new_recorder(stride=st.stride, origin=int(s[T.S_IDX]), ring=False, active=True)
-    o = T.new_outputs(kern.n_arms)
+    total = T.new_outputs(kern.n_arms)
     states = [s.copy()]
     for _ in range(cycles):
+        o = T.new_outputs(kern.n_arms)
         T.advance(s, kern.nt, 0.0, *kern.coef, buf, rec, True, o)
         kern.periods += 1
         states.append(s.copy())
-    return buf[: int(min(rec[T.R_POS], n_samples))], o, np.array(states)
+        _accumulate(total, o)
+    return buf[: int(min(rec[T.R_POS], n_samples))], total, np.array(states)
+
+
+def _accumulate(total, o) -> None:
+    """Add one period's outputs to a window's: integrals add, extrema combine, the first
+    contact of the window is kept and the most contacts in one period tracked."""
+    for i in (T.O_QMAX, T.O_FMAX):
+        total[i] = max(total[i], o[i])
+    for i in (T.O_QMIN, T.O_FMIN):
+        total[i] = min(total[i], o[i])
+    if math.isnan(total[T.O_ZCONT]):
+        total[T.O_ZCONT] = o[T.O_ZCONT]
+    if not math.isnan(o[T.O_ZCONT_LAST]):
+        total[T.O_ZCONT_LAST] = o[T.O_ZCONT_LAST]
+    total[T.O_MAXCPP] = max(total[T.O_MAXCPP], o[T.O_NCONT])
+    for i in (T.O_NCONT, T.O_NSEP, T.O_CSTEPS, T.O_WDRIVE, T.O_D1, T.O_D2, T.O_WTS, T.O_DDASH, T.O_FINE,
+              T.O_FAR, T.O_REJECT, T.O_HC, T.O_HS):  # fmt: skip
+        total[i] += o[i]
+    total[T.NO_BASE :] += o[T.NO_BASE :]
 
 
 def proof(kern: Kernel, states, o, a_sp: float, fixed_base: bool) -> dict:
@@ -612,7 +633,7 @@ def proof(kern: Kernel, states, o, a_sp: float, fixed_base: bool) -> dict:
     sc = _Scaled(kern, states[0])
     amp = amplitude(o, cycles * kern.period_s)
     drift = max(float(np.max(np.abs(sc.residual(a, b, amp, a_sp)[:-1]))) for a, b in zip(states[:-1], states[1:]))
-    xm = o[T.NO_BASE:] / (cycles * kern.period_s)
+    xm = o[T.NO_BASE : T.NO_BASE + kern.n_arms] / (cycles * kern.period_s)
     return {
         "state_change_m": drift * L_UNIT,
         "mean_arm_stretch_m": [float(v) for v in xm],
@@ -630,21 +651,37 @@ def proven(pr: dict, tol: float, tol_amp: float) -> bool:
     return ok
 
 
-def _transient(kern, s, ctrl, spec, periods_left, fixed_base):
-    """Time-stepped controlled run from ``s`` until a recorded window proves periodic or the
-    budget ends; returns ``(samples, outputs, proof, proven, periods used)``."""
+@dataclass
+class Window:
+    """A recorded window: samples, outputs, the state at every period boundary, the proof."""
+
+    samples: np.ndarray
+    outputs: np.ndarray
+    states: np.ndarray
+    proof: dict
+    proven: bool
+
+
+def record_window(kern, s, spec, a_sp, fixed_base) -> Window:
+    buf, o, states = record_periods(kern, s, spec.record_cycles)
+    pr = proof(kern, states, o, a_sp, fixed_base)
+    return Window(buf, o, states, pr, proven(pr, spec.tol, spec.tol_amp))
+
+
+def transient(kern, s, ctrl, spec, periods_left, fixed_base) -> Window:
+    """Time-stepped controlled run from ``s``: once the amplitude is within ``tol_amp`` and the
+    contact position moves less than ``tol_z`` per period for ``settle_cycles`` periods, a
+    window is recorded (base held) and put to the proof; the run goes on until a window
+    proves periodic or the budget ends, and then records its last periods."""
     used = 0
     settled = 0
     z_prev = math.nan
     while True:
         if used + spec.record_cycles >= periods_left:
-            buf, o, states = _record(kern, s, spec.record_cycles)
-            pr = proof(kern, states, o, ctrl.a_sp, fixed_base)
-            return buf, o, pr, proven(pr, spec.tol, spec.tol_amp), used + spec.record_cycles
+            return record_window(kern, s, spec, ctrl.a_sp, fixed_base)
         o = kern.advance(s, zb_step=ctrl.zb_step)
         used += 1
-        amp = amplitude(o, kern.period_s)
-        e = ctrl.update(amp, True)
+        e = ctrl.update(amplitude(o, kern.period_s), True)
         z = o[T.O_ZCONT]
         amp_ok = fixed_base or abs(e) <= spec.tol_amp * ctrl.a_sp
         z_ok = not math.isnan(z) and not math.isnan(z_prev) and abs(z - z_prev) <= spec.tol_z
@@ -652,17 +689,22 @@ def _transient(kern, s, ctrl, spec, periods_left, fixed_base):
         settled = settled + 1 if (amp_ok and z_ok) else 0
         if settled >= spec.settle_cycles:
             held = ctrl.zb_step
-            buf, o, states = _record(kern, s, spec.record_cycles)
+            win = record_window(kern, s, spec, ctrl.a_sp, fixed_base)
             used += spec.record_cycles
-            pr = proof(kern, states, o, ctrl.a_sp, fixed_base)
-            if proven(pr, spec.tol, spec.tol_amp):
-                return buf, o, pr, True, used
+            if win.proven:
+                return win
             settled = 0
             ctrl.zb_step = held
 
 
 def run(kern: Kernel, spec: RunSpec) -> RunResult:
-    """Approach, steady state (orbit or transient, SPEC 10) and the recorded window."""
+    """Approach, steady state (orbit or transient, SPEC 10) and the recorded window.
+
+    ``stop_reason``: ``steady`` (the recorded window is proven periodic), ``steady
+    (transient fallback)`` (the orbit solver failed or left the approach's branch and
+    the time-stepped transient reached a proven periodic state), ``max_time`` (the
+    transient's budget ended first; the last periods are recorded, not claimed steady)
+    or ``max_time (orbit solver failed)``."""
     st = kern.setup
     fixed_base = not spec.controller_on
     s = new_state(spec.zc0, spec.vc0, 0.0, 0.0, spec.zb0, kern.n_arms)
@@ -671,56 +713,49 @@ def run(kern: Kernel, spec: RunSpec) -> RunResult:
     info: dict = {"steady_method": spec.steady}
     # without a controller nothing brings the tip down: a free start settles within a few Q1 periods
     q1 = math.sqrt(st.k1 * st.m1) / st.c1
-    ap = approach(kern, s, ctrl, spec.n_ring, spec.max_periods, no_contact_max=None if spec.controller_on else int(10 * q1))
+    no_contact_max = None if spec.controller_on else int(10 * q1)
+    ap = approach(kern, s, ctrl, spec.n_ring, spec.max_periods, no_contact_max=no_contact_max)
     info.update(t_first_contact=ap.t_first_contact, z_first_contact=ap.z_first_contact, approach_periods=ap.periods)
     # the branch the controlled approach is on: repulsive if most of its periods since the first
     # contact were (a controller overshoot can lift the tip off for a few periods)
     since = [h for h in ap.history if not math.isnan(h[1])] or ap.history[-1:]
     info["approach_branch"] = {"repulsive": bool(since) and 2 * sum(h[2] > 0.0 for h in since) > len(since)}
     periods_left = spec.max_periods - ap.periods
-    stop = None
+    win = None
     if spec.steady == "orbit":
         res = solve_steady(kern, s, ctrl, 0.5 * spec.tol, spec.orbit_max_periods, fixed_base,
                            info["approach_branch"]["repulsive"])  # fmt: skip
-        info["orbit"] = {
-            "converged": res.converged,
-            "reason": res.reason,
-            "residual_m": res.residual,
-            "periods": res.periods,
-            "iterations": res.iterations,
-            "attempts": res.attempts,
-            "monodromy_radius": res.monodromy_radius,
-        }
+        info["orbit"] = {k: getattr(res, k) for k in ("converged", "reason", "residual", "periods", "iterations",
+                                                         "attempts", "monodromy_radius")}  # fmt: skip
+        periods_left -= res.periods
         if res.converged:
-            s_orb = res.state.copy()
-            buf, o, states = _record(kern, s_orb, spec.record_cycles)
-            pr = proof(kern, states, o, st.a_sp, fixed_base)
-            branch = _branch(o, spec.record_cycles * kern.period_s)
+            cand = record_window(kern, res.state.copy(), spec, st.a_sp, fixed_base)
+            periods_left -= spec.record_cycles
+            branch = _branch(cand.outputs, spec.record_cycles * kern.period_s)
             info["orbit_branch"] = branch
             changed = _branch_changed(info["approach_branch"], branch)
             if changed:
                 warnings.append(f"the orbit solver converged on another oscillation branch ({changed}); "
                                 "fell back to the time-stepped transient, which follows the approach")  # fmt: skip
-            elif proven(pr, spec.tol, spec.tol_amp):
-                stop = "steady"
-            else:
+            elif not cand.proven:
                 warnings.append("the solved orbit failed the periodicity proof on its recorded window; "
                                 "fell back to the time-stepped transient")  # fmt: skip
+            else:
+                win = cand
         else:
             warnings.append(f"orbit solver failed ({res.reason}, residual {res.residual:.3g} m after "
                             f"{res.periods} periods); fell back to the time-stepped transient")  # fmt: skip
-        if stop is None:
-            periods_left -= res.periods + (spec.record_cycles if res.converged else 0)
-            buf, o, pr, ok, used = _transient(kern, s, ctrl, spec, max(periods_left, spec.record_cycles + 1), fixed_base)
-            stop = "steady (transient fallback)" if ok else "max_time (orbit solver failed)"
+        if win is not None:
+            stop = "steady"
+        else:
+            win = transient(kern, s, ctrl, spec, max(periods_left, spec.record_cycles + 1), fixed_base)
+            stop = "steady (transient fallback)" if win.proven else "max_time (orbit solver failed)"
     else:
-        buf, o, pr, ok, used = _transient(kern, s, ctrl, spec, max(periods_left, spec.record_cycles + 1), fixed_base)
-        stop = "steady" if ok else "max_time"
-    info["proof"] = pr
-    info["record_outputs"] = o
-    info["zb"] = float(s[T.S_ZB]) if stop != "steady" or spec.steady != "orbit" else float(res.state[T.S_ZB])
+        win = transient(kern, s, ctrl, spec, max(periods_left, spec.record_cycles + 1), fixed_base)
+        stop = "steady" if win.proven else "max_time"
+    info["proof"] = win.proof
     info["periods_evaluated"] = kern.periods
-    return RunResult(ap.ring, buf, stop, info, warnings)
+    return RunResult(ap.ring, win.samples, stop, info, warnings, win)
 
 
 def _branch(o, duration) -> dict:

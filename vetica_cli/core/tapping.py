@@ -70,7 +70,8 @@ C_T, C_ZTIP, C_ZC, C_ZP, C_ZB, C_F, C_X, C_XD = range(8)
 R_POS, R_RING, R_LEFT, R_FC, R_ACTIVE, R_STRIDE, R_ORIGIN, R_REP = range(8)
 NR = 8
 
-# ---- outputs of one call (float vector O; then the N arm means)
+# ---- outputs of one call (float vector O; then, per arm, the mean stretch integral
+# int (X - Xd_i) dt [m s] (O_XM + i) and the dashpot dissipation [J] (O_XM + N + i))
 (
     O_QMAX, O_QMIN, O_ZCONT, O_NCONT, O_NSEP, O_CSTEPS, O_FMAX, O_FMIN,
     O_WDRIVE, O_D1, O_D2, O_WTS, O_DDASH, O_FINE, O_FAR, O_REJECT,
@@ -338,7 +339,9 @@ def _fine(s, n_end, zb_step, p, a, emi, buf, r, o, energy, far_ok):
             o[O_WTS] -= 0.5 * (fts_old + fts) * (z_tip - ztip_old)
             ztip_old = z_tip
             for i in range(n_arms):
-                o[O_DDASH] += k_arm[i] * (x_now - 0.5 * (xd[i] + xd_prev[i])) * (xd[i] - xd_prev[i])
+                dd = k_arm[i] * (x_now - 0.5 * (xd[i] + xd_prev[i])) * (xd[i] - xd_prev[i])
+                o[O_DDASH] += dd
+                o[O_XM + n_arms + i] += dd
                 o[O_XM + i] += (x_now - xd[i]) * dt
         to_grid -= 1
         on_grid = to_grid <= 0
@@ -626,7 +629,9 @@ def _far(s, n_end, zb_step, p, a, lad, lemi, lg, buf, r, o, energy, rec_mode):
             o[O_D2] += hh * c2 * (vp * vp + vp3 * vp3)
             o[O_WTS] -= 0.5 * (-fa - fa1) * (z1 - z_tip)
             for i in range(n_arms):
-                o[O_DDASH] += k_arm[i] * (x1 - 0.5 * (xd[i] + xd_new[i])) * (xd_new[i] - xd[i])
+                dd = k_arm[i] * (x1 - 0.5 * (xd[i] + xd_new[i])) * (xd_new[i] - xd[i])
+                o[O_DDASH] += dd
+                o[O_XM + n_arms + i] += dd
                 o[O_XM + i] += (x1 - xd_new[i]) * h
         zc, vc, zp, vp, zb = zc1, vc3, zp1, vp3, zb1
         z_tip, x, fa = z1, x1, fa1
@@ -685,7 +690,7 @@ def advance(s, n_steps, zb_step, p, a, emi, lad, lemi, lg, lad_rec, lemi_rec, lg
 
 def new_outputs(n_arms: int) -> np.ndarray:
     """A fresh output vector (extrema at +-inf, first-contact entries nan)."""
-    o = np.zeros(NO_BASE + n_arms)
+    o = np.zeros(NO_BASE + 2 * n_arms)
     o[O_QMAX], o[O_QMIN] = -np.inf, np.inf
     o[O_FMAX], o[O_FMIN] = -np.inf, np.inf
     o[O_ZCONT] = o[O_T_FC] = o[O_Z_FC] = o[O_ZCONT_LAST] = np.nan

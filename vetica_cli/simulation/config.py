@@ -24,6 +24,7 @@ import yaml
 from .. import surfaces
 from ..checks import check, coerce, number
 from ..checks import nonneg as _nonneg
+from ..checks import one_of
 from ..checks import open_unit as _open_unit
 from ..checks import positive as _positive
 from ..constants import TIP_RADIUS
@@ -99,12 +100,17 @@ class Numerics:
     dt: float = 0.025e-9  # integration step [s] (thesis: 0.025 ns for every run)
     print_step: float = 0.125e-9  # sampling interval of the records [s]
     record_cycles: int = 10  # steady drive periods recorded
-    max_time: float = 0.03  # simulated-time budget [s]
+    steady: str = "orbit"  # orbit: solve the periodic orbit | transient: time-step it, as an instrument does
+    integrator: str = "hybrid"  # hybrid: exact propagation away from the surface | verlet: all fine steps
+    switch_gap: float = 1e-9  # hybrid: gap [m] below which (and in contact) only fine steps are taken
+    tol_orbit: float = 1e-13  # steady: per-period state change and mean arm stretch <= tol_orbit [m]
+    orbit_max_periods: int = 150  # period evaluations of the orbit solver's first strategy
+    max_time: float = 0.03  # simulated-time budget of the approach and of the transient [s]
     kp: float = 0.2  # PI proportional gain [m per m of amplitude error]
     ki: float = 0.05  # PI integral gain [m per m of amplitude error per period]
     tol_amp: float = 2e-5  # steady: |A - A_sp| <= tol_amp * A_sp
-    tol_z: float = 1e-12  # steady: contact position changes <= tol_z per period [m]
-    settle_cycles: int = 10  # consecutive settled periods before recording
+    tol_z: float = 1e-12  # transient: contact position changes <= tol_z per period [m] count as settled
+    settle_cycles: int = 10  # transient: settled periods before a window is recorded and put to the proof
     warm_start: bool = True  # start oscillating at A_sp just above the surface
     approach_gap: float = 0.5e-9  # initial clearance of the lowest tip point [m]
     approach_rate: float = 0.0  # base descent before the first contact [m/s]
@@ -157,8 +163,8 @@ RULES = {
     "probe.f2": (_positive, "a frequency > 0 Hz"),
     "probe.k1": (_positive, "a stiffness > 0 N/m"),
     "probe.k2": (_positive, "a stiffness > 0 N/m"),
-    "probe.q1": (_positive, "a quality factor > 0"),
-    "probe.q2": (_positive, "a quality factor > 0"),
+    "probe.q1": (lambda v: v > 0.5, "a quality factor > 0.5 (an underdamped resonance)"),
+    "probe.q2": (lambda v: v > 0.5, "a quality factor > 0.5 (an underdamped resonance)"),
     "probe.tip_radius": (_positive, "a radius > 0 m"),
     "operation.free_amplitude": (_positive, "an amplitude > 0 m"),
     "operation.setpoint": (_open_unit, "a fraction of the free amplitude in (0, 1)"),
@@ -166,6 +172,11 @@ RULES = {
     "numerics.dt": (_positive, "a time step > 0 s"),
     "numerics.print_step": (_positive, "a time > 0 s, an integer multiple of numerics.dt"),
     "numerics.record_cycles": (lambda v: v >= 1, "an integer >= 1"),
+    "numerics.steady": one_of("orbit", "transient"),
+    "numerics.integrator": one_of("hybrid", "verlet"),
+    "numerics.switch_gap": (_positive, "a distance > 0 m"),
+    "numerics.tol_orbit": (_positive, "a distance > 0 m"),
+    "numerics.orbit_max_periods": (lambda v: v >= 10, "an integer >= 10"),
     "numerics.max_time": (_positive, "a time > 0 s"),
     "numerics.kp": (_nonneg, "a gain >= 0"),
     "numerics.ki": (_positive, "a gain > 0"),

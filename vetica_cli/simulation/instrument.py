@@ -13,7 +13,7 @@ import math
 
 import numpy as np
 
-from ..core import thc
+from ..core import tapping
 from .config import Config, from_dict
 
 INSTRUMENT_KEYS = ("position_noise", "force_noise", "noise_seed", "detector_bandwidth")  # numerics, post-kernel
@@ -57,7 +57,7 @@ def apply_instrument(run, cfg: Config) -> None:
     if not (n.position_noise or n.force_noise or n.detector_bandwidth):
         return
     rng = np.random.default_rng(n.noise_seed)
-    ic, ip, it, ib, iff = (thc.COLUMNS.index(c) for c in ("z_cantilever", "z_paddle", "z_tip", "z_base", "f_ts"))
+    ic, ip, it, ib, iff = (tapping.COLUMNS.index(c) for c in ("z_cantilever", "z_paddle", "z_tip", "z_base", "f_ts"))
     for arr, periodic in ((run.approach, False), (run.steady, True)):
         if not len(arr):
             continue

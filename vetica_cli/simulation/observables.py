@@ -11,7 +11,7 @@ import math
 import numpy as np
 
 from ..constants import EV
-from ..core import thc
+from ..core import tapping
 from ..errors import InputError
 from ..signals.taps import first_contact_minimum
 
@@ -59,14 +59,14 @@ def harmonic(t: np.ndarray, y: np.ndarray, omega: float) -> tuple[float, float]:
 def compute_observables(run, cfg, d) -> None:
     """Fill ``run.observables``, ``run.energy`` and ``run.warnings``."""
     s = run.steady
-    col = {name: s[:, i] for i, name in enumerate(thc.COLUMNS)}
+    col = {name: s[:, i] for i, name in enumerate(tapping.COLUMNS[:-1])}
     info = run.info
     cycles = cfg.numerics.record_cycles
     q = col["z_tip"] - col["z_base"]
     amp, phase = harmonic(col["t"], q, d.omega1)
     a = run.approach
     z1, _, _ = first_force_minimum(a[:, 0], a[:, 1], a[:, 5]) if len(a) else (math.nan, math.nan, -1)
-    contact_time = info["contact_steps"] * cfg.numerics.dt / cycles
+    contact_time = info["contact_steps"] * d.dt / cycles
     obs = {
         "e_diss_ev": info["w_ts"] / cycles / EV,
         "peak_force": float(np.max(col["f_ts"])),
@@ -87,13 +87,18 @@ def compute_observables(run, cfg, d) -> None:
         "paddle_damping": info["d_paddle"] / cycles / EV,
         "sample_dissipation": info["w_ts"] / cycles / EV,
         "dashpot_dissipation": info["d_dashpot"] / cycles / EV,
+        **(
+            {f"dashpot_dissipation_{i + 1}": v / cycles / EV for i, v in enumerate(info["d_dashpot_arms"])}
+            if len(info["d_dashpot_arms"]) > 1
+            else {}
+        ),
         "probe_energy_change": (info["e_mech_end"] - info["e_mech_start"]) / cycles / EV,
     }
     warnings = []
-    if run.stop_reason != "steady":
+    if not run.steady_ok:
         warnings.append(
-            f"steady state not reached within numerics.max_time = {cfg.numerics.max_time} s; "
-            "the last periods were recorded anyway"
+            f"no proven periodic state within numerics.max_time = {cfg.numerics.max_time} s "
+            f"({run.stop_reason}); the last periods were recorded anyway"
         )
     if not len(a) or math.isnan(z1):
         warnings.append("no first-approach contact recorded: Z1 unknown")

@@ -1,23 +1,38 @@
-"""simulate(config) -> Run: unpack the config into SI floats and call the kernel.
+"""simulate(config) -> Run: unpack the config into SI numbers and drive the kernel.
 
 Choices where the thesis is silent or unclear (see README "Modelling choices"):
 
 * Drive: a force ``F0 cos(w1 t)`` on the cantilever mass with ``F0 = k1 A0/Q1``
   (free tip amplitude ``A0`` at resonance), equivalent to the thesis's base
-  excitation for the point-mass model (SPEC 2).
-* Warm start (``numerics.warm_start``, default): the cantilever starts in its
-  free phase (``zc = A sin w1 t``) at the set-point amplitude with the lowest
-  tip point ``approach_gap`` above the surface; the amplitude grows towards
-  ``A0`` and touches the undisturbed surface within a period or two, so the
-  first-approach contact (``Z1``) is recorded as in the thesis's slow approach.
-  Cold start: free steady state at ``A0`` and a base descent at
-  ``approach_rate`` (auto: reach the set point in ~100 periods), like thesis
-  fig. 18.
-* Controller: PI (velocity form) once per drive period on the running
-  amplitude ``(max - min)/2`` of ``z_tip - Zb``; the correction is applied as a
-  ramp over the next period so the tip never jumps.  It holds the base during
-  the recorded steady window (the window is then exactly periodic, which the
-  energy balance and the spectral inversion need).
+  excitation for the point-mass model.
+* Time grid: one drive period is a whole number of integration steps, so
+  ``numerics.dt`` is adjusted by less than half a step per period (relative
+  change below 1e-6 for every study setting; none for the study frequencies,
+  whose periods are whole multiples of 0.025 ns); the print step is a whole
+  number of those steps.  The metadata records both as used.
+* Amplitude: the first harmonic of ``z_tip - Zb`` over a drive period (what
+  an instrument's lock-in amplifier measures).  Version 0.1 used the peak-to-
+  peak half ``(max - min)/2``, which the paddle's ringing at 15 f1 makes a
+  non-smooth function of the state (the global maximum jumps between ringing
+  peaks); the measured difference is in README "Modelling choices".
+* Warm start (``numerics.warm_start``, default): the cantilever starts at the
+  set-point amplitude with the phase lag the drive sustains there,
+  ``asin(A_sp/A0)`` (the repulsive orbit's phase when the sample dissipates
+  little), its lowest point ``approach_gap`` above the surface, and the base
+  descends by that gap over one period until the first contact (the
+  ``Z1`` window).  The first taps are then gentle, as in the thesis's slow
+  approach, and the state is already near the periodic one.  Cold start:
+  free steady state at ``A0`` and a base descent at ``approach_rate`` (auto:
+  reach the set point in ~100 periods), like thesis fig. 18.
+* Controller: PI (velocity form) once per drive period on the amplitude; the
+  correction is a ramp over the next period; the base is held during the
+  recorded window.
+* Steady state (``numerics.steady``): ``orbit`` (default) solves the periodic
+  orbit of the controlled system; ``transient`` time-steps it as an instrument
+  would, for at most ``numerics.max_time``.  Either way "steady" is claimed
+  only when the recorded window proves periodic (:mod:`vetica_cli.core.engine`).
+* Integrator (``numerics.integrator``): ``hybrid`` (default) or ``verlet`` (all
+  fine steps), :mod:`vetica_cli.core.tapping`.
 * Fixed base (``operation.base_height``): no controller; warm start means the
   free steady state, cold start means from rest.
 """
@@ -32,29 +47,31 @@ import numpy as np
 import pandas as pd
 
 from .. import __version__
-from ..core import thc
-from ..errors import ConfigError
+from ..core import engine, tapping
 from ..io import write_run
 from .config import Config, load
 from .instrument import apply_instrument
 from .observables import compute_observables
 
-UNITS = {
-    "t": "s",
-    "z_tip": "m",
-    "z_cantilever": "m",
-    "z_paddle": "m",
-    "z_base": "m",
-    "f_ts": "N",
-    "x_surface": "m",
-    "x_dashpot": "m",
-    "segment": "approach = first-approach window (Z1); steady = recorded steady-state drive periods",
-}
+SEGMENTS = ("approach", "steady")
+
+
+def columns(n_arms: int) -> list[str]:
+    """Recorded columns: the SLS's ``x_dashpot``, or ``x_dashpot_1..N`` for several arms."""
+    base = list(tapping.COLUMNS[:-1])
+    return base + (["x_dashpot"] if n_arms == 1 else [f"x_dashpot_{i + 1}" for i in range(n_arms)])
+
+
+def units(n_arms: int) -> dict:
+    u = {"t": "s", "z_tip": "m", "z_cantilever": "m", "z_paddle": "m", "z_base": "m", "f_ts": "N", "x_surface": "m"}
+    u.update({c: "m" for c in columns(n_arms)[7:]})
+    u["segment"] = "approach = first-approach window (Z1); steady = recorded steady-state drive periods"
+    return u
 
 
 @dataclass
 class Derived:
-    """SI floats derived from a Config (thesis eqs. 13-16)."""
+    """SI numbers derived from a Config (thesis eqs. 13-16)."""
 
     omega1: float
     omega2: float
@@ -65,11 +82,13 @@ class Derived:
     f0: float
     a_sp: float
     period: float
-    stride: int
-    samples_per_period: int
-    n_steady: int
-    n_ring: int
-    max_steps: int
+    dt: float  # integration step used: period / steps_per_period [s]
+    steps_per_period: int
+    stride: int  # integration steps per print step
+    print_step: float  # print step used [s]
+    n_steady: int  # samples of the recorded window
+    n_ring: int  # samples of the first-approach window
+    max_periods: int  # numerics.max_time in drive periods
 
 
 def derive(cfg: Config) -> Derived:
@@ -79,8 +98,9 @@ def derive(cfg: Config) -> Derived:
     m1 = p.k1 / w1**2
     m2 = p.k2 / w2**2
     period = 1.0 / p.f1
+    nt = int(round(period / n.dt))
+    dt = period / nt
     stride = int(round(n.print_step / n.dt))
-    spp = int(round(period / n.print_step))
     return Derived(
         omega1=w1,
         omega2=w2,
@@ -91,101 +111,182 @@ def derive(cfg: Config) -> Derived:
         f0=p.k1 * o.free_amplitude / p.q1,
         a_sp=o.setpoint * o.free_amplitude,
         period=period,
+        dt=dt,
+        steps_per_period=nt,
         stride=stride,
-        samples_per_period=spp,
-        n_steady=int(round(n.record_cycles * period / n.print_step)),
-        n_ring=max(2, int(round(n.approach_cycles * spp))),
-        max_steps=int(n.max_time / n.dt),
+        print_step=stride * dt,
+        n_steady=int(round(n.record_cycles * nt / stride)),
+        n_ring=max(2, int(round(n.approach_cycles * nt / stride))),
+        max_periods=max(1, int(n.max_time / period)),
     )
 
 
-@dataclass
-class Run:
-    """Result of one simulation: recorded samples and their context."""
-
-    approach: np.ndarray  # (n, 8) samples around the first contact, COLUMNS order
-    steady: np.ndarray  # (n, 8) samples of the recorded steady periods
-    info: dict  # kernel bookkeeping (INFO_NAMES)
-    stop_reason: str  # "steady" or "max_time"
-    params: dict  # resolved configuration
-    observables: dict = field(default_factory=dict)
-    energy: dict = field(default_factory=dict)  # per-cycle energy balance [eV]
-    warnings: list = field(default_factory=list)
-    wall_s: float = 0.0
-
-    def frame(self) -> pd.DataFrame:
-        """Both segments as one tidy table (columns of ``thc.COLUMNS`` + segment)."""
-        parts = []
-        for name, arr in (("approach", self.approach), ("steady", self.steady)):
-            df = pd.DataFrame(arr, columns=list(thc.COLUMNS))
-            df["segment"] = name
-            parts.append(df)
-        out = pd.concat(parts, ignore_index=True)
-        out["segment"] = out["segment"].astype("category")
-        return out
-
-    def metadata(self) -> dict:
-        return {
-            "params": self.params,
-            "units": UNITS,
-            "version": __version__,
-            "stop_reason": self.stop_reason,
-            "observables": self.observables,
-            "energy_ev_per_cycle": self.energy,
-            "warnings": self.warnings,
-            "wall_s": self.wall_s,
-            "kernel": {k: (None if (isinstance(v, float) and math.isnan(v)) else v) for k, v in self.info.items()},
-        }
+def kernel_setup(cfg: Config, d: Derived) -> engine.KernelSetup:
+    """The kernel's inputs; the surface as coefficient arrays from its model
+    (:meth:`vetica_cli.surfaces.SurfaceModel.kernel_arms`)."""
+    p, s, n = cfg.probe, cfg.surface, cfg.numerics
+    k_inf, k, cd = s.surface_model.kernel_arms(s.params)
+    return engine.KernelSetup(
+        m1=d.m1, k1=p.k1, c1=d.c1, m2=d.m2, k2=p.k2, c2=d.c2, omega=d.omega1, f0=d.f0,
+        k_inf=float(k_inf), k=np.asarray(k, float), cd=np.asarray(cd, float),
+        hr6=s.hamaker * p.tip_radius / 6.0, a0=s.a0, vdw_on_surface=s.vdw_on_surface,
+        a_sp=d.a_sp, dt=d.dt, steps_per_period=d.steps_per_period, stride=d.stride,
+        hybrid=n.integrator == "hybrid", d_switch=n.switch_gap,
+    )  # fmt: skip
 
 
 def initial_state(cfg: Config, d: Derived) -> tuple[float, float, float, bool, float]:
-    """(Zb0, zc0, vc0, controller_on, approach_rate) for the chosen start."""
+    """``(Zb0, zc0, vc0, controller_on, approach_rate)`` for the chosen start (module docstring).
+
+    The cantilever starts as ``zc = A cos(w1 t - phi)`` at ``t = 0``."""
     o, s, n = cfg.operation, cfg.surface, cfg.numerics
     if o.base_height is not None:
         amp = o.free_amplitude if n.warm_start else 0.0
         return o.base_height, 0.0, amp * d.omega1, False, 0.0
     if n.warm_start:
         amp = d.a_sp
-        rate = n.approach_rate
+        phi = math.asin(min(d.a_sp / o.free_amplitude, 1.0))
+        rate = n.approach_rate or n.approach_gap / d.period
     else:
         amp = o.free_amplitude
+        phi = 0.5 * math.pi
         rate = n.approach_rate or (o.free_amplitude - d.a_sp) / (100 * d.period)
     zb0 = amp + s.a0 + n.approach_gap
-    return zb0, 0.0, amp * d.omega1, True, rate
+    return zb0, amp * math.cos(phi), amp * d.omega1 * math.sin(phi), True, rate
+
+
+@dataclass
+class Run:
+    """Result of one simulation: recorded samples and their context."""
+
+    approach: np.ndarray  # samples around the first contact (columns())
+    steady: np.ndarray  # samples of the recorded steady periods
+    info: dict  # kernel bookkeeping
+    stop_reason: str  # steady | steady (transient fallback) | max_time | max_time (orbit solver failed)
+    params: dict  # resolved configuration
+    observables: dict = field(default_factory=dict)
+    energy: dict = field(default_factory=dict)  # per-cycle energy balance [eV]
+    warnings: list = field(default_factory=list)
+    wall_s: float = 0.0
+
+    @property
+    def n_arms(self) -> int:
+        return self.steady.shape[1] - 7
+
+    @property
+    def steady_ok(self) -> bool:
+        """The recorded window is proven periodic (``stop_reason`` starts with ``steady``)."""
+        return self.stop_reason.startswith("steady")
+
+    def frame(self) -> pd.DataFrame:
+        """Both segments as one tidy table (:func:`columns` + a categorical ``segment``)."""
+        data = np.concatenate([self.approach, self.steady])
+        out = pd.DataFrame(data, columns=columns(self.n_arms))
+        codes = np.repeat(np.array([0, 1], dtype=np.int8), [len(self.approach), len(self.steady)])
+        out["segment"] = pd.Categorical.from_codes(codes, categories=list(SEGMENTS))
+        return out
+
+    def metadata(self) -> dict:
+        return {
+            "params": self.params,
+            "units": units(self.n_arms),
+            "version": __version__,
+            "stop_reason": self.stop_reason,
+            "observables": self.observables,
+            "energy_ev_per_cycle": self.energy,
+            "warnings": self.warnings,
+            "wall_s": self.wall_s,
+            "kernel": _plain(self.info),
+        }
+
+
+def _plain(v):
+    """JSON-ready copy: nan -> None, numpy scalars -> floats."""
+    if isinstance(v, dict):
+        return {k: _plain(x) for k, x in v.items()}
+    if isinstance(v, (list, tuple)):
+        return [_plain(x) for x in v]
+    if isinstance(v, (bool, np.bool_)):
+        return bool(v)
+    if isinstance(v, (int, float, np.integer, np.floating)):
+        v = float(v) if not isinstance(v, (int, np.integer)) else int(v)
+        return None if isinstance(v, float) and not math.isfinite(v) else v
+    return v
+
+
+def _mech_energy(st: engine.KernelSetup, s) -> float:
+    """Kinetic + elastic energy of both probe oscillators [J]."""
+    T = tapping
+    return 0.5 * (st.m1 * s[T.S_VC] ** 2 + st.k1 * s[T.S_ZC] ** 2 + st.m2 * s[T.S_VP] ** 2 + st.k2 * s[T.S_ZP] ** 2)
+
+
+def run_info(rr: engine.RunResult, st: engine.KernelSetup, d: Derived) -> dict:
+    """The kernel bookkeeping of a run, by name (metadata 'kernel')."""
+    T = tapping
+    w = rr.window
+    o = w.outputs
+    n = len(st.k)
+    return {
+        "dt_used": d.dt,
+        "print_step_used": d.print_step,
+        "steps_per_period": d.steps_per_period,
+        "t_first_contact": rr.info["t_first_contact"],
+        "z_first_contact": rr.info["z_first_contact"],
+        "t_record_start": float(w.states[0][T.S_IDX]) * d.dt,
+        "t_end": float(w.states[-1][T.S_IDX]) * d.dt,
+        "periods_evaluated": rr.info["periods_evaluated"],
+        "approach_periods": rr.info["approach_periods"],
+        "w_drive": o[T.O_WDRIVE],
+        "d_cantilever": o[T.O_D1],
+        "d_paddle": o[T.O_D2],
+        "w_ts": o[T.O_WTS],
+        "d_dashpot": o[T.O_DDASH],
+        "d_dashpot_arms": [float(v) for v in o[T.NO_BASE + n : T.NO_BASE + 2 * n]],
+        "e_mech_start": _mech_energy(st, w.states[0]),
+        "e_mech_end": _mech_energy(st, w.states[-1]),
+        "contact_steps": o[T.O_CSTEPS],
+        "n_contacts": o[T.O_NCONT],
+        "n_separations": o[T.O_NSEP],
+        "max_contacts_per_period": o[T.O_MAXCPP],
+        "z_contact_last": o[T.O_ZCONT_LAST],
+        "zb_final": float(w.states[-1][T.S_ZB]),
+        "fine_steps": o[T.O_FINE],
+        "far_steps": o[T.O_FAR],
+        "steady": {
+            "method": rr.info["steady_method"],
+            "orbit": rr.info.get("orbit"),
+            "proof": w.proof,
+            "approach_branch": rr.info["approach_branch"],
+            "orbit_branch": rr.info.get("orbit_branch"),
+        },
+    }
 
 
 def simulate(cfg: Config) -> Run:
-    """Run one point to steady state and record it (SPEC sections 2-5)."""
+    """Run one point to its steady state and record it (SPEC sections 2-5, 10)."""
     d = derive(cfg)
-    p, s, n = cfg.probe, cfg.surface, cfg.numerics
-    k_inf, k0, cd = _one_arm(cfg)
+    st = kernel_setup(cfg, d)
+    n = cfg.numerics
     zb0, zc0, vc0, ctrl, rate = initial_state(cfg, d)
-    hr6 = s.hamaker * p.tip_radius / 6.0
-    t0 = time.perf_counter()
-    ring, steady, info_v, code = thc.integrate(
-        d.m1, p.k1, d.c1, d.m2, p.k2, d.c2, d.omega1, d.f0,
-        k_inf, k0, cd, hr6, s.a0, s.vdw_on_surface,
-        d.a_sp, zb0, zc0, vc0, 0.0, 0.0, ctrl, n.kp, n.ki, rate,
-        n.dt, d.stride, d.samples_per_period, d.max_steps, n.tol_amp, n.tol_z, n.settle_cycles,
-        d.n_ring, d.n_steady,
+    spec = engine.RunSpec(
+        zb0=zb0, zc0=zc0, vc0=vc0, controller_on=ctrl, kp=n.kp, ki=n.ki, approach_rate=rate,
+        n_ring=d.n_ring, record_cycles=n.record_cycles, steady=n.steady, max_periods=d.max_periods,
+        tol=n.tol_orbit, tol_amp=n.tol_amp, orbit_max_periods=n.orbit_max_periods,
+        settle_cycles=n.settle_cycles, tol_z=n.tol_z,
     )  # fmt: skip
+    t0 = time.perf_counter()
+    rr = engine.run(engine.Kernel(st), spec)
     wall = time.perf_counter() - t0
-    info = {k: float(v) for k, v in zip(thc.INFO_NAMES, info_v)}
-    written = int(info["approach_written"])
-    if written >= d.n_ring:
-        k = written % d.n_ring
-        approach = np.concatenate([ring[k:], ring[:k]])
-    else:
-        approach = ring[:written]
     run = Run(
-        approach=approach,
-        steady=steady,
-        info=info,
-        stop_reason="steady" if code == thc.STOP_STEADY else "max_time",
+        approach=rr.approach,
+        steady=rr.steady,
+        info=run_info(rr, st, d),
+        stop_reason=rr.stop_reason,
         params=cfg.to_dict(),
         wall_s=wall,
     )
     compute_observables(run, cfg, d)  # from the noise-free signals
+    run.warnings = rr.warnings + run.warnings
     apply_instrument(run, cfg)
     return run
 
@@ -196,15 +297,3 @@ def simulate_file(config=None, output="run.parquet", overrides: dict | None = No
     run = simulate(load(config, overrides))
     write_run(run, output)
     return run
-
-
-def _one_arm(cfg: Config) -> tuple[float, float, float]:
-    """``(k_inf, k0, cd)`` of the surface for the kernel, from its model's coefficient
-    arrays (:meth:`vetica_cli.surfaces.SurfaceModel.kernel_arms`); the kernel takes one
-    Maxwell arm."""
-    k_inf, k, cd = cfg.surface.surface_model.kernel_arms(cfg.surface.params)
-    if len(k) != 1:
-        raise ConfigError(
-            f"surface.model: {cfg.surface.model!r} has {len(k)} Maxwell arms; the simulation kernel takes one"
-        )
-    return k_inf, float(k[0]), float(cd[0])

@@ -10,30 +10,42 @@ from .plan import plan
 from .schema import point_sources
 from .store import parts_dir
 
-# measured on the project machine (2 cores): `vetica bench` gives 14 ns per integration step on one
-# core (worked example, dt = 0.025 ns).  Each extraction method states its own seconds per point
+# Measured on the project machine (2 cores, `vetica bench`, worked example): a hybrid drive period
+# costs ~0.09 of the fine steps of a period at NS_PER_STEP each (the tip is within the switch gap of
+# the surface for ~9 % of it), a recorded one RECORD_NS per print-step sample more; an orbit solve
+# with its approach takes ORBIT_PERIODS periods (p90 over the study grid), a transient up to
+# numerics.max_time.  Each extraction method states its own seconds per point
 # (ExtractionMethod.seconds_per_point, both force sources).  Used only for the --dry-run estimate.
-NS_PER_STEP = 14.0
+NS_PER_STEP = 11.0
+NEAR_FRACTION = 0.09
+RECORD_NS = 50.0
+ORBIT_PERIODS = 60
 
 
-def dry_run_text(study: Study, output: Path, jobs: int, share_print_step: bool = True) -> str:
-    """Points, jobs and a cost bound: kernel time if every simulation runs to
-    numerics.max_time, plus the extraction of every point."""
-    tasks = plan(study, share_print_step)
-    kernel = sum(t.points[0].config.numerics.max_time / t.points[0].config.numerics.dt for t in tasks)
-    kernel *= NS_PER_STEP * 1e-9
+def kernel_seconds(cfg) -> float:
+    """Rough upper estimate of one simulation's kernel time [s] (module comment)."""
+    n = cfg.numerics
+    steps = round(1.0 / cfg.probe.f1 / n.dt)
+    fraction = NEAR_FRACTION if n.integrator == "hybrid" else 1.0
+    period = steps * fraction * NS_PER_STEP * 1e-9
+    periods = ORBIT_PERIODS if n.steady == "orbit" else n.max_time * cfg.probe.f1
+    record = n.record_cycles * steps / round(n.print_step / n.dt) * RECORD_NS * 1e-9
+    return periods * period + record
+
+
+def dry_run_text(study: Study, output: Path, jobs: int) -> str:
+    """Points, jobs and a cost estimate: the kernel (:func:`kernel_seconds`) plus the
+    extraction of every point."""
+    tasks = plan(study)
+    kernel = sum(kernel_seconds(t.points[0].config) for t in tasks)
     extract = sum(get(p.method).seconds_per_point * len(point_sources(p.force)) / 2 for p in study.points)
     total = kernel + extract
     per_method = ", ".join(f"{m.seconds_per_point:g} s a {k} point" for k, m in METHODS.items())
     lines = [
+        f"study {study.name}: {len(study.points)} points over {', '.join(study.keys)}; {len(tasks)} simulations",
         (
-            f"study {study.name}: {len(study.points)} points over {', '.join(study.keys)}; "
-            f"{len(tasks)} simulations ({'print-step groups shared' if share_print_step else 'no print-step sharing'})"
-        ),
-        (
-            f"cost at most {total:.0f} core-s = {total / max(jobs, 1) / 60:.1f} min wall on {jobs} workers: "
-            f"kernel {kernel:.0f} core-s if every simulation runs to numerics.max_time ({NS_PER_STEP:g} ns/step), "
-            f"extraction ~{extract:.0f} core-s ({per_method}); steady points cost less"
+            f"cost ~{total:.0f} core-s = {total / max(jobs, 1) / 60:.1f} min wall on {jobs} workers: "
+            f"kernel ~{kernel:.0f} core-s, extraction ~{extract:.0f} core-s ({per_method})"
         ),
         f"output: {output} (parts in {parts_dir(output)}/)",
     ]

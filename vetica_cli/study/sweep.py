@@ -64,7 +64,6 @@ def run_sweep(
     backend: str = "loky",
     scheduler: str | None = None,
     resume: bool = True,
-    share_print_step: bool = True,
     progress: bool = True,
     console=None,
     task: PointTask | None = None,
@@ -84,12 +83,11 @@ def run_sweep(
     own = launcher is None
     launcher = make_launcher(backend, jobs, scheduler) if own else launcher
     try:
-        done, computed, reused = _run_tasks(study, output, launcher, task or PointTask(), resume, share_print_step,
-                                            progress, console)  # fmt: skip
+        done, computed, reused = _run_tasks(study, output, launcher, task or PointTask(), resume, progress, console)
     finally:
         if own:
             launcher.close()
-    res = _write_table(study, output, done, share_print_step)
+    res = _write_table(study, output, done)
     res.computed, res.reused, res.wall_s = computed, reused, time.perf_counter() - t_start
     return res
 
@@ -108,11 +106,11 @@ def _resumed(tasks: list[Task], pdir: Path, resume: bool) -> tuple[dict, list[Ta
     return done, todo
 
 
-def _run_tasks(study, output, launcher, task, resume, share_print_step, progress, console):
+def _run_tasks(study, output, launcher, task, resume, progress, console):
     """Run the missing tasks, persisting each point as it finishes.  Returns
     ``(done: point key -> rows frame, keys computed now, keys read from parts)``."""
     pdir = parts_dir(output)
-    done, todo = _resumed(plan(study, share_print_step), pdir, resume)
+    done, todo = _resumed(plan(study), pdir, resume)
     reused = list(done)
     pdir.mkdir(parents=True, exist_ok=True)
     for stale in pdir.glob(".*.tmp"):  # temporaries of a killed write
@@ -138,7 +136,7 @@ def _run_tasks(study, output, launcher, task, resume, share_print_step, progress
     return done, computed, reused
 
 
-def _write_table(study, output, done, share_print_step) -> SweepResult:
+def _write_table(study, output, done) -> SweepResult:
     """Assemble the table, take its acceptance regime, write it and the resolved config."""
     table = assemble(study, done)
     acceptance = acceptance_regime(table, study.keys)
@@ -152,7 +150,6 @@ def _write_table(study, output, done, share_print_step) -> SweepResult:
         "version": __version__,
         "code": code_fingerprint(),
         "points": len(study.points),
-        "share_print_step": share_print_step,
         "acceptance_err_pct": ACCEPT_ERR_PCT,
         "acceptance": acceptance,
         "config_file": config_path.name,
@@ -194,7 +191,7 @@ def sweep_command(
     study = load_study(config, overrides)
     out = Path(output) if output is not None else Path("results") / f"{Path(config).stem}.parquet"
     if dry_run:
-        return dry_run_text(study, out, jobs, run_kw.get("share_print_step", True))
+        return dry_run_text(study, out, jobs)
     try:
         res = run_sweep(study, out, jobs=jobs, **run_kw)
     except KeyboardInterrupt:

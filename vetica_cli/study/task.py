@@ -16,8 +16,9 @@ from dataclasses import dataclass
 
 from ..extraction import DEFAULT_METHOD, ExtractionResult, extract
 from ..simulation.config import Config, from_dict
+from ..simulation.instrument import noise_free
 from ..simulation.simulate import Run, simulate
-from .plan import fine_config, point_run
+from .plan import point_run
 from .schema import OBSERVABLES, point_sources, sigma_names
 
 Item = tuple  # (point key, resolved config dict, extract.method, extract.force)
@@ -101,33 +102,28 @@ class PointTask:
 
     def __call__(self, items: list[Item]) -> list[tuple[str, Rows, float]]:
         """``items`` = ``(point key, resolved config dict, extract.method, extract.force)`` of
-        the task's points; several items share one simulation (:func:`.plan.fine_config`).
-        Returns ``[(point key, rows, print step simulated at), ...]``.  Never raises for a
-        point: errors become rows with status 'failed'."""
+        the task's points, which share one simulation (:func:`.plan.plan`: they differ at
+        most in the method and the instrument keys).  Returns ``[(point key, rows, print
+        step simulated at), ...]``.  Never raises for a point: errors become rows with
+        status 'failed'."""
         cfgs = [from_dict(d) for _, d, _, _ in items]
         if len(items) == 1:
             (key, _, method, force), cfg = items[0], cfgs[0]
             return [(key, self.simulate_point(cfg, method, force), cfg.numerics.print_step)]
-        fcfg = fine_config(cfgs)
         t0 = time.perf_counter()
-        fine, fine_exc = None, None
-        if fcfg is not None:
-            try:
-                fine = self.simulate(fcfg)
-            except Exception as exc:  # noqa: BLE001
-                fine_exc = exc
+        shared, exc = None, None
+        try:
+            shared = self.simulate(noise_free(cfgs[0]))
+        except Exception as e:  # noqa: BLE001
+            exc = e
         sim_wall = time.perf_counter() - t0
         out = []
         for (key, _, method, force), cfg in zip(items, cfgs):
-            ps = fcfg.numerics.print_step if fcfg is not None else cfg.numerics.print_step
-            if fine_exc is not None:
-                out.append((key, failed_rows(cfg, fine_exc, "simulate", sim_wall, method, force), ps))
-                continue
-            run = point_run(fine, fcfg, cfg) if fine is not None else None
-            if run is None:  # the shared record does not cover this point: run it alone
-                out.append((key, self.simulate_point(cfg, method, force), cfg.numerics.print_step))
+            ps = cfg.numerics.print_step
+            if exc is not None:
+                out.append((key, failed_rows(cfg, exc, "simulate", sim_wall, method, force), ps))
             else:
-                out.append((key, self.rows_for_run(cfg, run, sim_wall, method, force), ps))
+                out.append((key, self.rows_for_run(cfg, point_run(shared, cfg), sim_wall, method, force), ps))
         return out
 
     def simulate_point(self, cfg: Config, method: str, force: str) -> Rows:
@@ -154,7 +150,7 @@ class PointTask:
             t0 = time.perf_counter()
             try:
                 fill_row(row, self.extract(df, meta, source, method), fitted)
-                row["status"] = "ok" if run.stop_reason == "steady" else "not_steady"
+                row["status"] = "ok" if run.steady_ok else "not_steady"
                 row["error"] = ""
             except Exception as exc:  # noqa: BLE001 - a failed point becomes a row
                 row["status"] = "failed"
