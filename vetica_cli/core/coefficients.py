@@ -10,8 +10,15 @@ families:
   :func:`verlet_row`);
 * **surface at step h** (thesis 3.2, SPEC 3 and 11): the massless surface of
   ``k_inf`` in parallel with N Maxwell arms ``(k_i, cd_i)``.  In contact every
-  arm relaxes towards ``X`` with ``tau_i = cd_i/k_i`` (exact exponential,
-  ``er_i = exp(-h/tau_i)``).  Out of contact the arms are coupled through the
+  arm relaxes towards ``X`` with ``tau_i = cd_i/k_i``, integrated exactly for
+  ``X`` moving linearly over the step (from ``X0`` to ``X1``)::
+
+      Xd1 = Xd0 + (1 - e)(X1 - Xd0) - (phi - e)(X1 - X0),
+      e = exp(-h/tau),  phi = (tau/h)(1 - e)
+
+  so a dashpot faster than the step lags the surface by ``tau dX/dt`` and
+  dissipates ``cd (dX/dt)^2`` (holding ``X`` at its end value instead would
+  add a numerical dashpot of ``k h/2``).  Out of contact the arms are coupled through the
   massless surface, ``X = (sum k_i Xd_i + Fa)/Kg``::
 
       Xd' = M Xd + b Fa,   M = diag(1/tau) (1 k^T/Kg - I),   b = diag(1/tau) 1/Kg
@@ -46,7 +53,7 @@ from scipy.linalg import expm
 ) = range(56)  # fmt: skip
 
 # ---- rows of the per-arm table A (N columns)
-A_K, A_ALPHA, A_KER, A_OMER, A_G, NA = range(6)
+A_K, A_ALPHA, A_KER, A_OMER, A_G, A_LIN, NA = range(7)
 
 # ---- layout of one ladder entry (far step of n fine steps); the K* pairs are the real and
 # imaginary parts of the first-harmonic projection factors of harmonic_factors()
@@ -133,9 +140,22 @@ def surface_step(k_inf: float, k: np.ndarray, cd: np.ndarray, h: float, vdw_on_s
     table[A_KER] = k * er
     table[A_OMER] = omer
     table[A_G] = g
+    table[A_LIN] = lin_lag(h / tau)
     beta = (1.0 + float(k @ g)) / kg if vdw_on_surface else 0.0
-    kc = k_inf + float(np.sum(k * er))
+    kc = k_inf + float(np.sum(k * (er + table[A_LIN])))  # k_inf + sum k phi
     return table, emi, beta, kc
+
+
+def lin_lag(x: np.ndarray) -> np.ndarray:
+    """``phi - e`` of the linear-target dashpot step for ``x = h/tau`` (module docstring):
+    ``(1 - e)/x - e`` with ``e = exp(-x)``; its series ``x/2 - x^2/3 + x^3/8`` below 1e-4
+    (the closed form cancels there)."""
+    x = np.asarray(x, float)
+    small = x < 1e-4
+    xs = np.where(small, 1.0, x)
+    closed = -np.expm1(-xs) / xs - np.exp(-xs)
+    series = x / 2 - x * x / 3 + x**3 / 8
+    return np.where(small, series, closed)
 
 
 def modes(m: float, k: float, c: float) -> complex:

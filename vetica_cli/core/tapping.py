@@ -50,7 +50,7 @@ import numpy as np
 from numba import njit
 
 from .coefficients import (
-    A_ALPHA, A_G, A_K, A_KER, A_OMER,
+    A_ALPHA, A_G, A_K, A_KER, A_LIN, A_OMER,
     L_C00, L_C01, L_C10, L_C11, L_COS, L_H, L_K1BI, L_K1BR, L_K1I, L_K1R, L_K2BI, L_K2BR, L_K2I, L_K2R,
     L_KPI, L_KPR, L_N, L_P00, L_P01, L_P10, L_P11, L_SIN,
     P_A0, P_BETA, P_BV1, P_BV2, P_C1, P_C2, P_COSDT, P_CVD0, P_CVD1, P_CVF, P_CVV, P_CVZ, P_CZD, P_CZF,
@@ -175,6 +175,28 @@ def _store(buf, r, t, z_tip, zc, zp, zb, fts, x, xd):
         r[R_ACTIVE] = 0
 
 
+@njit(cache=True, inline="always")
+def _free_dissipation(o, k_arm, kinf, x0, x1, xd0, xd1, work):
+    """Dashpot dissipation over an out-of-contact step from the surface's energy balance
+    (exact for the step's held attraction): the massless surface stays in equilibrium, so
+    ``Fa dX = dU + sum cd Xd'^2`` with ``U = k_inf X^2/2 + sum k_i (X - Xd_i)^2/2``:
+    ``D = work - dU`` (``work`` = the attraction's work on the surface, 0 without the pull).
+    Split over the arms in proportion to their midpoint estimates."""
+    n = len(k_arm)
+    u0 = 0.5 * kinf * x0 * x0
+    u1 = 0.5 * kinf * x1 * x1
+    wsum = 0.0
+    for i in range(n):
+        u0 += 0.5 * k_arm[i] * (x0 - xd0[i]) ** 2
+        u1 += 0.5 * k_arm[i] * (x1 - xd1[i]) ** 2
+        wsum += k_arm[i] * (0.5 * (x0 + x1) - 0.5 * (xd0[i] + xd1[i])) * (xd1[i] - xd0[i])
+    total = work - (u1 - u0)
+    o[O_DDASH] += total
+    for i in range(n):
+        wi = k_arm[i] * (0.5 * (x0 + x1) - 0.5 * (xd0[i] + xd1[i])) * (xd1[i] - xd0[i])
+        o[O_XM + n + i] += total * (wi / wsum if wsum != 0.0 else 1.0 / n)
+
+
 @njit(cache=True, fastmath={"contract"}, error_model="numpy")
 def _fine(s, n_end, zb_step, p, a, emi, buf, r, o, energy, far_ok):
     """Fine Verlet steps from the state ``s`` until step index ``n_end``, or until
@@ -200,6 +222,7 @@ def _fine(s, n_end, zb_step, p, a, emi, buf, r, o, energy, far_ok):
     d_exit = p[P_DSW_EXIT]
     nt = int(p[P_NT])
     omega = p[P_OMEGA]
+    vdw = p[P_VDW] > 0.0
 
     # dashpot positions as base + increments accumulated in this call: a slow dashpot moves by
     # ~1e-22 m per step, far below one ulp of its position, and rounding every update into the
@@ -212,6 +235,7 @@ def _fine(s, n_end, zb_step, p, a, emi, buf, r, o, energy, far_ok):
     alpha = a[A_ALPHA].copy()
     ker = a[A_KER].copy()
     omer = a[A_OMER].copy()
+    lin = a[A_LIN].copy()
     g = a[A_G].copy()
     tmp = np.empty(n_arms)
 
@@ -232,6 +256,7 @@ def _fine(s, n_end, zb_step, p, a, emi, buf, r, o, energy, far_ok):
     vpp = vp - bv2 * fts
     u1 = (czz * zc + czv * vcp + czd * cw) + (pzz * zp + pzv * vpp)
     xbase = x + beta * fts
+    x_last = x  # surface position after the previous step (the dashpot's linear target starts there)
     ztip_old = z_tip
     q_old = z_tip - zb
     hc, hs = o[O_HC], o[O_HS]
@@ -262,9 +287,12 @@ def _fine(s, n_end, zb_step, p, a, emi, buf, r, o, energy, far_ok):
         if energy:
             for i in range(n_arms):
                 xd_prev[i] = xd[i]
+        free_step = False
+        fa_old = fa
         if not contact:
             d = (base - xbase) + kappa * fts
             if d > a0:
+                free_step = True
                 # X_(n+1) = alpha . Xd_n + beta Fa_(n+1)  (force-free part before the update)
                 xs = 0.0
                 for i in range(n_arms):
@@ -295,10 +323,10 @@ def _fine(s, n_end, zb_step, p, a, emi, buf, r, o, energy, far_ok):
             x = (base - a0) + ef * fts
             sk = 0.0
             for i in range(n_arms):
-                sk += ker[i] * xd[i]
+                sk += ker[i] * xd[i] + k_arm[i] * lin[i] * x_last
             f_sls = kc * x - sk
             for i in range(n_arms):
-                dxd[i] += omer[i] * (x - xd[i])
+                dxd[i] += omer[i] * (x - xd[i]) - lin[i] * (x - x_last)
                 xd[i] = xd0[i] + dxd[i]
             if f_sls > sep_thr:
                 contact = False
@@ -338,11 +366,17 @@ def _fine(s, n_end, zb_step, p, a, emi, buf, r, o, energy, far_ok):
             o[O_D2] += hdt * c2 * (vp_old * vp_old + vp_new * vp_new)
             o[O_WTS] -= 0.5 * (fts_old + fts) * (z_tip - ztip_old)
             ztip_old = z_tip
+            if free_step:
+                work = 0.5 * (fa_old + fa) * (x_now - x_last) if vdw else 0.0
+                _free_dissipation(o, k_arm, kinf, x_last, x_now, xd_prev, xd, work)
+            else:  # in contact: midpoint rule with the dashpot's linear target
+                for i in range(n_arms):
+                    dd = k_arm[i] * (0.5 * (x_now + x_last) - 0.5 * (xd[i] + xd_prev[i])) * (xd[i] - xd_prev[i])
+                    o[O_DDASH] += dd
+                    o[O_XM + n_arms + i] += dd
             for i in range(n_arms):
-                dd = k_arm[i] * (x_now - 0.5 * (xd[i] + xd_prev[i])) * (xd[i] - xd_prev[i])
-                o[O_DDASH] += dd
-                o[O_XM + n_arms + i] += dd
                 o[O_XM + i] += (x_now - xd[i]) * dt
+        x_last = xbase - beta * fts
         to_grid -= 1
         on_grid = to_grid <= 0
         if on_grid:
@@ -628,11 +662,9 @@ def _far(s, n_end, zb_step, p, a, lad, lemi, lg, buf, r, o, energy, rec_mode):
             o[O_D1] += hh * c1 * (vc * vc + vc3 * vc3)
             o[O_D2] += hh * c2 * (vp * vp + vp3 * vp3)
             o[O_WTS] -= 0.5 * (-fa - fa1) * (z1 - z_tip)
+            _free_dissipation(o, k_arm, p[P_KINF], x, x1, xd, xd_new, fm * (x1 - x) if vdw else 0.0)
             for i in range(n_arms):
-                dd = k_arm[i] * (x1 - 0.5 * (xd[i] + xd_new[i])) * (xd_new[i] - xd[i])
-                o[O_DDASH] += dd
-                o[O_XM + n_arms + i] += dd
-                o[O_XM + i] += (x1 - xd_new[i]) * h
+                o[O_XM + i] += 0.5 * ((x - xd[i]) + (x1 - xd_new[i])) * h
         zc, vc, zp, vp, zb = zc1, vc3, zp1, vp3, zb1
         z_tip, x, fa = z1, x1, fa1
         cw, sw = cw1, sw1

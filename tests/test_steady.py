@@ -1,0 +1,140 @@
+"""The steady state is solved, not waited for (issue 9): the periodic-orbit solver against
+time stepping, the proof of periodicity, the limits of the dashpot, the hybrid integrator
+against all-fine Verlet, and the energy balance on the solved state."""
+
+import numpy as np
+import pytest
+
+from vetica_cli.core import tapping
+from vetica_cli.simulation.config import load
+from vetica_cli.simulation.simulate import simulate
+
+CHEAP = {"numerics.print_step": 1e-9, "numerics.record_cycles": 2}
+X_SURFACE = tapping.COLUMNS.index("x_surface")
+X_DASHPOT = tapping.COLUMNS.index("x_dashpot")
+OBSERVABLES = ("peak_force", "e_diss_ev", "contact_time", "amplitude", "phase_deg", "max_penetration")
+
+
+def run(**over):
+    return simulate(load(None, {**CHEAP, **{k.replace("__", "."): v for k, v in over.items()}}))
+
+
+@pytest.mark.parametrize("cd", [3e-5, 1e-3])
+def test_orbit_equals_the_long_transient_where_the_transient_settles(cd):
+    """Reference: the time-stepped controlled transient (numerics.steady: transient), run until
+    its recorded window proves periodic, here with numerics.tol_amp = 2e-6.  Its amplitude is
+    then within 2e-6 of the set point, so its base height may differ from the orbit's by about
+    tol_amp * A_sp = 0.14 pm (the contact stiffness turns a pm into ~1e-4 of the peak force):
+    tolerance 0.28 pm on the base height and 1e-4 relative on the observables."""
+    orbit = run(surface__k0=64.0, surface__cd=cd, numerics__tol_amp=2e-6)
+    trans = run(surface__k0=64.0, surface__cd=cd, numerics__steady="transient", numerics__tol_amp=2e-6)
+    assert orbit.stop_reason == "steady" and trans.stop_reason == "steady"
+    assert orbit.info["steady"]["method"] == "orbit" and trans.info["steady"]["method"] == "transient"
+    assert abs(orbit.info["zb_final"] - trans.info["zb_final"]) < 2 * 2e-6 * 70e-9
+    for k in OBSERVABLES:
+        assert trans.observables[k] == pytest.approx(orbit.observables[k], rel=1e-4), k
+
+
+@pytest.mark.parametrize("cd", [1.0, 10.0, 1e3])
+def test_slow_surfaces_are_proven_periodic(cd):
+    """Slow dashpots (tau_c = 0.27 s ... 270 s at 32:1) are where version 0.1 was not steady or
+    falsely steady.  The solved state: one more period changes the state by less than
+    numerics.tol_orbit (1e-13 m; velocities as v/w, the dashpot as its mean stretch), the
+    Maxwell arm carries no mean force (|<X - Xd>| < tol_orbit over the recorded window), and
+    the amplitude is at the set point within tol_amp -- and the same hold when checked here
+    from the recorded samples (mean stretch from x_surface and x_dashpot, to 1e-4 of the
+    penetration for the rectangle rule)."""
+    r = run(surface__cd=cd, surface__vdw_on_surface=False)
+    assert r.stop_reason == "steady"
+    proof = r.info["steady"]["proof"]
+    assert proof["state_change_m"] < 1e-13
+    assert abs(proof["mean_arm_stretch_m"][0]) < 1e-13
+    assert abs(proof["amplitude_error_rel"]) < 2e-5
+    stretch = np.mean(r.steady[:, X_SURFACE] - r.steady[:, X_DASHPOT])
+    assert abs(stretch) < 1e-4 * r.observables["max_penetration"]
+    assert r.info["steady"]["orbit"]["periods"] <= 150
+
+
+def test_transient_of_a_slow_surface_is_not_called_steady():
+    """Issue 9's false steady state: at 32:1, cd = 10 kg/s with the pull off the contact
+    position drifts less than tol_z per period long before the surface has crept (tau_c ~ 2.7 s).
+    A 12 ms transient is reported max_time, and its penetration falls short of the orbit's
+    (version 0.1 recorded 0.69 nm where the periodic state has ~1.7 nm)."""
+    over = dict(surface__cd=10.0, surface__vdw_on_surface=False)
+    trans = run(**over, numerics__steady="transient", numerics__max_time=0.012)
+    orbit = run(**over)
+    assert trans.stop_reason == "max_time" and orbit.stop_reason == "steady"
+    assert abs(trans.info["steady"]["proof"]["mean_arm_stretch_m"][0]) > 1e-12
+    assert trans.observables["max_penetration"] < 0.8 * orbit.observables["max_penetration"]
+
+
+def test_frozen_dashpot_sits_at_the_period_average_of_the_surface():
+    """The limit cd -> infinity (closed form): a dashpot that does not move within a period
+    carries no mean force only at Xd = <X>, the period average of the surface position.
+    cd = 1e6 kg/s (tau_c ~ 2.6e5 s): |Xd - <X>| < 1e-4 |Xd| (measured 3e-17 m against 0.9 nm),
+    <X> taken from the recorded samples."""
+    r = run(surface__k0=128.0, surface__cd=1e6)
+    assert r.stop_reason == "steady"
+    xd = r.steady[:, X_DASHPOT]
+    assert np.ptp(xd) < 1e-6 * abs(xd[0])  # it does not move
+    assert abs(xd[0] - np.mean(r.steady[:, X_SURFACE])) < 1e-4 * abs(xd[0])
+
+
+def test_fast_dashpot_follows_the_surface_and_dissipates_cd_v2():
+    """The limit of a fast dashpot (closed form: a Maxwell arm driven at speed v with
+    tau_r << the contact time lags by tau_r v, so it carries the viscous force cd v), and the
+    dissipation the tip measures (-closed integral of Fts dz_tip) is what the dashpot
+    dissipates.  cd = 1e-6 kg/s at 32:1 (tau_r = 7.8 ns = 312 dt, contact ~1.4 us): over the
+    contact samples away from its ends, median(lag / (tau_r dX/dt)) = 1 within 2 % (measured
+    0.995; dX/dt by finite differences of the 1 ns samples), and the two dissipations agree to
+    1e-4 (measured 1.2e-5; 7.8e-4 at cd = 1e-7, where tau_r = 31 dt)."""
+    r = run(surface__k0=128.0, surface__cd=1e-6)
+    assert r.stop_reason == "steady"
+    t, z, x, xd = (r.steady[:, tapping.COLUMNS.index(c)] for c in ("t", "z_tip", "x_surface", "x_dashpot"))
+    v = np.gradient(x, t)
+    contact = np.abs(z - 0.2e-9 - x) < 1e-15
+    near_edge = np.convolve(np.diff(contact.astype(int), prepend=0) != 0, np.ones(7), "same") > 0
+    fast = contact & ~near_edge & (np.abs(v) > 0.2 * np.max(np.abs(v[contact])))
+    assert np.median((x - xd)[fast] / (1e-6 / 128.0 * v[fast])) == pytest.approx(1.0, abs=0.02)
+    e = r.energy
+    assert e["dashpot_dissipation"] == pytest.approx(e["sample_dissipation"], rel=1e-4)
+
+
+@pytest.mark.parametrize(
+    "over",
+    [
+        {},  # worked example
+        {"surface.k0": 64.0, "surface.cd": 1e-3},
+        {"surface.k0": 0.5, "surface.cd": 1e-5},  # 1:8, soft: the tip indents ~10 nm
+        {"operation.setpoint": 0.25, "surface.k0": 64.0, "surface.cd": 1e-3},
+        {"probe.f1": 100e3, "probe.f2": 1.5e6, "surface.k0": 64.0, "surface.cd": 1e-2},
+        {"probe.k2": 200.0, "surface.k0": 64.0, "surface.cd": 5e-4},
+    ],
+)
+def test_hybrid_integrator_matches_all_fine_verlet(over):
+    """Reference: the same orbit with every step a fine Verlet step (numerics.integrator:
+    verlet).  Peak force, E_diss, contact time, amplitude, phase and penetration within 1e-4
+    relative (measured <= 2e-5 over the study grid: the exact far-field flow differs from
+    Verlet's by (w dt)^2 ~ 1e-8 per step; the van der Waals kicks are second order in steps
+    limited to 5 % of the gap's time scale)."""
+    hybrid = simulate(load(None, {**CHEAP, **over}))
+    fine = simulate(load(None, {**CHEAP, **over, "numerics.integrator": "verlet"}))
+    assert hybrid.stop_reason == fine.stop_reason == "steady"
+    assert hybrid.info["far_steps"] > 0 and fine.info["far_steps"] == 0
+    for k in OBSERVABLES:
+        assert hybrid.observables[k] == pytest.approx(fine.observables[k], rel=1e-4), k
+
+
+@pytest.mark.parametrize("over", [{}, {"surface.cd": 1.0, "surface.vdw_on_surface": False}])
+def test_energy_balance_closes_on_the_solved_state(over):
+    """Per steady cycle: drive work - cantilever damping - paddle damping = energy the sample
+    takes (-closed integral of Fts dz_tip) = dashpot dissipation, and the probe's energy is
+    periodic.  Tolerance 1e-3 of the sample dissipation plus 1e-6 of the drive work (the
+    trapezoid rule at the print step in the far field; measured 1e-5 of E_diss)."""
+    r = run(**{k.replace(".", "__"): v for k, v in over.items()})
+    e = r.energy
+    scale = 1e-3 * abs(e["sample_dissipation"]) + 1e-6 * e["drive_work"]
+    balance = e["drive_work"] - e["cantilever_damping"] - e["paddle_damping"] - e["probe_energy_change"]
+    assert balance == pytest.approx(e["sample_dissipation"], abs=scale)
+    assert e["dashpot_dissipation"] == pytest.approx(e["sample_dissipation"], abs=scale)
+    assert abs(e["probe_energy_change"]) < 1e-6 * e["drive_work"]
