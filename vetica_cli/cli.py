@@ -68,8 +68,9 @@ def bench(
     repeat: int = typer.Option(3, min=1, help="Timed runs after one warm-up (compilation) run."),
     set_: Optional[List[str]] = typer.Option(None, "--set", help=SET_HELP),
 ):
-    """Time the kernel on the worked example: ns per integration step and
-    wall seconds to steady state (one core)."""
+    """Time the simulation on the worked example, all-fine Verlet against the hybrid
+    integrator: ns per fine step, ms per drive period, seconds per point (approach,
+    steady state, recorded window); medians of the repeated runs, one core."""
     from .bench import run_bench
     from .simulation.config import parse_set
 

@@ -35,6 +35,7 @@ falls back to it when Newton fails, and says so.
 from __future__ import annotations
 
 import math
+import time
 from collections import deque
 from dataclasses import dataclass, field
 
@@ -660,12 +661,15 @@ class Window:
     states: np.ndarray
     proof: dict
     proven: bool
+    record_s: float = 0.0  # wall time of the recording [s]
 
 
 def record_window(kern, s, spec, a_sp, fixed_base) -> Window:
+    """Record ``spec.record_cycles`` periods from ``s`` (base held) and put them to the proof."""
+    t0 = time.perf_counter()
     buf, o, states = record_periods(kern, s, spec.record_cycles)
     pr = proof(kern, states, o, a_sp, fixed_base)
-    return Window(buf, o, states, pr, proven(pr, spec.tol, spec.tol_amp))
+    return Window(buf, o, states, pr, proven(pr, spec.tol, spec.tol_amp), time.perf_counter() - t0)
 
 
 def transient(kern, s, ctrl, spec, periods_left, fixed_base) -> Window:
@@ -714,7 +718,9 @@ def run(kern: Kernel, spec: RunSpec) -> RunResult:
     # without a controller nothing brings the tip down: a free start settles within a few Q1 periods
     q1 = math.sqrt(st.k1 * st.m1) / st.c1
     no_contact_max = None if spec.controller_on else int(10 * q1)
+    t0 = time.perf_counter()
     ap = approach(kern, s, ctrl, spec.n_ring, spec.max_periods, no_contact_max=no_contact_max)
+    t_approach = time.perf_counter() - t0
     info.update(t_first_contact=ap.t_first_contact, z_first_contact=ap.z_first_contact, approach_periods=ap.periods)
     # the branch the controlled approach is on: repulsive if most of its periods since the first
     # contact were (a controller overshoot can lift the tip off for a few periods)
@@ -755,6 +761,9 @@ def run(kern: Kernel, spec: RunSpec) -> RunResult:
         stop = "steady" if win.proven else "max_time"
     info["proof"] = win.proof
     info["periods_evaluated"] = kern.periods
+    total = time.perf_counter() - t0
+    info["timing_s"] = {"approach": t_approach, "steady": total - t_approach - win.record_s,
+                        "record": win.record_s, "total": total}  # fmt: skip
     return RunResult(ap.ring, win.samples, stop, info, warnings, win)
 
 

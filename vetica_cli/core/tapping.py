@@ -504,6 +504,26 @@ def _extrema(h, zc0, vc0, zp0, vp0, cw, sw, p, q0, q1):
     return qmin, qmax
 
 
+@njit(cache=True, inline="always")
+def _project(o, row, zc, dz, dv, zp, vp1, cw, sw, h, zdrive, lam1, wd1, lam2, wd2):
+    """Add the exact first-harmonic projection ``int_0^h q(s) exp(-i w (t0 + s)) ds`` of a far
+    step to ``o[O_HC], o[O_HS]``: ``q`` is the drive's particular solution plus the free
+    cantilever and paddle modes from ``(dz, dv)`` and ``(zp, vp1)`` (after the opening kick);
+    ``row``: the step's ladder entry with the factors of :func:`.coefficients.harmonic_factors`."""
+    e0 = complex(cw, -sw)  # exp(-i w t0)
+    ca = complex(dz, -(dv - lam1 * dz) / wd1)
+    cp = complex(zp, -(vp1 - lam2 * zp) / wd2)
+    k1 = complex(row[L_K1R], row[L_K1I])
+    k1b = complex(row[L_K1BR], row[L_K1BI])
+    k2 = complex(row[L_K2R], row[L_K2I])
+    k2b = complex(row[L_K2BR], row[L_K2BI])
+    kp = complex(row[L_KPR], row[L_KPI])
+    proj = 0.5 * e0 * (ca * k1 + ca.conjugate() * k1b + cp * k2 + cp.conjugate() * k2b)
+    proj += 0.5 * zdrive * h + 0.5 * zdrive.conjugate() * (e0 * e0) * kp
+    o[O_HC] += proj.real
+    o[O_HS] += proj.imag
+
+
 EPS_STEP = 0.05  # far step <= EPS_STEP * gap / |tip speed|: the attraction changes < 5 % over a step
 
 
@@ -609,10 +629,12 @@ def _far(s, n_end, zb_step, p, a, lad, lemi, lg, buf, r, o, energy, rec_mode):
             # paddle's ringing amplitude and the cantilever's curvature over the step)
             q0 = z_tip - zb
             q1 = z1 - zb1
-            ring = 2.0 * math.sqrt(zp * zp + (vp1 / w2) ** 2) + curv * (abs(zc) + abs(zc1)) * h * h / 8.0
             qmn, qmx = min(q0, q1), max(q0, q1)
             floor = dsw + max(x, x1) - min(zb, zb1)  # q below which the gap is below d_switch
-            if qmx + ring >= o[O_QMAX] or qmn - ring <= o[O_QMIN] or qmn - ring <= floor:
+            # a recording step is one print step (<= 1/20 of a period, far below the time the
+            # attraction takes to change): its ends bound it; a long step is searched
+            ring = 0.0 if rec_mode else 2.0 * math.sqrt(zp * zp + (vp1 / w2) ** 2) + curv * (abs(zc) + abs(zc1)) * h * h / 8.0
+            if not rec_mode and (qmx + ring >= o[O_QMAX] or qmn - ring <= o[O_QMIN] or qmn - ring <= floor):
                 if h * w2 < 0.1:  # a step far below the paddle period: the cubic is exact enough
                     qmn, qmx = _hermite_extrema(q0, vc1 + vp1, q1, vc2 + vp2, h)
                 else:
@@ -625,19 +647,13 @@ def _far(s, n_end, zb_step, p, a, lad, lemi, lg, buf, r, o, energy, rec_mode):
         if not accepted:
             moved = False
             break
-        # accepted: first harmonic of q over the step, exact (sum of damped exponentials)
-        e0 = complex(cw, -sw)  # exp(-i w t0)
-        ca = complex(zc - zpart0, -((vc1 - vpart0) - lam1 * (zc - zpart0)) / wd1)
-        cp = complex(zp, -(vp1 - lam2 * zp) / wd2)
-        k1 = complex(lad[lev, L_K1R], lad[lev, L_K1I])
-        k1b = complex(lad[lev, L_K1BR], lad[lev, L_K1BI])
-        k2 = complex(lad[lev, L_K2R], lad[lev, L_K2I])
-        k2b = complex(lad[lev, L_K2BR], lad[lev, L_K2BI])
-        kp = complex(lad[lev, L_KPR], lad[lev, L_KPI])
-        proj = 0.5 * e0 * (ca * k1 + ca.conjugate() * k1b + cp * k2 + cp.conjugate() * k2b)
-        proj += 0.5 * zdrive * h + 0.5 * zdrive.conjugate() * (e0 * e0) * kp
-        o[O_HC] += proj.real
-        o[O_HS] += proj.imag
+        # accepted: first harmonic of q over the step -- a recording step by the trapezoid
+        # rule (print-step samples, error (w h)^2/12), a long step exactly (damped exponentials)
+        if rec_mode:
+            o[O_HC] += hh * ((z_tip - zb) * cw + (z1 - zb1) * cw1)
+            o[O_HS] -= hh * ((z_tip - zb) * sw + (z1 - zb1) * sw1)
+        else:
+            _project(o, lad[lev], zc, zc - zpart0, vc1 - vpart0, zp, vp1, cw, sw, h, zdrive, lam1, wd1, lam2, wd2)
         # exact creep with the mean attraction of the step
         fm = 0.5 * (fa + fa1)
         xs = 0.0

@@ -252,6 +252,7 @@ def run_info(rr: engine.RunResult, st: engine.KernelSetup, d: Derived) -> dict:
         "zb_final": float(w.states[-1][T.S_ZB]),
         "fine_steps": o[T.O_FINE],
         "far_steps": o[T.O_FAR],
+        "timing_s": rr.info["timing_s"],
         "steady": {
             "method": rr.info["steady_method"],
             "orbit": rr.info.get("orbit"),
