@@ -616,8 +616,9 @@ def _accumulate(total, o) -> None:
         total[i] = min(total[i], o[i])
     if math.isnan(total[T.O_ZCONT]):
         total[T.O_ZCONT] = o[T.O_ZCONT]
-    if not math.isnan(o[T.O_ZCONT_LAST]):
-        total[T.O_ZCONT_LAST] = o[T.O_ZCONT_LAST]
+    for i in (T.O_ZCONT_LAST, T.O_ZSEP_LAST):
+        if not math.isnan(o[i]):
+            total[i] = o[i]
     total[T.O_MAXCPP] = max(total[T.O_MAXCPP], o[T.O_NCONT])
     for i in (T.O_NCONT, T.O_NSEP, T.O_CSTEPS, T.O_WDRIVE, T.O_D1, T.O_D2, T.O_WTS, T.O_DDASH, T.O_FINE,
               T.O_FAR, T.O_REJECT, T.O_HC, T.O_HS):  # fmt: skip

@@ -75,8 +75,8 @@ NR = 8
 (
     O_QMAX, O_QMIN, O_ZCONT, O_NCONT, O_NSEP, O_CSTEPS, O_FMAX, O_FMIN,
     O_WDRIVE, O_D1, O_D2, O_WTS, O_DDASH, O_FINE, O_FAR, O_REJECT,
-    O_T_FC, O_Z_FC, O_ZCONT_LAST, O_MAXCPP, O_HC, O_HS, O_XM,
-) = range(23)  # fmt: skip
+    O_T_FC, O_Z_FC, O_ZCONT_LAST, O_MAXCPP, O_HC, O_HS, O_ZSEP_LAST, O_XM,
+) = range(24)  # fmt: skip
 NO_BASE = O_XM
 
 NEWTON_TOL = 1e-4  # |guess error| above which vdw_force divides exactly
@@ -330,6 +330,7 @@ def _fine(s, n_end, zb_step, p, a, emi, buf, r, o, energy, far_ok):
                 xd[i] = xd0[i] + dxd[i]
             if f_sls > sep_thr:
                 contact = False
+                o[O_ZSEP_LAST] = base + ef * fts_old  # tip position at the separation
                 xs = 0.0
                 for i in range(n_arms):
                     xs += k_arm[i] * xd[i]
@@ -741,7 +742,7 @@ def new_outputs(n_arms: int) -> np.ndarray:
     o = np.zeros(NO_BASE + 2 * n_arms)
     o[O_QMAX], o[O_QMIN] = -np.inf, np.inf
     o[O_FMAX], o[O_FMIN] = -np.inf, np.inf
-    o[O_ZCONT] = o[O_T_FC] = o[O_Z_FC] = o[O_ZCONT_LAST] = np.nan
+    o[O_ZCONT] = o[O_T_FC] = o[O_Z_FC] = o[O_ZCONT_LAST] = o[O_ZSEP_LAST] = np.nan
     return o
 
 

@@ -249,6 +249,7 @@ def run_info(rr: engine.RunResult, st: engine.KernelSetup, d: Derived) -> dict:
         "n_separations": o[T.O_NSEP],
         "max_contacts_per_period": o[T.O_MAXCPP],
         "z_contact_last": o[T.O_ZCONT_LAST],
+        "z_separation_last": o[T.O_ZSEP_LAST],
         "zb_final": float(w.states[-1][T.S_ZB]),
         "fine_steps": o[T.O_FINE],
         "far_steps": o[T.O_FAR],
