@@ -26,9 +26,15 @@ from .uncertainty import covariance, gn_gain, identifiability, propagate
 STATES = ("auto", "periodic", "free")  # dashpot state at the window start
 FREE_NFEV = 25  # evaluation budget of the free-start-state stage (whole window)
 SUB_PERIODS = 1  # drive periods of the first (coarse) fit stage
+PINNED_NFEV = 30  # whole-window evaluations once the height, pinned to Z1 on the first periods, is freed
 ARM_TAU_STEPS = (1e-3, 1e-2, 1e-1, 10.0, 100.0, 1000.0)  # a new arm's tau relative to the nearest arm's
 ARM_TRY_NFEV = 5  # evaluations per candidate arm
 ARM_NFEV = 40  # evaluations of the best candidate on the first period
+# first-period evaluations when no approach tap pins the surface height: the height and the split of Kg
+# between k_inf and a slow dashpot form a long curved valley (on the periodic orbit the arms sit at the
+# surface's mean position <X> = -<Fts>/k_inf), which least squares follows slowly but surely; measured
+# (cd = 3e-4 kg/s, 16:1, stripped record): 25 evaluations stop at k_inf +375 %, 100 at +64 %, 300 at 1e-5
+FREE_HEIGHT_NFEV = 400
 SUBSTEP_DT = 0.025e-9  # [s] surface sub-step near the surface when the record does not say its dt (thesis dt)
 
 
@@ -54,7 +60,7 @@ def surface_constants(record: Record, opts: dict) -> dict:
         elif meta is not None:
             out[name] = (meta, "metadata")
         else:
-            out[name] = (default, "assumed (thesis default)" if default is not None else "unknown")
+            out[name] = (default, "assumed: thesis default" if default is not None else "unknown")
     return out
 
 
@@ -83,12 +89,16 @@ def truth_for(record: Record, model: surfaces.SurfaceModel) -> dict | None:
 # ------------------------------------------------------------------------- stages
 
 
-def _stages(make, n, taps, theta0, opts, bounds, n_arms):
+def _stages(make, n, taps, theta0, opts, bounds, n_arms, pin=False):
     """Coarse to fine: scan and fit on the first ``SUB_PERIODS`` drive periods (the periodic
     state of a whole number of periods is the window's), then refine on the whole window;
     then, per ``state``, release the periodic state (module docstring).  Several arms are
-    added one at a time on the first periods (:func:`_add_arms`).  Returns the
-    whole-window model, the fits of every stage and the free-state gain."""
+    added one at a time on the first periods (:func:`_add_arms`).  ``pin``: the first
+    periods are fitted with the surface height pinned to Z1 (a record with Z1 but no
+    approach tap; the window then frees it): the height and the split of Kg between k_inf
+    and a slow dashpot form a long valley that a fit with a free height may not leave
+    (FREE_HEIGHT_NFEV).  Returns the whole-window model, the fits of every stage and the
+    free-state gain."""
     fit_hamaker, scan = opts["fit_hamaker"], opts["scan"]
     model = make(n, n_arms)
     cycles = round(n / taps.spacing) if taps.spacing > 0 else 0
@@ -96,10 +106,12 @@ def _stages(make, n, taps, theta0, opts, bounds, n_arms):
     stages = []
     given = opts["start"] is not None and len(theta0) == model.n_params + 1
     if n_arms > 1 and not given:
-        stages = _add_arms(make, n_sub, theta0, bounds, fit_hamaker, scan, n_arms)
+        stages = _add_arms(make, n_sub, theta0, bounds, fit_hamaker, scan, n_arms, pin)
     elif n_sub < n:
-        sub = make(n_sub, n_arms)
-        stages.append(fit_surface(sub, theta0, bounds, fit_hamaker=fit_hamaker, scan=scan, xtol=1e-6, max_nfev=25))
+        sub = make(n_sub, n_arms, pin)
+        nfev = FREE_HEIGHT_NFEV if sub.fit_offset and sub.approach is None else 25
+        xtol = 1e-10 if sub.fit_offset and sub.approach is None else 1e-6
+        stages.append(fit_surface(sub, theta0, bounds, fit_hamaker=fit_hamaker, scan=scan, xtol=xtol, max_nfev=nfev))
         stages[-1]["model"] = sub
     if stages:
         theta0 = stages[-1]["theta"]
@@ -107,8 +119,9 @@ def _stages(make, n, taps, theta0, opts, bounds, n_arms):
     s0_start = stages[-1]["s0"] if stages else None
     s0_ref = stages[0]["s0_ref"] if stages else None
     coarse = bool(stages)
+    nfev = (PINNED_NFEV if pin and model.fit_offset else 8) if coarse else 60
     stages.append(fit_surface(model, theta0, bounds, fit_hamaker=fit_hamaker, scan=scan and not coarse, s0=s0_start,
-                              s0_ref=s0_ref, xtol=1e-8 if coarse else 1e-10, max_nfev=8 if coarse else 60))  # fmt: skip
+                              s0_ref=s0_ref, xtol=1e-8 if coarse else 1e-10, max_nfev=nfev))  # fmt: skip
     stages[-1]["model"] = model
     # the periodic state is an assumption (a record taken before the surface settled breaks it):
     # 'auto' releases it -- fits the dashpot positions at the window start too -- when the
@@ -123,22 +136,24 @@ def _stages(make, n, taps, theta0, opts, bounds, n_arms):
     return model, stages, gain
 
 
-def _add_arms(make, n_sub, theta0, bounds, fit_hamaker, scan, n_arms):
+def _add_arms(make, n_sub, theta0, bounds, fit_hamaker, scan, n_arms, pin=False):
     """Several arms, on the first period: fit one arm (the SLS, with its cd scan), then add
     an arm at a time -- its relaxation time ``ARM_TAU_STEPS`` times each present arm's, its
     spring taken from the arms' springs or from ``k_inf`` -- try every candidate briefly,
     and fit the best.  (A sum of exponentials is fitted term by term, as a Prony series
     is: the fit of N - 1 arms is the start of N.)"""
     stages = []
-    sub = make(n_sub, 1)
+    sub = make(n_sub, 1, pin)
     sls_bounds = {k: bounds[k] for k in ("k_inf", "k_1", "cd_1", "hamaker")}
-    first = fit_surface(sub, theta0, sls_bounds, fit_hamaker=fit_hamaker, scan=scan, xtol=1e-6, max_nfev=25)
+    free_height = sub.fit_offset and sub.approach is None
+    first = fit_surface(sub, theta0, sls_bounds, fit_hamaker=fit_hamaker, scan=scan, xtol=1e-10 if free_height else 1e-6,
+                        max_nfev=FREE_HEIGHT_NFEV if free_height else 25)  # fmt: skip
     first["model"] = sub
     stages.append(first)
     theta = first["theta"]
     s0, s0_ref = first["s0"], first["s0_ref"]
     for m in range(2, n_arms + 1):
-        sub = make(n_sub, m)
+        sub = make(n_sub, m, pin)
         keys = list(bounds)[: 2 * m + 1] + ["hamaker"]
         mb = {k: bounds[k] for k in keys}
         tried = []
@@ -156,7 +171,7 @@ def _add_arms(make, n_sub, theta0, bounds, fit_hamaker, scan, n_arms):
         _, _, best = min(tried, key=lambda c: c[0])
         sub.reset()
         vec = FitVector(sub, best["theta"], mb, fit_hamaker, best["s0"], None, s0_ref)
-        fit = solve(vec, vec.x0, max_nfev=ARM_NFEV, xtol=1e-7)
+        fit = solve(vec, vec.x0, max_nfev=FREE_HEIGHT_NFEV if free_height else ARM_NFEV, xtol=1e-10 if free_height else 1e-7)
         fit["model"] = sub
         fit["candidates"] = len(tried)
         stages.append(fit)
@@ -289,12 +304,19 @@ class FullFit(ExtractionMethod):
         z1 = record.z1 if record.z1 is not None and math.isfinite(record.z1) else None
         z_ref = z1 if z1 is not None else float(np.median(z[taps.contact]))
         info, warnings = dict(record.info), []
+        if z1 is None and record.approach is None and opts["fit_offset"]:
+            warnings.append(
+                "no Z1 (no approach segment, no metadata, no --z1): the surface height is fitted from the steady taps "
+                "alone, and for a dashpot that creeps little between taps (e.g. cd >= 1e-3 kg/s at 16:1, 50 kHz) the "
+                "fit may split Kg wrongly between k_inf and that dashpot; pass --z1 (the tip position at the first "
+                "approach contact) to pin the height"
+            )
         start_sls, source = starting_point(t, z, f, z_ref, taps, opts["kg_points"], _sls_start(opts["start"]))
         t_start_done = time.perf_counter()
 
-        def make(n, arms):
+        def make(n, arms, pinned=False):
             return SurfaceFit(z[:n], f[:n], h, z1, record.approach, a0, radius, vdw,
-                              fit_offset=opts["fit_offset"], near_stride=opts["near_stride"],
+                              fit_offset=opts["fit_offset"] and not pinned, near_stride=opts["near_stride"],
                               far_stride=opts["far_stride"], substeps=substeps, n_arms=arms, z_ref=z_ref)  # fmt: skip
 
         bounds = {**surface.fit_bounds, "hamaker": HAMAKER_BOUNDS}
@@ -307,7 +329,8 @@ class FullFit(ExtractionMethod):
         else:
             theta0 = [start_sls["k_inf"], start_sls["k0"], start_sls["cd"], hr6]
         opts_run = {**opts, "fit_hamaker": fit_hamaker}
-        model, stages, info["free_state_gain"] = _stages(make, len(z), taps, theta0, opts_run, bounds, n_arms)
+        pin = z1 is not None and record.approach is None and opts["fit_offset"]
+        model, stages, info["free_state_gain"] = _stages(make, len(z), taps, theta0, opts_run, bounds, n_arms, pin)
         t_fit = time.perf_counter()
         info["start"] = {"source": source, **start_sls}
         result = self._result(record, surface, model, stages, taps, h, radius, opts_run, info, warnings, consts, vdw)
@@ -394,30 +417,34 @@ class FullFit(ExtractionMethod):
                                 warnings=warnings + record.meta_warnings)  # fmt: skip
 
     def summary_lines(self, res: ExtractionResult) -> list[str]:
-        """What was fitted and what assumed (the constants of the attraction, the surface height)."""
+        """What was fitted and what known or assumed (the constants of the attraction, the
+        surface pull, the surface height): the record's metadata, an option or the thesis."""
         c = res.info.get("constants") or {}
         if not c:
             return []
-        fitted = list(res.fitted)
-        if c.get("surface_height", {}).get("source", "").startswith("fit"):
+        fitted = [("H R" if n == "hamaker_radius" else n) for n in res.fitted]
+        height = c.get("surface_height")
+        if height and height["source"].startswith("fitted"):
             fitted.append("surface height")
+        pull = c.get("vdw_on_surface")
+        if pull and pull["source"].startswith("fitted"):
+            fitted.append("surface pull")
         lines = ["fitted: " + ", ".join(fitted)]
         known = []
-        for name, text in (("a0", "a0"), ("tip_radius", "tip radius"), ("hamaker", "H"), ("vdw_on_surface", "surface pull")):
+        for name, text, unit, scale in (("a0", "a0", "nm", 1e9), ("tip_radius", "tip radius", "nm", 1e9),
+                                        ("hamaker", "H", "J", 1.0), ("vdw_on_surface", "surface pull", "", 1.0)):  # fmt: skip
             e = c.get(name)
-            if not e or e["source"].startswith("fitted"):
+            if not e or e["source"].startswith("fitted") or e["value"] is None:
                 continue
             v = e["value"]
-            shown = f"{v:.4g}" if isinstance(v, float) else ("on" if v is True else "off" if v is False else str(v))
-            known.append(f"{text} = {shown} ({e['source']})")
+            shown = ("on" if v else "off") if isinstance(v, bool) else f"{v * scale:.4g} {unit}"
+            known.append(f"{text} {shown} ({e['source']})")
         if known:
             lines.append("known or assumed: " + "; ".join(known))
-        e = c.get("vdw_on_surface")
-        if e and e["source"].startswith("fitted"):
-            lines.append(f"surface pull (vdw_on_surface): {'on' if e['value'] else 'off'}, {e['source']}")
-        s = c.get("surface_height")
-        if s:
-            lines.append(f"surface height: {s['value'] * 1e9:.4f} nm in the record's z_tip ({s['source']})")
+        if pull and pull["source"].startswith("fitted"):
+            lines.append(f"surface pull (vdw_on_surface): {'on' if pull['value'] else 'off'}, {pull['source']}")
+        if height:
+            lines.append(f"surface height: {height['value'] * 1e9:.4f} nm in the record's z_tip ({height['source']})")
         return lines
 
 
@@ -440,8 +467,10 @@ def _constants_info(consts: dict, opts: dict, model: SurfaceFit, fit: dict, vdw:
     if opts["fit_hamaker"]:
         out["hamaker_radius"] = {"value": hr, "source": "fitted"}
         out["hamaker"] = {"value": consts["hamaker"][0], "source": "fitted as H R"}
+        if consts["tip_radius"][1].startswith("assumed"):  # it would only convert H R to H
+            out["tip_radius"] = {"value": None, "source": "unknown, not needed: H R fitted"}
     elif consts["hamaker"][0] is None:
-        out["hamaker"] = {"value": COMMON_KEYS["hamaker"].default, "source": "assumed (thesis default)"}
+        out["hamaker"] = {"value": COMMON_KEYS["hamaker"].default, "source": "assumed: thesis default"}
     out["surface_height"] = {"value": float(fit["s0"]), "source": model.offset_source}
     return out
 
