@@ -239,3 +239,13 @@ def test_vetica_says_it_cannot_extract_a_wiechert_record(two_arms):
     assert "\n" not in msg
     assert "a Wiechert surface with 2 Maxwell arms" in msg and "one relaxation time" in msg
     assert msg.endswith("use --method full")
+
+
+def test_a_swept_arm_key_gets_its_parameter_axis():
+    """Figures label a swept arm key from the surface model (registry): surface.arms.2.cd is
+    the dashpot of arm 2 on a log axis in kg/s, with the same arm's key beyond the default
+    two arms (arm 3)."""
+    from vetica_cli.plots.style import axis_meta
+
+    assert axis_meta("surface.arms.2.cd") == (r"dashpot $c_{d,2}$ of arm 2", "kg/s", 1.0, "log")
+    assert axis_meta("surface.arms.3.k") == ("$k_3$", "N/m", 1.0, "log")

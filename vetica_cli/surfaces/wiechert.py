@@ -210,24 +210,23 @@ class Wiechert(SurfaceModel):
     # ---- figure titles
 
     def title_items(self, params: dict, swept: set | frozenset = frozenset()) -> list[str]:
-        """``k_inf`` and each arm's ``k_i``, ``cd_i`` (matplotlib), leaving out swept keys."""
+        """``k_inf`` and each arm as ``arm i: k_i, cd_i`` (matplotlib), leaving out swept keys."""
         items = []
         k_inf = params.get("k_inf")
         if "surface.k_inf" not in swept and isinstance(k_inf, (int, float)) and not isinstance(k_inf, bool):
             items.append(rf"$k_\infty$ {float(k_inf):g} N/m")
         arms = params.get("arms")
         for i, arm in enumerate(arms if isinstance(arms, list) else [], start=1):
-            if not isinstance(arm, dict):
+            if not isinstance(arm, dict) or "surface.arms" in swept:
                 continue
+            parts = []
             for field, (unit, _) in ARM_FIELDS.items():
                 v = arm.get(field)
-                if f"surface.arms.{i}.{field}" in swept or "surface.arms" in swept or v is None:
+                if f"surface.arms.{i}.{field}" in swept or isinstance(v, bool) or not isinstance(v, (int, float)):
                     continue
-                label = f"$k_{i}$" if field == "k" else f"$c_{{d,{i}}}$"
-                try:
-                    items.append(f"{label} {float(v):g} {unit}")
-                except (TypeError, ValueError):
-                    continue
+                parts.append(f"{float(v):g} {unit}")
+            if parts:
+                items.append(f"arm {i} " + ", ".join(parts))
         return items
 
 
