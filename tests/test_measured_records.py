@@ -10,7 +10,6 @@ full record: stripping the approach and the metadata changes nothing when Z1 is 
 
 import json
 
-import numpy as np
 import pytest
 from typer.testing import CliRunner
 
@@ -32,7 +31,7 @@ def stripped(run, columns=("t", "z_tip", "f_ts"), periods=None, phase=0.0):
     fraction of a period) into the window."""
     st = segment(run.frame(), "steady")
     n = len(st) // run.params["numerics"]["record_cycles"]
-    start = int(round(phase * n))
+    start = round(phase * n)
     stop = len(st) if periods is None else start + periods * n
     return st.iloc[start:stop][list(columns)].reset_index(drop=True)
 
@@ -104,7 +103,9 @@ def test_csv_with_only_t_z_tip_f_ts_through_the_cli(pull_on, tmp_path):
         assert data[k]["value"] == pytest.approx(v, rel=0.01), k
     assert data["info"]["constants"]["hamaker_radius"]["source"] == "fitted"
     bad = CliRunner().invoke(app, ["extract", str(path), "--method", "full", "--a0", "-1"])
-    assert bad.exit_code == 2 and bad.output.strip().splitlines() == ["error: a0 -1.0 not allowed; expected a number > 0 m"]
+    assert bad.exit_code == 2 and bad.output.strip().splitlines() == [
+        "error: a0 -1.0 not allowed; expected a number > 0 m"
+    ]
 
 
 def test_reconstructed_force_from_the_paddle_signal_without_metadata(pull_on):

@@ -11,14 +11,12 @@ from __future__ import annotations
 import inspect
 import json
 import math
-from typing import ClassVar
 
 import numpy as np
 import pytest
 from typer.testing import CliRunner
 
 from vetica_cli import surfaces
-from vetica_cli.checks import check, coerce, positive
 from vetica_cli.cli import app
 from vetica_cli.errors import ConfigError, InputError
 from vetica_cli.extraction import METHODS, ExtractionResult, extract
@@ -144,7 +142,11 @@ def test_wiechert_study_grid_schema_and_simulation():
     """The study grid sweeps an arm's key, the table schema follows the arms, a method that
     cannot extract the surface is refused before any work, and the kernel simulates the
     arms and records every dashpot."""
-    study = {"surface": {"model": "wiechert"}, "extract": {"method": "full"}, "sweep": {"surface.arms.2.cd": [1e-4, 1e-3]}}
+    study = {
+        "surface": {"model": "wiechert"},
+        "extract": {"method": "full"},
+        "sweep": {"surface.arms.2.cd": [1e-4, 1e-3]},
+    }
     st = expand(study)
     assert [p.config.surface.arms[1]["cd"] for p in st.points] == [1e-4, 1e-3]
     assert [p.values["surface.arms.2.cd"] for p in st.points] == [1e-4, 1e-3]

@@ -161,7 +161,9 @@ def test_an_arm_that_relaxes_within_a_step_adds_nothing():
     (measured 1.6e-4: the per-step energy accounting of a dashpot that catches up within
     every step is k_2 (v dt)^2/2 per step, O(dt), not the vanishing cd_2 v^2)."""
     sls = simulate(load(None, {**CHEAP, "surface.k0": 64.0, "surface.cd": 3e-5}))
-    two = simulate(load(None, {**CHEAP, **WIECHERT, "surface.arms": [{"k": 64.0, "cd": 3e-5}, {"k": 32.0, "cd": 5e-16}]}))
+    two = simulate(
+        load(None, {**CHEAP, **WIECHERT, "surface.arms": [{"k": 64.0, "cd": 3e-5}, {"k": 32.0, "cd": 5e-16}]})
+    )
     for key in ("peak_force", "e_diss_ev", "max_penetration", "amplitude", "contact_time"):
         assert two.observables[key] == pytest.approx(sls.observables[key], rel=1e-5), key
     assert abs(two.energy["dashpot_dissipation_2"]) < 1e-3 * two.energy["sample_dissipation"]

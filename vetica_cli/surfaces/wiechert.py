@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import copy
 import re
-from functools import lru_cache
+from functools import cache
 from typing import Any, ClassVar
 
 import numpy as np
@@ -230,7 +230,7 @@ class Wiechert(SurfaceModel):
         return items
 
 
-@lru_cache(maxsize=None)
+@cache
 def _wiechert(n_arms: int) -> Wiechert:
     if n_arms < 1:
         raise ValueError(f"a Wiechert surface has at least one arm, not {n_arms}")

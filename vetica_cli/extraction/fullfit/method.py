@@ -171,7 +171,9 @@ def _add_arms(make, n_sub, theta0, bounds, fit_hamaker, scan, n_arms, pin=False)
         _, _, best = min(tried, key=lambda c: c[0])
         sub.reset()
         vec = FitVector(sub, best["theta"], mb, fit_hamaker, best["s0"], None, s0_ref)
-        fit = solve(vec, vec.x0, max_nfev=FREE_HEIGHT_NFEV if free_height else ARM_NFEV, xtol=1e-10 if free_height else 1e-7)
+        fit = solve(
+            vec, vec.x0, max_nfev=FREE_HEIGHT_NFEV if free_height else ARM_NFEV, xtol=1e-10 if free_height else 1e-7
+        )
         fit["model"] = sub
         fit["candidates"] = len(tried)
         stages.append(fit)
@@ -509,4 +511,3 @@ def _fit_info(model, stages, cov, unc_periodic, opts, perm) -> dict:
         "stages": len(stages),
         "arm_candidates": [s["candidates"] for s in stages if "candidates" in s],
     }
-
