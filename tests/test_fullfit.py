@@ -13,7 +13,7 @@ import math
 import numpy as np
 import pytest
 
-from vetica_cli.core.prescribed import NDIR, surface_force
+from vetica_cli.core.prescribed import NDIR, arm_coefficients, arms_force, surface_force
 from vetica_cli.errors import InputError
 from vetica_cli.extraction import extract
 from vetica_cli.extraction.format import to_json
@@ -68,6 +68,59 @@ def test_tangent_linear_kernel_matches_finite_differences(substeps):
 
         fd = (g(1) - g(-1)) / (2 * eps)
         assert np.linalg.norm(fd - jac[:, j]) <= 1e-5 * np.linalg.norm(jac[:, j]), j
+
+
+def _run_arms(z, h, p, xd0, ndir=0, s0=0.0, substeps=1, vdw=True, block=16):
+    """The N-arm kernel on ``z``: ``p = (k_inf, k_1, cd_1, ..., H R/6)``."""
+    n, na = len(z), len(xd0)
+    co = arm_coefficients(p[0], p[1:-1:2], p[2:-1:2], p[-1], A0, vdw, (h, h * block, h / substeps), ndir > na + 1)
+    f, jac = np.empty(n), np.empty((n, 3 * na + 3))
+    res = arms_force(z, s0, A0, block, np.zeros(n // block, np.uint8), np.ones(n, np.uint8), 5e-9, substeps, 1e-9,
+                     np.array(xd0, float), False, ndir, *co, f, jac)  # fmt: skip
+    return f, jac, res
+
+
+@pytest.mark.parametrize("vdw", [True, False])
+@pytest.mark.parametrize("substeps", [1, 5])
+def test_n_arm_tangents_match_finite_differences(substeps, vdw):
+    """Two arms (tau 0.47 us and 3 ns): dFts along (Xd0_1, Xd0_2, s0, ln k_inf, ln k_i, ln cd_i,
+    ln HR/6) -- the coefficient derivatives by complex step -- against central differences
+    of the kernel itself; rtol 1e-6 on the column norm (measured <= 1.1e-7)."""
+    z, h = _taps()
+    p = np.array([KINF, 64.0, 3e-5, 32.0, 1e-7, HR6])
+    xd0 = [-1e-10, -2e-10]
+    f, jac, _ = _run_arms(z, h, p, xd0, ndir=9, substeps=substeps, vdw=vdw)
+    assert np.max(f) > 1e-8
+    for c in range(9):
+
+        def g(sign, c=c):
+            pp, s0, x0 = p.copy(), 0.0, list(xd0)
+            eps = 1e-15 if c <= 2 else 1e-6
+            if c < 2:
+                x0[c] += sign * eps
+            elif c == 2:
+                s0 += sign * eps
+            else:
+                pp[c - 3] *= math.exp(sign * eps)
+            return _run_arms(z, h, pp, x0, s0=s0, substeps=substeps, vdw=vdw)[0] / eps
+
+        fd = 0.5 * (g(1) - g(-1))
+        assert np.linalg.norm(fd - jac[:, c]) <= 1e-6 * np.linalg.norm(jac[:, c]), c
+
+
+@pytest.mark.parametrize("substeps", [1, 5])
+def test_n_arm_kernel_with_one_arm_is_the_sls_kernel(substeps):
+    """The general kernel with one arm against the SLS fast path (a different code: scalar
+    closed-form coefficients and tangents): force to 1e-12 of the peak, every Jacobian column
+    to 1e-6 of its norm (measured 7e-8: the SLS path leaves out the start state's parameter
+    derivatives of the first sample's surface position)."""
+    z, h = _taps()
+    f1, j1, r1 = _run(z, h, (KINF, K0, CD, HR6), xd0=-1e-10, ndir=NDIR, substeps=substeps)
+    f2, j2, r2 = _run_arms(z, h, np.array([KINF, K0, CD, HR6]), [-1e-10], ndir=NDIR, substeps=substeps)
+    assert np.max(np.abs(f2 - f1)) <= 1e-12 * np.max(np.abs(f1))
+    for c in range(NDIR):
+        assert np.linalg.norm(j2[:, c] - j1[:, c]) <= 1e-6 * np.linalg.norm(j1[:, c]), c
+    assert r1[5:] == r2[5:]  # contacts, separations, coarse steps
 
 
 def test_far_field_coarse_steps_do_not_change_the_force():

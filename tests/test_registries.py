@@ -1,7 +1,7 @@
 """Every registered surface model and extraction method follows the convention of its
-registry (vetica_cli/surfaces/base.py, vetica_cli/extraction/base.py), and a second
-surface model -- with a non-scalar config key, like the Wiechert surface's list of arms
-(SPEC 11) -- plugs in through the registry alone.
+registry (vetica_cli/surfaces/base.py, vetica_cli/extraction/base.py), and the Wiechert
+surface -- a model with a non-scalar config key, its list of arms (SPEC 11) -- plugs in
+through the registry alone: config, arm keys, sweeps, table schema, simulation.
 
 References: the SLS worked example (thesis tables 2-4) for the theory values; the
 convention itself for everything else."""
@@ -11,14 +11,12 @@ from __future__ import annotations
 import inspect
 import json
 import math
-from typing import ClassVar
 
 import numpy as np
 import pytest
 from typer.testing import CliRunner
 
 from vetica_cli import surfaces
-from vetica_cli.checks import check, coerce, positive
 from vetica_cli.cli import app
 from vetica_cli.errors import ConfigError, InputError
 from vetica_cli.extraction import METHODS, ExtractionResult, extract
@@ -33,7 +31,7 @@ MODELS = list(surfaces.MODELS.values())
 
 @pytest.mark.parametrize("model", MODELS, ids=lambda m: m.key)
 def test_surface_model_declares_keys_units_and_a_documented_equation(model):
-    assert surfaces.MODELS[model.key] is model and model.name
+    assert type(surfaces.MODELS[model.key]) is type(model) and model.name  # registered (or specialised)
     assert model.parameter_keys and all(isinstance(k, str) for k in model.parameter_keys)
     assert set(model.parameter_units) == set(model.parameter_keys) and all(model.parameter_units.values())
     assert set(model.parameter_labels) >= set(model.parameter_keys)
@@ -94,78 +92,77 @@ def test_sls_section_reads_as_in_version_0_1():
         load(None, {"surface.model": "maxwell"})
 
 
-# --------------------------------------------------------------------- a second model
+# --------------------------------------------------------------------- the Wiechert surface
 
 
-class ToyWiechert(surfaces.SurfaceModel):
-    """Wiechert surface for this test (thesis 5.3.2, SPEC 11): ``k_inf`` in parallel with
-    Maxwell arms ``arms: [{k, cd}, ...]``; relaxation modulus ``E(t) = k_inf + sum k_i
-    exp(-t/tau_i)``, ``tau_i = cd_i / k_i``; glassy ``Kg = k_inf + sum k_i``."""
-
-    key = "toy_wiechert"
-    name = "Wiechert"
-    parameter_keys = ("k_inf", "k_1", "cd_1", "k_2", "cd_2")
-    parameter_units: ClassVar[dict] = {"k_inf": "N/m", "k_1": "N/m", "cd_1": "kg/s", "k_2": "N/m", "cd_2": "kg/s"}
-    parameter_labels: ClassVar[dict] = {k: k for k in parameter_keys}
-    defaults: ClassVar[dict] = {"k_inf": 4.0, "arms": [{"k": 64.0, "cd": 1e-4}, {"k": 16.0, "cd": 1e-2}]}
-    rules: ClassVar[dict] = {"k_inf": (positive, "a stiffness > 0 N/m")}
-    quantities: ClassVar[dict] = {
-        "k_g": surfaces.Quantity("N/m", "Kg", "$K_g$"),
-        "tau_1": surfaces.Quantity("s", "tau_1", r"$\tau_1$"),
-        "tau_2": surfaces.Quantity("s", "tau_2", r"$\tau_2$"),
-        "k_inf": surfaces.Quantity("N/m", "k_inf", r"$k_\infty$"),
-    }
-    fit_bounds: ClassVar[dict] = {k: (1e-13, 1e6) for k in parameter_keys}
-    theory_source = "Wiechert theory value (SPEC 11)"
-
-    def parse_key(self, name, value):
-        if name != "arms":
-            return super().parse_key(name, value)
-        if not isinstance(value, list) or len(value) != 2 or not all(isinstance(a, dict) for a in value):
-            raise ConfigError(f"surface.arms: {value!r} is not allowed; expected a list of two {{k, cd}} mappings")
-        return [{f: check(f"surface.arms[{i}].{f}", a.get(f), coerce(f"surface.arms[{i}].{f}", a.get(f), "float"),
-                          (positive, "a value > 0")) for f in ("k", "cd")} for i, a in enumerate(value)]  # fmt: skip
-
-    def theory(self, params):
-        arms = params["arms"]
-        return {"k_g": params["k_inf"] + sum(a["k"] for a in arms), "tau_1": arms[0]["cd"] / arms[0]["k"],
-                "tau_2": arms[1]["cd"] / arms[1]["k"], "k_inf": float(params["k_inf"])}  # fmt: skip
-
-    def kernel_arms(self, params):
-        arms = params["arms"]
-        return float(params["k_inf"]), np.array([a["k"] for a in arms]), np.array([a["cd"] for a in arms])
-
-    def log_gradients(self, params):
-        kg = self.theory(params)["k_g"]
-        k1, k2 = (a["k"] for a in params["arms"])
-        return {"k_g": (params["k_inf"] / kg, k1 / kg, 0.0, k2 / kg, 0.0), "tau_1": (0.0, -1.0, 1.0, 0.0, 0.0),
-                "tau_2": (0.0, 0.0, 0.0, -1.0, 1.0), "k_inf": (1.0, 0.0, 0.0, 0.0, 0.0)}  # fmt: skip
+def test_wiechert_model_specialises_to_its_arms():
+    """A model with a list of arms (SPEC 11) follows the convention for any number of arms:
+    parameters k_inf, k_1, cd_1, ..., theory Kg = k_inf + sum k_i (the issue's example:
+    4 + 64 + 32 = 100 N/m), tau_i = cd_i/k_i, and from_arms inverts kernel_arms."""
+    generic = surfaces.get("wiechert")
+    params = generic.parse({"arms": [{"k": 1, "cd": 2}, {"k": 3, "cd": 4}, {"k": 5, "cd": 6}]})
+    three = generic.for_params(params)
+    assert three.parameter_keys == ("k_inf", "k_1", "cd_1", "k_2", "cd_2", "k_3", "cd_3")
+    test_surface_model_declares_keys_units_and_a_documented_equation(three)
+    th = three.theory(params)
+    assert list(th) == list(three.quantities) and th["k_g"] == 4.0 + 1 + 3 + 5 and th["tau_3"] == 6 / 5
+    assert generic.theory(generic.parse({}))["k_g"] == 100.0
+    grads = three.log_gradients(params)
+    assert all(len(g) == 7 for g in grads.values()) and grads["tau_2"] == (0, 0, 0, -1, 1, 0, 0)
+    assert three.from_arms(*three.kernel_arms(params)) == params
+    assert three is generic.for_params(params) and generic.with_arms(2) is generic  # one instance per arm count
 
 
-@pytest.fixture
-def toy_model():
-    surfaces.register(ToyWiechert)
-    yield surfaces.MODELS[ToyWiechert.key]
-    del surfaces.MODELS[ToyWiechert.key]
-
-
-def test_a_model_with_a_list_of_arms_plugs_in_through_the_registry(toy_model):
-    test_surface_model_declares_keys_units_and_a_documented_equation(toy_model)
-    test_theory_kernel_arms_and_gradients_are_consistent(toy_model)
-    cfg = from_dict({"surface": {"model": "toy_wiechert", "arms": [{"k": 10, "cd": "1e-3"}, {"k": 5, "cd": 1}]}})
+def test_wiechert_section_and_arm_keys():
+    """The issue's schema: a list of arms; an arm's field is the key surface.arms.<i>.<k|cd>
+    (1-based, as the result names k_1, cd_1) in --set, sweeps and one-line error messages."""
+    cfg = from_dict({"surface": {"model": "wiechert", "arms": [{"k": 10, "cd": "1e-3"}, {"k": 5, "cd": 1}]}})
     assert cfg.surface.arms[0] == {"k": 10.0, "cd": 1e-3} and cfg.surface.hamaker == 0.2e-18
-    assert cfg.to_dict()["surface"]["model"] == "toy_wiechert" and from_dict(cfg.to_dict()) == cfg
+    assert cfg.to_dict()["surface"]["model"] == "wiechert" and from_dict(cfg.to_dict()) == cfg
     assert hash(from_dict(cfg.to_dict())) == hash(cfg)  # configs stay hashable with a list-valued key
-    with pytest.raises(ConfigError, match=r"surface.arms\[1\].cd: -1 is not allowed"):
-        from_dict({"surface": {"model": "toy_wiechert", "arms": [{"k": 1, "cd": 1}, {"k": 1, "cd": -1}]}})
-    # the study grid and the table schema follow the model
-    st = expand({"surface": {"model": "toy_wiechert"}, "sweep": {"surface.k_inf": [2.0, 4.0]}})
-    assert [p.config.surface.k_inf for p in st.points] == [2.0, 4.0]
-    cols = result_columns([toy_model])
-    assert "tau_1_err_pct" in cols and "k_inf_sigma_pct" in cols and "k0" not in cols
-    # the kernel takes the arms as coefficient arrays: it simulates, and records every dashpot
+    assert getattr(cfg.surface, "arms.2.cd") == 1.0
+    assert load(None, {"surface.model": "wiechert", "surface.arms.1.cd": 2e-3}).surface.arms[0]["cd"] == 2e-3
+    bad = {
+        r"surface.arms.2.cd: -1 is not allowed; expected a dashpot coefficient > 0 kg/s": [{"k": 1, "cd": 1}, {"k": 1, "cd": -1}],
+        r"surface.arms.1.k: 'x' is not allowed; expected a finite number": [{"k": "x", "cd": 1}],
+        r"surface.arms.1: \{'k': 1\} has no 'cd'": [{"k": 1}],
+        r"unknown key 'surface.arms.1.tau'; allowed in an arm: k, cd": [{"k": 1, "cd": 1, "tau": 1}],
+        r"surface.arms: \[\] is not allowed; expected a list of one or more arms": [],
+    }  # fmt: skip
+    for message, arms in bad.items():
+        with pytest.raises(ConfigError, match=message):
+            from_dict({"surface": {"model": "wiechert", "arms": arms}})
+    with pytest.raises(ConfigError, match=r"surface.arms.3.cd: no arm 3; the surface has 2 arm\(s\)"):
+        load(None, {"surface.model": "wiechert", "surface.arms.3.cd": 1.0})
+    with pytest.raises(ConfigError, match=r"unknown key 'surface.arms.1.cd'; allowed in surface: model, k_inf, k0"):
+        load(None, {"surface.arms.1.cd": 1.0})  # the SLS has no arms list
+
+
+def test_wiechert_study_grid_schema_and_simulation():
+    """The study grid sweeps an arm's key, the table schema follows the arms, a method that
+    cannot extract the surface is refused before any work, and the kernel simulates the
+    arms and records every dashpot."""
+    study = {
+        "surface": {"model": "wiechert"},
+        "extract": {"method": "full"},
+        "sweep": {"surface.arms.2.cd": [1e-4, 1e-3]},
+    }
+    st = expand(study)
+    assert [p.config.surface.arms[1]["cd"] for p in st.points] == [1e-4, 1e-3]
+    assert [p.values["surface.arms.2.cd"] for p in st.points] == [1e-4, 1e-3]
+    cols = result_columns([p.config.surface.surface_model for p in st.points[:1]])
+    assert {"k_2_err_pct", "cd_2_sigma_pct", "tau_1_theory", "k_inf_err_pct"} <= set(cols) and "k0" not in cols
+    with pytest.raises(ConfigError, match="extract.method 'vetica' cannot extract a Wiechert surface with 2 Maxwell "
+                                          "arms .*; expected extract.method: full"):  # fmt: skip
+        expand({**study, "extract": {"method": "vetica"}})
+    with pytest.raises(ConfigError, match=r"sweep: unknown key 'surface.arms.x.cd'; allowed: .*surface.arms.<i>.cd"):
+        expand({**study, "sweep": {"surface.arms.x.cd": [1.0]}})
+    with pytest.raises(ConfigError, match=r"point 0 \(surface.arms.3.k=1.0\): surface.arms.3.k: no arm 3"):
+        expand({**study, "sweep": {"surface.arms.3.k": [1.0]}})
+    cfg = from_dict({"surface": {"model": "wiechert"}})
     run = simulate(cfg.with_overrides({"numerics.record_cycles": 1, "numerics.print_step": 1e-9}))
     assert run.steady_ok and list(run.frame().columns)[7:9] == ["x_dashpot_1", "x_dashpot_2"]
+    assert {"dashpot_dissipation_1", "dashpot_dissipation_2"} <= set(run.energy)
 
 
 # --------------------------------------------------------------------- extraction methods

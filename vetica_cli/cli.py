@@ -184,23 +184,46 @@ def extract(
     cutoff: Optional[float] = typer.Option(
         None, "--cutoff", help="Low-pass cut-off of the force reconstruction, Hz; default: Nyquist, 1/(2 print step)."
     ),
+    arms: Optional[int] = typer.Option(
+        None, "--arms", help="--method full: Maxwell arms to fit (1 = SLS, 2+ = Wiechert); default: the file's surface, "
+        "else 1."
+    ),
+    hamaker: Optional[float] = typer.Option(
+        None, "--hamaker", help="--method full: Hamaker constant H, J (fixes H R; default: metadata, else H R fitted)."
+    ),
+    tip_radius: Optional[float] = typer.Option(
+        None, "--tip-radius", help="--method full: tip radius R, m (default: metadata, else 10 nm assumed)."
+    ),
+    a0: Optional[float] = typer.Option(
+        None, "--a0", help="--method full: intermolecular distance a0, m (default: metadata, else 0.2 nm assumed)."
+    ),
+    vdw_on_surface: str = typer.Option(
+        "auto", "--vdw-on-surface", help="--method full: does the attraction pull the surface too? true | false | "
+        "auto (the metadata's, else both fitted and the smaller residual kept)."
+    ),
 ):
     """Extract k0, k_inf, cd (and tau_c, Kg, Kr, tau_r) from a run with VETICA
-    or another registered method (--method; e.g. full fits the SLS surface model
-    to every sample).
+    or another registered method (--method; full fits the SLS or Wiechert surface
+    model to every sample: k_inf, k_1, cd_1, k_2, cd_2, ... for a Wiechert record).
 
     Prints value, theory and error % (theory known only when the file's
-    metadata holds the surface parameters), the spread over taps, the
-    force-reconstruction error against f_ts when both are present, and the
-    extraction time.
+    metadata holds the surface parameters), the spread over taps (or the fit's
+    uncertainty), what was fitted and what assumed, the force-reconstruction error
+    against f_ts when both are present, and the extraction time.
     """
     import json
 
+    from .errors import InputError
     from .extraction import extract_file
     from .extraction.format import format_table, to_json
 
+    pull = {"auto": None, "true": True, "false": False}
+    if vdw_on_surface not in pull:
+        raise InputError(f"--vdw-on-surface {vdw_on_surface!r} not allowed; choose one of: auto, true, false")
+    given = {"arms": arms, "hamaker": hamaker, "tip_radius": tip_radius, "a0": a0, "vdw_on_surface": pull[vdw_on_surface]}
+    options = {k: v for k, v in given.items() if v is not None}
     res = extract_file(run, force=force, method=method, kg_points=kg_points,
-                       k2=k2, f2=f2, q2=q2, z1=z1, f1=f1, cutoff_hz=cutoff)  # fmt: skip
+                       k2=k2, f2=f2, q2=q2, z1=z1, f1=f1, cutoff_hz=cutoff, **options)  # fmt: skip
     typer.echo(json.dumps(to_json(res), allow_nan=False) if json_out else format_table(res, run))
 
 

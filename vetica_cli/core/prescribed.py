@@ -40,7 +40,7 @@ import math
 import numpy as np
 from numba import njit
 
-from .sls import contact_update, noncontact_update, released_position, sls_coefficients
+from .sls import contact_update, noncontact_update, released_position, sls_coefficients, vdw_force
 
 DIRECTIONS = ("xd0", "s0", "ln_k_inf", "ln_k0", "ln_cd", "ln_hr6")
 NDIR = len(DIRECTIONS)
@@ -292,3 +292,374 @@ def surface_force(
             k += 1
         i += 1
     return xd, x, contact, dxd, k, contacts, separations, coarse_steps
+
+
+# =====================================================================================
+# N Maxwell arms (Wiechert surface, SPEC 11): the same updates with the arms coupled
+# through the massless surface out of contact.
+# =====================================================================================
+#
+# Directions of the N-arm kernel (``arm_directions``): the dashpot positions at the start
+# ``Xd0_1..Xd0_N`` [m], the surface height ``s0`` [m], ``ln k_inf``, ``ln k_i``, ``ln cd_i``
+# for each arm, ``ln(H R/6)``: ``3 N + 3`` in all; one arm gives ``DIRECTIONS``.
+
+# rows of the per-arm coefficient table (AR_*, N columns) and the scalars (SC_*)
+AR_K, AR_ER, AR_KER, AR_OMER, AR_ALPHA, AR_G, NAR = range(7)
+SC_KC, SC_BETA, SC_FA0, SC_SEP, SC_FASEP, SC_FAC, SC_INVKG, SC_HR6, NSC = range(9)
+CSTEP = 1e-20  # complex step of the coefficient derivatives (exact to rounding: no subtraction)
+
+
+def arm_directions(n_arms: int) -> tuple[str, ...]:
+    """Names of the N-arm kernel's directions (module section comment)."""
+    arms = [f"ln_{f}_{i}" for i in range(1, n_arms + 1) for f in ("k", "cd")]
+    return (*(f"xd0_{i}" for i in range(1, n_arms + 1)), "s0", "ln_k_inf", *arms, "ln_hr6")
+
+
+@njit(cache=True)
+def expm_small(a):
+    """``exp(a)`` of a small square matrix (real or complex) by scaling and squaring of its
+    Taylor series: scaled to a 1-norm <= 1/2, summed to 18 terms (truncation below
+    1e-21 relative), squared back.  Only arithmetic -- analytic in the entries, so a
+    complex step through it gives exact derivatives -- and no BLAS call for a 4x4."""
+    n = a.shape[0]
+    norm = 0.0
+    for j in range(n):
+        col = 0.0
+        for i in range(n):
+            col += abs(a[i, j])
+        norm = max(norm, col)
+    s = 0
+    while norm > 0.5:
+        norm *= 0.5
+        s += 1
+    b = a * (0.5**s)
+    out = np.eye(n, dtype=a.dtype)
+    term = np.eye(n, dtype=a.dtype)
+    tmp = np.empty_like(out)
+    for k in range(1, 19):
+        for i in range(n):
+            for j in range(n):
+                acc = term[i, 0] * b[0, j]
+                for m in range(1, n):
+                    acc += term[i, m] * b[m, j]
+                tmp[i, j] = acc / k
+        term[:, :] = tmp
+        out += term
+    for _ in range(s):
+        for i in range(n):
+            for j in range(n):
+                acc = out[i, 0] * out[0, j]
+                for m in range(1, n):
+                    acc += out[i, m] * out[m, j]
+                tmp[i, j] = acc
+        out[:, :] = tmp
+    return out
+
+
+def arm_table(k_inf, k, cd, hr6, a0, vdw_on_surface, h):
+    """Coefficients of the N-arm surface updates at step ``h`` [s] (real or complex inputs).
+
+    Returns ``(arm (NAR, N), emi (N, N), sc (NSC,))``.  Contact, each arm relaxing towards
+    ``X`` with ``er_i = exp(-h/tau_i)``, ``tau_i = cd_i/k_i``::
+
+        F_n = kc X_n - sum_i ker_i Xd_i,    Xd_i <- Xd_i + omer_i (X_n - Xd_i)
+        kc = k_inf + sum_i k_i er_i,  ker_i = k_i er_i,  omer_i = 1 - er_i
+
+    Out of contact ``Xd' = M Xd + b Fa`` with ``M = diag(k/cd) (1 k^T/Kg - I)`` and
+    ``b = (k/cd)/Kg`` (pull on; 0 off), exact over ``h`` for ``Fa`` held
+    (as :func:`vetica_cli.core.coefficients.exp_phi`, here by :func:`expm_small`)::
+
+        Xd <- Xd + emi Xd + g Fa,   X_n = alpha . Xd_(n-1) + beta Fa_n
+        emi = exp(M h) - I,  g = int_0^h exp(M s) ds b,  alpha = (k + emi^T k)/Kg,  beta = (1 + k.g)/Kg
+
+    One arm: ``emi = ec - 1``, the coefficients of :func:`.sls.sls_coefficients`.
+    """
+    k = np.asarray(k)
+    cd = np.asarray(cd)
+    n = len(k)
+    dtype = np.result_type(k, cd, k_inf, hr6, float)
+    kg = k_inf + np.sum(k)
+    rate = k / cd  # 1/tau_i
+    er = np.exp(-h * rate)
+    omer = -np.expm1(-h * rate)
+    mat = np.outer(rate, k) / kg - np.diag(rate)
+    b = rate / kg if vdw_on_surface else np.zeros(n, dtype)
+    aug = np.zeros((2 * n, 2 * n), dtype)
+    aug[:n, :n] = mat * h
+    aug[:n, n:] = np.eye(n) * h
+    phi = expm_small(aug)[:n, n:]  # int_0^h exp(M s) ds
+    emi = mat @ phi
+    g = phi @ b
+    arm = np.zeros((NAR, n), dtype)
+    arm[AR_K] = k
+    arm[AR_ER] = er
+    arm[AR_KER] = k * er
+    arm[AR_OMER] = omer
+    arm[AR_ALPHA] = (k + emi.T @ k) / kg
+    arm[AR_G] = g
+    fa0 = hr6 / (a0 * a0)
+    sc = np.zeros(NSC, dtype)
+    sc[SC_KC] = k_inf + np.sum(k * er)
+    sc[SC_BETA] = (1.0 + k @ g) / kg if vdw_on_surface else 0.0
+    sc[SC_FA0] = fa0
+    sc[SC_SEP] = fa0 if vdw_on_surface else 0.0
+    sc[SC_FASEP] = fa0 if vdw_on_surface else 0.0
+    sc[SC_FAC] = 0.0 if vdw_on_surface else fa0
+    sc[SC_INVKG] = 1.0 / kg
+    sc[SC_HR6] = hr6
+    return arm, emi, sc
+
+
+def arm_coefficients(k_inf, k, cd, hr6, a0, vdw_on_surface, steps, tangents=True):
+    """Coefficient tables of the N-arm kernel at the step lengths ``steps`` [s] (three: the
+    sample interval, a far block, a sub-step) and their derivatives along the kernel's
+    parameter directions.
+
+    Returns ``(arm (3, NAR, N), emi (3, N, N), sc (3, NSC), darm (3, NAR, N, D), demi
+    (3, N, N, D), dsc (3, NSC, D))`` with ``D = 3 N + 3`` (:func:`arm_directions`; the
+    state and ``s0`` columns are zero).  The derivatives along ``ln p`` come from one
+    complex step ``p -> p (1 + i CSTEP)`` of :func:`arm_table` each: no subtraction, so
+    exact to rounding, and no hand-derived derivative of the matrix exponential.
+    """
+    k = np.asarray(k, float)
+    cd = np.asarray(cd, float)
+    n = len(k)
+    nd = 3 * n + 3
+    p0 = np.concatenate([[k_inf], np.column_stack([k, cd]).ravel(), [hr6]])  # ln-parameter directions
+    arm = np.zeros((3, NAR, n))
+    emi = np.zeros((3, n, n))
+    sc = np.zeros((3, NSC))
+    darm = np.zeros((3, NAR, n, nd))
+    demi = np.zeros((3, n, n, nd))
+    dsc = np.zeros((3, NSC, nd))
+    for s, h in enumerate(steps):
+        arm[s], emi[s], sc[s] = arm_table(k_inf, k, cd, hr6, a0, vdw_on_surface, h)
+        if not tangents:
+            continue
+        for j in range(len(p0)):
+            p = p0.astype(complex)
+            p[j] *= 1.0 + 1j * CSTEP
+            ca, ce, cs = arm_table(p[0], p[1:-1:2], p[2:-1:2], p[-1], a0, vdw_on_surface, h)
+            col = n + 1 + j
+            darm[s, :, :, col] = ca.imag / CSTEP
+            demi[s, :, :, col] = ce.imag / CSTEP
+            dsc[s, :, col] = cs.imag / CSTEP
+    return arm, emi, sc, darm, demi, dsc
+
+
+@njit(cache=True, fastmath={"contract"}, error_model="numpy")
+def arms_force(
+    z, s0, a0, block, coarse_ok, want, far_gap, substeps, sub_gap,
+    xd0, contact0, ndir, arm3, emi3, sc3, darm3, demi3, dsc3, out_f, out_jac,
+):  # fmt: skip
+    """Tip-sample force of the N-arm surface under the prescribed tip positions ``z``.
+
+    As :func:`surface_force` (same sampling, far blocks, sub-steps and outputs) for the
+    Wiechert surface of SPEC 11; coefficients from :func:`arm_coefficients` (index 0:
+    the sample interval, 1: a far block, 2: a sub-step); ``xd0`` (N,) the dashpot
+    positions before the first sample [m].  Differentiates along the first ``ndir`` of
+    :func:`arm_directions`.  Returns ``(xd (N,), x, contact, dxd (N, D), n_written,
+    contacts, separations, coarse_steps)``.
+    """
+    n = len(z)
+    na = len(xd0)
+    nd = darm3.shape[3]
+    hr6 = sc3[0, SC_HR6]
+    ihr6 = 1.0 / hr6 if hr6 > 0.0 else 0.0
+    i_s0 = na
+    i_hr6 = nd - 1
+    xd = xd0.copy()
+    dxd = np.zeros((na, nd))
+    for i in range(na):
+        if i < ndir:
+            dxd[i, i] = 1.0
+    dx = np.zeros(nd)
+    dfa = np.zeros(nd)
+    xd_new = np.empty(na)
+    dxd_new = np.empty((na, nd))
+    ds0 = np.zeros(nd)
+    ds0[i_s0] = 1.0
+    dlnhr6 = np.zeros(nd)
+    dlnhr6[i_hr6] = 1.0
+    contact = contact0
+    # surface position before the first sample: relaxed onto the dashpots, pulled by the tip
+    c0 = 0
+    inv_kg = sc3[c0, SC_INVKG]
+    xs = 0.0
+    for i in range(na):
+        xs += arm3[c0, AR_K, i] * xd[i]
+    x = xs * inv_kg
+    for j in range(ndir):
+        acc = 0.0
+        for i in range(na):
+            acc += darm3[c0, AR_K, i, j] * xd[i] + arm3[c0, AR_K, i] * dxd[i, j]
+        dx[j] = acc * inv_kg + xs * dsc3[c0, SC_INVKG, j]
+    fa = 0.0
+    if not contact:
+        d = z[0] - s0 - x
+        if d > a0:
+            fa = hr6 / (d * d)
+            beta = sc3[c0, SC_BETA]
+            for j in range(ndir):
+                dfa_j = fa * dlnhr6[j] + 2.0 * fa / d * (ds0[j] + dx[j])
+                dx[j] += dsc3[c0, SC_BETA, j] * fa + beta * dfa_j
+            x += beta * fa
+
+    k = 0
+    contacts = 0
+    separations = 0
+    coarse_steps = 0
+    nblock = n // block
+    fts = 0.0
+    i = 0
+    while i < n:
+        b = i // block
+        if i % block == 0:  # flush decayed derivatives before they turn subnormal (slow arithmetic)
+            for j in range(ndir):
+                if abs(dx[j]) < 1e-250:
+                    dx[j] = 0.0
+                for a in range(na):
+                    if abs(dxd[a, j]) < 1e-250:
+                        dxd[a, j] = 0.0
+        # ---- one exact step over a whole far block
+        if (not contact) and i % block == 0 and b < nblock and coarse_ok[b]:
+            i_end = i + block - 1
+            d = z[i_end] - s0 - x
+            if z[i] - s0 - x > far_gap and d > far_gap:
+                fa, x = _arms_noncontact(d, xd, fa, hr6, ihr6, 1, arm3, emi3, sc3, darm3, demi3, dsc3, ndir,
+                                         dxd, dx, dfa, ds0, dlnhr6, xd_new, dxd_new)  # fmt: skip
+                coarse_steps += 1
+                if want[i_end]:
+                    out_f[k] = -fa
+                    for j in range(ndir):
+                        out_jac[k, j] = -dfa[j]
+                    k += 1
+                i = i_end + 1
+                continue
+        # ---- one sample
+        zz = z[i] - s0
+        sub = False
+        if substeps > 1:
+            if contact:  # does the tip separate during this interval?
+                f_try = sc3[0, SC_KC] * (zz - a0)
+                for a in range(na):
+                    f_try -= arm3[0, AR_KER, a] * xd[a]
+                sub = f_try > sc3[0, SC_SEP]
+            else:
+                sub = zz - x < sub_gap
+        if sub:
+            zp = (z[i - 1] if i > 0 else z[0]) - s0
+            for m in range(1, substeps + 1):
+                zm = zp + (zz - zp) * (m / substeps)
+                if not contact:
+                    d = zm - x
+                    if d > a0:
+                        fa, x = _arms_noncontact(d, xd, fa, hr6, ihr6, 2, arm3, emi3, sc3, darm3, demi3, dsc3,
+                                                 ndir, dxd, dx, dfa, ds0, dlnhr6, xd_new, dxd_new)  # fmt: skip
+                        fts = -fa
+                        continue
+                    contact = True
+                    contacts += 1
+                fts, x, sep = _arms_contact(zm - a0, xd, 2, arm3, sc3, darm3, dsc3, ndir, dxd, dx, dfa, ds0,
+                                            xd_new, dxd_new)  # fmt: skip
+                if sep:
+                    contact = False
+                    separations += 1
+                    fa = sc3[2, SC_FA0]
+        elif not contact and zz - x > a0:
+            fa, x = _arms_noncontact(zz - x, xd, fa, hr6, ihr6, 0, arm3, emi3, sc3, darm3, demi3, dsc3, ndir,
+                                     dxd, dx, dfa, ds0, dlnhr6, xd_new, dxd_new)  # fmt: skip
+            fts = -fa
+        else:
+            if not contact:
+                contact = True
+                contacts += 1
+            fts, x, sep = _arms_contact(zz - a0, xd, 0, arm3, sc3, darm3, dsc3, ndir, dxd, dx, dfa, ds0,
+                                        xd_new, dxd_new)  # fmt: skip
+            if sep:
+                contact = False
+                separations += 1
+                fa = sc3[0, SC_FA0]
+        if want[i]:
+            out_f[k] = fts
+            for j in range(ndir):
+                out_jac[k, j] = -dfa[j]
+            k += 1
+        i += 1
+    return xd, x, contact, dxd, k, contacts, separations, coarse_steps
+
+
+@njit(cache=True, inline="always", fastmath={"contract"}, error_model="numpy")
+def _arms_noncontact(d, xd, fa, hr6, ihr6, c, arm3, emi3, sc3, darm3, demi3, dsc3, ndir, dxd, dx, dfa, ds0, dlnhr6,
+                     xd_new, dxd_new):  # fmt: skip
+    """One non-contact update at gap ``d`` with the coefficients of step ``c`` (see
+    :func:`arm_table`) and its tangent; ``xd``, ``dxd``, ``dx``, ``dfa`` updated in
+    place (``dx`` enters as the derivative of the previous surface position).
+    Returns ``(fa, x)``."""
+    na = len(xd)
+    fa = vdw_force(d, fa, hr6, ihr6)
+    beta = sc3[c, SC_BETA]
+    x = beta * fa
+    for a in range(na):
+        x += arm3[c, AR_ALPHA, a] * xd[a]
+        acc = arm3[c, AR_G, a] * fa
+        for m in range(na):
+            acc += emi3[c, a, m] * xd[m]
+        xd_new[a] = xd[a] + acc
+    for j in range(ndir):
+        dfa_j = fa * dlnhr6[j] + 2.0 * fa / d * (ds0[j] + dx[j])  # d = z - s0 - X_prev
+        dfa[j] = dfa_j
+        acc = dsc3[c, SC_BETA, j] * fa + beta * dfa_j
+        for a in range(na):
+            acc += darm3[c, AR_ALPHA, a, j] * xd[a] + arm3[c, AR_ALPHA, a] * dxd[a, j]
+        dx[j] = acc
+        for a in range(na):
+            acc = dxd[a, j] + darm3[c, AR_G, a, j] * fa + arm3[c, AR_G, a] * dfa_j
+            for m in range(na):
+                acc += demi3[c, a, m, j] * xd[m] + emi3[c, a, m] * dxd[m, j]
+            dxd_new[a, j] = acc
+    for a in range(na):
+        xd[a] = xd_new[a]
+        for j in range(ndir):
+            dxd[a, j] = dxd_new[a, j]
+    return fa, x
+
+
+@njit(cache=True, inline="always", fastmath={"contract"}, error_model="numpy")
+def _arms_contact(xc, xd, c, arm3, sc3, darm3, dsc3, ndir, dxd, dx, dfa, ds0, xd_new, dxd_new):
+    """One contact update with the surface at ``xc`` (coefficients of step ``c``) and its
+    tangent; ``dfa`` receives ``d(F_sls + fa_c)``.  On separation (``F_sls > sep_thr``) the
+    surface is released to ``(sum k_i Xd_i + Fa_sep)/Kg`` and ``dfa`` becomes ``d Fa(a0)``.
+    Returns ``(fts, x, separated)``."""
+    na = len(xd)
+    kc = sc3[c, SC_KC]
+    f_sls = kc * xc
+    for a in range(na):
+        f_sls -= arm3[c, AR_KER, a] * xd[a]
+        xd_new[a] = xd[a] + arm3[c, AR_OMER, a] * (xc - xd[a])
+    for j in range(ndir):
+        dxc = -ds0[j]
+        acc = dsc3[c, SC_KC, j] * xc + kc * dxc + dsc3[c, SC_FAC, j]
+        for a in range(na):
+            acc -= darm3[c, AR_KER, a, j] * xd[a] + arm3[c, AR_KER, a] * dxd[a, j]
+            dxd_new[a, j] = dxd[a, j] + darm3[c, AR_OMER, a, j] * (xc - xd[a]) + arm3[c, AR_OMER, a] * (dxc - dxd[a, j])
+        dfa[j] = acc
+        dx[j] = dxc
+    for a in range(na):
+        xd[a] = xd_new[a]
+        for j in range(ndir):
+            dxd[a, j] = dxd_new[a, j]
+    if f_sls > sc3[c, SC_SEP]:
+        inv_kg = sc3[c, SC_INVKG]
+        fa_sep = sc3[c, SC_FASEP]
+        xs = fa_sep
+        for a in range(na):
+            xs += arm3[c, AR_K, a] * xd[a]
+        for j in range(ndir):
+            acc = dsc3[c, SC_FASEP, j]
+            for a in range(na):
+                acc += darm3[c, AR_K, a, j] * xd[a] + arm3[c, AR_K, a] * dxd[a, j]
+            dx[j] = acc * inv_kg + xs * dsc3[c, SC_INVKG, j]
+            dfa[j] = dsc3[c, SC_FA0, j]
+        return -sc3[c, SC_FA0], xs * inv_kg, True
+    return -f_sls - sc3[c, SC_FAC], xc, False

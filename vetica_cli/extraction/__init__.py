@@ -55,11 +55,15 @@ def extract(
         raise InputError(f"force {force!r} not allowed; choose one of: {', '.join(FORCES)}")
     m = get(method)
     opts = m.options(options)
-    record = build_record(df, meta, force, need_approach=m.needs_approach, uniform=m.key if m.uniform_sampling else None,
+    record = build_record(df, meta, force, need_approach=m.needs_approach, need_z1=m.needs_z1,
+                          uniform=m.key if m.uniform_sampling else None,
                           k2=k2, f2=f2, q2=q2, z1=z1, f1=f1, cutoff_hz=cutoff_hz, taper=taper)  # fmt: skip
     if record.model.key not in m.surface_models:
+        able = [k for k, other in METHODS.items() if record.model.key in other.surface_models]
         raise InputError(
-            f"method {m.key!r} cannot extract a {record.model.key!r} surface (it extracts: {', '.join(m.surface_models)})"
+            f"method {m.key!r} cannot extract this record's surface, {record.model.describe(record.surface)}"
+            f"{': ' + m.surface_note if m.surface_note else ''} (it extracts: {', '.join(m.surface_models)})"
+            + (f"; use --method {' or '.join(able)}" if able else "")
         )
     return m.run(record, opts)
 

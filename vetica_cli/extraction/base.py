@@ -31,6 +31,8 @@ class ExtractionMethod(ABC):
     surface_models: ClassVar[tuple[str, ...]]  # surface models (vetica_cli.surfaces) it can extract
     options_default: ClassVar[dict[str, Any]] = {"kg_points": 10}  # every option the method takes
     needs_approach: ClassVar[bool] = False  # analyse the approach segment even when Z1 is given
+    needs_z1: ClassVar[bool] = True  # a record without Z1 (no approach segment, no metadata) is an error
+    surface_note: ClassVar[str] = ""  # why it extracts only its surface_models (for the refusal message)
     uniform_sampling: ClassVar[bool] = False  # needs a constant time step in the steady record
     seconds_per_point: ClassVar[float] = 1.0  # both force sources, 10 periods at 0.125 ns (dry-run estimate)
 
@@ -55,6 +57,10 @@ class ExtractionMethod(ABC):
     @abstractmethod
     def run(self, record: Record, options: dict) -> ExtractionResult:
         """Extract the surface from one prepared record (options as :meth:`options` returns them)."""
+
+    def summary_lines(self, res: ExtractionResult) -> list[str]:
+        """Lines the text table adds for this method (e.g. what was fitted and what assumed)."""
+        return []
 
     def timing_line(self, timing_s: dict) -> str:
         """One line of the text table: where the time went."""

@@ -50,6 +50,7 @@ def format_table(res: ExtractionResult, source=None) -> str:
             f"{_num(e.error_pct, '.2f'):>10}   {extra}"
         )
     lines += _reconstruction_lines(info)
+    lines += method.summary_lines(res)
     for k in res.fitted:
         e = res.estimates[k]
         if e.reason and e.identifiable is False:

@@ -37,7 +37,7 @@ class Record:
     z: np.ndarray  # [m] tip position
     f: np.ndarray  # [N] force analysed (true or reconstructed)
     force: str  # 'true' | 'reconstructed'
-    z1: float  # [m] tip position at the first force minimum of the approach (thesis eq. 84)
+    z1: float | None  # [m] tip position at the first force minimum of the approach (thesis eq. 84); None = unknown
     approach: tuple | None  # (z_tip, force, index of Z1) of the approach segment when it was analysed
     model: surfaces.SurfaceModel  # the surface the metadata describes (default: the SLS)
     truth: dict | None  # theory values of the model's quantities, when the metadata holds its parameters
@@ -158,7 +158,7 @@ def _steady_force(steady, force_of: _ForceSource, f1: float | None) -> np.ndarra
     return f
 
 
-def _z1_reference(approach, z1, meta, force_of: _ForceSource, need_approach: bool):
+def _z1_reference(approach, z1, meta, force_of: _ForceSource, need_approach: bool, need_z1: bool = True):
     """Z1, the undeformed-surface reference (thesis eq. 84): ``z1`` if given, else the tip
     position at the first force minimum of the approach segment, else the metadata's
     observable.  Returns ``(z1, approach_record)`` with ``approach_record = (z_tip, force,
@@ -177,6 +177,8 @@ def _z1_reference(approach, z1, meta, force_of: _ForceSource, need_approach: boo
         value, source = float(rec[0][rec[2]]), "approach segment"
     elif (meta.get("observables") or {}).get("z1") is not None:
         value, source = float(meta["observables"]["z1"]), "metadata"
+    elif not need_z1:  # the method works without it (e.g. the whole-cycle fit fits the surface height)
+        value, source = None, "unknown: no approach segment, no metadata"
     else:
         raise InputError("Z1 unknown: the table has no 'approach' segment and no metadata; pass --z1")
     force_of.info["z1"] = value
@@ -203,6 +205,7 @@ def build_record(
     force: str = "auto",
     *,
     need_approach: bool = False,
+    need_z1: bool = True,
     uniform: str | None = None,
     k2: float | None = None,
     f2: float | None = None,
@@ -220,7 +223,8 @@ def build_record(
     ``taper``); 'auto' = reconstructed when ``z_paddle`` is present.  ``Z1`` comes
     from ``z1`` if given, else from the first force minimum of the 'approach'
     segment (with the chosen force), else from the metadata; ``need_approach``
-    analyses the approach segment even when ``z1`` is given.  ``uniform``: the name
+    analyses the approach segment even when ``z1`` is given; without ``need_z1`` a record
+    with no way to Z1 gets ``z1 = None`` instead of an error.  ``uniform``: the name
     of a method that needs a constant time step (checked before the force is
     built).  ``f1`` (drive frequency, Hz) only labels the cut-off in harmonics.
     """
@@ -241,7 +245,7 @@ def build_record(
     force_of = _ForceSource(force, params.get("probe") or {}, info, k2, f2, q2, cutoff_hz, taper)
     f = _steady_force(steady, force_of, f1)
     t_force = time.perf_counter()
-    z1_value, approach_rec = _z1_reference(approach, z1, meta, force_of, need_approach)
+    z1_value, approach_rec = _z1_reference(approach, z1, meta, force_of, need_approach, need_z1)
     model, truth = surface_of(params)
     return Record(t=t, z=z, f=f, force=force, z1=z1_value, approach=approach_rec, model=model, truth=truth,
                   params=params, info=info, meta_warnings=list(meta.get("warnings") or []),

@@ -423,6 +423,7 @@ class Vetica(ExtractionMethod):
     description = "VETICA (thesis 3.3): creep between taps, initial contact slope, superposition fit"
     title = "VETICA"
     surface_models = ("sls",)
+    surface_note = "VETICA assumes one relaxation time (thesis 3.3)"
     options_default: ClassVar[dict[str, Any]] = {"kg_points": 10, "kr_guess": None}
     seconds_per_point = 1.4  # 0.6 s (true force) + 0.8 s (reconstructed), 10 periods at 0.125 ns, 2 cores
 

@@ -141,8 +141,9 @@ def _surface_keys(key: str):
     if sec != "surface":
         return None
     for model in surfaces.MODELS.values():
-        if name in model.parameter_keys or name in model.derived_keys:
-            return name, model
+        found = model.key_parameter(name)  # a parameter, a derived key, or an item such as arms.2.cd
+        if found is not None:
+            return found
     return None
 
 

@@ -74,11 +74,14 @@ class Surface:
         params = self.__dict__.get("params")
         if params is not None and name in params:
             return params[name]
+        if params is not None and "." in name:  # an item of a non-scalar key, e.g. arms.1.cd
+            return surfaces.get(self.__dict__.get("model")).get_item(params, name)
         raise AttributeError(f"surface ({self.__dict__.get('model')}) has no key {name!r}")
 
     @property
     def surface_model(self) -> surfaces.SurfaceModel:
-        return surfaces.get(self.model)
+        """The surface model specialised to these parameters (e.g. the number of arms)."""
+        return surfaces.get(self.model).for_params(self.params)
 
     def __hash__(self) -> int:  # params may hold lists (arms): hash the section as written
         return hash(json.dumps(self.to_dict(), sort_keys=True))
@@ -204,13 +207,19 @@ def section_names(sec: str) -> list[str]:
     return names + list(COMMON_KEYS)
 
 
+def item_key(key: str) -> bool:
+    """Whether ``key`` is a dotted item of a surface model's non-scalar key, e.g. a Wiechert
+    arm's ``surface.arms.1.cd`` (settable and sweepable; the model checks it)."""
+    sec, _, name = key.partition(".")
+    return sec == "surface" and any(m.item_key(name) for m in surfaces.MODELS.values())
+
+
 def _set_dotted(d: dict, key: str, value: Any) -> None:
-    parts = key.split(".")
-    if len(parts) != 2 or parts[0] not in SECTIONS:
+    sec, _, name = key.partition(".")
+    if sec not in SECTIONS or not name or ("." in name and not item_key(key)):
         raise ConfigError(f"unknown key {key!r}; keys are section.name with section in {sorted(SECTIONS)}")
-    sec, name = parts
     allowed = section_names(sec)
-    if name not in allowed:
+    if name not in allowed and not item_key(key):
         raise ConfigError(f"unknown key {key!r}; allowed in {sec}: {', '.join(allowed)}")
     d.setdefault(sec, {})[name] = value
 
@@ -251,7 +260,7 @@ def _surface(raw: dict) -> Surface:
     (a model may hold non-scalar keys, e.g. a list of arms); the attraction keys are common."""
     model = surfaces.get(raw.get("model", DEFAULT_MODEL))
     allowed = ["model", *model.config_keys, *COMMON_KEYS]
-    common, values = {}, {}
+    common, values, items = {}, {}, {}
     for name, value in raw.items():
         key = f"surface.{name}"
         if name == "model":
@@ -261,8 +270,12 @@ def _surface(raw: dict) -> Surface:
             common[name] = check(key, value, coerce(key, value, spec.type), spec.rule)
         elif name in model.config_keys:
             values[name] = model.parse_key(name, value)
+        elif model.item_key(name):  # e.g. arms.1.cd: applied after the arms list
+            items[name] = value
         else:
             raise ConfigError(f"unknown key {key!r}; allowed in surface: {', '.join(allowed)}")
+    if items:
+        values = model.set_items(values, items)
     return Surface(params=model.complete(values), model=model.key, **common)
 
 

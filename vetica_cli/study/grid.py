@@ -59,7 +59,7 @@ from typing import Any
 from .. import __version__
 from ..errors import ConfigError
 from ..extraction import DEFAULT_METHOD, METHODS, SOURCES
-from ..simulation.config import DERIVED, SECTIONS, Config, defaults, from_dict, read_yaml, section_names
+from ..simulation.config import DERIVED, SECTIONS, Config, defaults, from_dict, item_key, read_yaml, section_names
 from ..surfaces import DEFAULT_MODEL, MODELS
 
 META_KEYS = ("name", "description")
@@ -78,8 +78,15 @@ def config_keys() -> list[str]:
 
 
 def sweepable_keys() -> list[str]:
-    """Keys allowed in a ``sweep:`` block: the schema keys, derived keys and extraction keys."""
+    """Keys allowed in a ``sweep:`` block: the schema keys, derived keys and extraction keys
+    (and the surface models' item keys, e.g. ``surface.arms.1.cd``: :func:`item_key`)."""
     return config_keys() + list(DERIVED) + list(EXTRACT_KEYS)
+
+
+def allowed_text() -> str:
+    """The sweepable keys for an error message, item patterns included."""
+    items = [m.item_help for m in MODELS.values() if m.item_help]
+    return ", ".join(sweepable_keys() + items)
 
 
 def check_extract_value(key: str, value: Any, where: str) -> str:
@@ -216,9 +223,8 @@ def parse_values(key: str, spec: Any) -> list:
 
 
 def _check_key(key: Any) -> str:
-    if not isinstance(key, str) or key not in sweepable_keys():
-        allowed = ", ".join(sweepable_keys())
-        raise ConfigError(f"sweep: unknown key {key!r}; allowed: {allowed}")
+    if not isinstance(key, str) or (key not in sweepable_keys() and not item_key(key)):
+        raise ConfigError(f"sweep: unknown key {key!r}; allowed: {allowed_text()}")
     return key
 
 
@@ -300,7 +306,7 @@ def _resolve(base_clean: dict, base_derived: dict, assign: dict) -> dict:
             if isinstance(d.get(tsec), dict):
                 d[tsec].pop(tname, None)
         else:
-            sec, name = key.split(".")
+            sec, name = key.split(".", 1)  # name may be an item path, e.g. arms.1.cd
             if key in (t for t, _ in DERIVED.values()):
                 # a swept target overrides a derived key in the base
                 for dk, (t, _) in DERIVED.items():
@@ -365,9 +371,9 @@ def _apply_overrides(base: dict, extract: dict, keys: list, overrides: dict) -> 
     for key, value in overrides.items():
         if key in keys:
             raise ConfigError(f"--set {key}: the key is swept by the study; change its sweep entry instead")
-        if key not in sweepable_keys():
-            raise ConfigError(f"unknown key {key!r}; allowed: {', '.join(sweepable_keys())}")
-        sec, kname = key.split(".")
+        if key not in sweepable_keys() and not item_key(key):
+            raise ConfigError(f"unknown key {key!r}; allowed: {allowed_text()}")
+        sec, kname = key.split(".", 1)
         if key in EXTRACT_KEYS:
             extract[kname] = check_extract_value(key, value, f"--set {key}")
             continue
@@ -397,8 +403,14 @@ def _point(i: int, keys: list, assign: dict, extract: dict, base_clean: dict, ba
         elif k in EXTRACT_KEYS:
             resolved[k] = values[k]
         else:
-            sec, nm = k.split(".")
+            sec, nm = k.split(".", 1)
             resolved[k] = getattr(getattr(cfg, sec), nm)
+    if cfg.surface.model not in METHODS[method].surface_models:
+        surface = cfg.surface.surface_model.describe(cfg.surface.params)
+        able = [k for k, m in METHODS.items() if cfg.surface.model in m.surface_models]
+        raise ConfigError(f"point {i} ({label}): extract.method {method!r} cannot extract {surface} (it extracts: "
+                          f"{', '.join(METHODS[method].surface_models)}); expected extract.method: "
+                          f"{' or '.join(able) or 'none registered'}")  # fmt: skip
     return Point(index=i, values=resolved, config=cfg, key=point_key(cfg, method, force), method=method, force=force)
 
 

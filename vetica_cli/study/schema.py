@@ -33,9 +33,14 @@ def sigma_names(model: surfaces.SurfaceModel) -> tuple[str, ...]:
 
 
 def study_models(study: Study) -> list[surfaces.SurfaceModel]:
-    """The surface models of a study's points, in registry order."""
-    used = {p.config.surface.model for p in study.points}
-    return [m for k, m in surfaces.MODELS.items() if k in used]
+    """The surface models of a study's points, in registry order, each specialised to its
+    points' parameters (a Wiechert study's number of arms), in order of first use."""
+    used: dict = {}
+    for p in study.points:
+        m = p.config.surface.surface_model
+        used.setdefault((p.config.surface.model, m.parameter_keys), m)
+    order = list(surfaces.MODELS)
+    return [m for (k, _), m in sorted(used.items(), key=lambda kv: order.index(kv[0][0]))]
 
 
 def result_columns(models=None) -> list[str]:

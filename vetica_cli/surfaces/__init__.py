@@ -5,7 +5,10 @@ one up.  Each model module registers itself on import: adding a model is adding
 its module and one import line below.
 """
 
-from . import sls  # noqa: F401  (registers "sls")
+from . import (
+    sls,  # noqa: F401  (registers "sls")
+    wiechert,  # noqa: F401  (registers "wiechert")
+)
 from .base import COMMON_KEYS, DEFAULT_MODEL, MODELS, CommonKey, DerivedKey, Quantity, SurfaceModel, get, register
 
 __all__ = [

@@ -100,6 +100,7 @@ class SurfaceModel(ABC):
     fit_bounds: ClassVar[dict[str, tuple[float, float]]]  # parameter -> (lower, upper) [SI]
     derived_keys: ClassVar[dict[str, DerivedKey]] = {}  # e.g. stiffness_ratio -> k0 = ratio * k_inf
     theory_source: ClassVar[str]  # what the theory values are, for the table units
+    item_help: ClassVar[str] = ""  # the dotted item keys (item_key), for messages, e.g. "surface.arms.<i>.cd"
 
     @property
     def config_keys(self) -> tuple[str, ...]:
@@ -148,6 +149,51 @@ class SurfaceModel(ABC):
         """The fixed surface of a study (its base ``surface:`` section as written, derived
         keys included) for its figure titles, leaving out swept keys."""
         return self.title_items(section, swept)
+
+    # ---- models whose parameters depend on the config (a list of arms); the defaults suit a
+    # model with a fixed set of scalar keys, such as the SLS
+
+    def for_params(self, params: dict) -> SurfaceModel:
+        """The model specialised to ``params``: its :attr:`parameter_keys` and
+        :attr:`quantities` as that config has them (a Wiechert surface with N arms
+        reports ``k_1, cd_1, ..., k_N, cd_N``).  Default: the model itself."""
+        return self
+
+    def from_arms(self, k_inf: float, k, cd) -> dict:
+        """The parameters (as :meth:`parse` returns them) of the surface with these arms:
+        the inverse of :meth:`kernel_arms`.  Default: ``parameter_keys`` = ``(k_inf, then
+        (k, cd) of each arm)`` in order."""
+        values = [float(k_inf)] + [float(v) for pair in zip(k, cd) for v in pair]
+        if len(values) != len(self.parameter_keys):
+            raise ValueError(f"{self.key}: {len(k)} arm(s) do not fit the parameters {self.parameter_keys}")
+        return dict(zip(self.parameter_keys, values))
+
+    def item_key(self, name: str) -> bool:
+        """Whether ``name`` is a dotted path into a non-scalar config key (e.g. a Wiechert
+        arm's ``arms.1.cd``), settable with ``--set surface.<name>=`` and sweepable."""
+        return False
+
+    def set_items(self, values: dict, items: dict) -> dict:
+        """``values`` (parsed keys of a ``surface:`` section) with the dotted ``items``
+        (:meth:`item_key`) applied and checked; ConfigError names ``surface.<item>``."""
+        if items:
+            raise ConfigError(f"unknown key 'surface.{next(iter(items))}'")
+        return values
+
+    def get_item(self, params: dict, name: str) -> Any:
+        """The value of a dotted item (:meth:`item_key`) in ``params``."""
+        raise AttributeError(f"surface ({self.key}) has no key {name!r}")
+
+    def key_parameter(self, name: str) -> tuple[str, SurfaceModel] | None:
+        """``(parameter or derived-key name, model declaring it)`` of a ``surface.<name>``
+        config key or item, for axis labels; None if the model has no such key."""
+        if name in self.parameter_keys or name in self.derived_keys:
+            return name, self
+        return None
+
+    def describe(self, params: dict) -> str:
+        """The surface in a few words for messages, e.g. 'an SLS (one relaxation time)'."""
+        return f"a {self.name} surface"
 
 
 MODELS: dict[str, SurfaceModel] = {}

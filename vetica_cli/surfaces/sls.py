@@ -97,6 +97,9 @@ class SLS(SurfaceModel):
             "cd": (0.0, 0.0, 1.0),
         }
 
+    def describe(self, params: dict) -> str:
+        return "an SLS (one Maxwell arm, one relaxation time)"
+
     def study_title_items(self, section: dict, swept: set | frozenset = frozenset()) -> list[str]:
         """The fixed surface of a study for its figure titles: ``k_inf``, the ratio
         ``k0:k_inf`` (as the study states it, else from ``k0``) and ``cd``, each unless swept."""

@@ -5,22 +5,26 @@ sample of the recorded steady periods: the measured tip trajectory
 ``z_tip(t)`` drives the massless Zener SLS surface of SPEC section 3 (thesis
 3.2, appendix C: contact when the gap is <= a0, creep out of contact,
 separation when the surface would have to hold the tip with more than the
-adhesion), and bounded least squares finds ``k_inf, k0, cd`` (optionally
-the Hamaker constant ``H``) for which the predicted force matches the
+adhesion) -- or the Wiechert surface of SPEC 11, ``k_inf`` and N Maxwell arms --
+and bounded least squares finds ``k_inf, k0, cd`` (``k_inf, k_1, cd_1, ...,
+k_N, cd_N``; optionally ``H R``) for which the predicted force matches the
 measured one::
 
-    minimise  sum_i ( Fts_model(t_i; k_inf, k0, cd[, H]) - F_i )^2 / F_peak^2
-    over      ln k_inf, ln k0, ln cd [, ln H]       (scipy least_squares, 'trf')
+    minimise  sum_i ( Fts_model(t_i; k_inf, k0, cd[, H R]) - F_i )^2 / F_peak^2
+    over      ln k_inf, ln k0, ln cd [, ln H R]      (scipy least_squares, 'trf')
 
 Choices (see the module functions for details):
 
 * **Forward model** (:mod:`vetica_cli.core.prescribed`, :mod:`.model`): the simulator's own surface
-  updates (:mod:`vetica_cli.core.sls`), once per sample of the record, with their
+  updates (:mod:`vetica_cli.core.sls`; for N arms the N-arm kernel of
+  :mod:`~vetica_cli.core.prescribed`, whose coefficient derivatives come from
+  a complex step; one arm keeps the scalar SLS kernel, 3-4x faster per
+  sample), once per sample of the record, with their
   exact tangent-linear derivatives (the Jacobian of the fit comes out of the
   same pass).  Where the simulator's lagged gap -> attraction -> surface
   feedback matters (out of contact within ~1 nm, and across a separation)
   the sample interval is split into the simulator's own steps
-  (``substeps = print_step/dt`` from the metadata, else 1), the tip
+  (``substeps = print_step/dt`` from the metadata, else print_step/0.025 ns), the tip
   interpolated linearly: without this the snap-off transients differ by up
   to 2.6 % of the peak force over a few samples and bias cd by ~6 % at
   cd = 1e-2 kg/s.  Elsewhere in contact the dashpot is updated once per
@@ -39,11 +43,40 @@ Choices (see the module functions for details):
   it): 2.8 pm at cd = 1e-2, which alone gives a 0.1 % RMS force misfit.
   So, when the record has its approach segment, ``s0`` is fitted too, with
   the approach samples (the first tap, on an undeformed surface) added to
-  the residuals; without one it stays at the ``Z1`` value.
+  the residuals.  Without one but with ``Z1`` (given, or from the metadata) the
+  first periods are fitted with ``s0`` pinned to the ``Z1`` value (the dashpots
+  taken undeformed at the first contact), then the whole window frees it.
+  Without ``Z1`` at all (a record as an instrument writes it) ``s0`` is fitted
+  from the steady taps alone, starting from the tip position at the steady
+  contacts, with a larger evaluation budget: for a dashpot too slow to creep
+  much between taps the height and the split of Kg between ``k_inf`` and that
+  dashpot form a long valley (on the periodic orbit the arms sit at the
+  surface's mean position ``<X> = -<Fts>/k_inf``), and the output warns that
+  the split may be wrong (measured at 50 kHz: the worked example, cd 3e-5 kg/s
+  at 32:1, and cd 3e-4 kg/s at 16:1 recovered within 0.002 %; cd 1e-3 and 1e-2
+  kg/s at 16:1 not, k_inf off by several hundred %; with ``Z1`` given, all
+  within 0.3 %).
+* **Records as measured.**  What the record does not say is fitted or assumed,
+  and the output says which: ``H R`` is fitted (from the adhesion, the force
+  minimum ``-H R/(6 a0^2)``, as its start) unless ``--hamaker`` or the metadata
+  gives ``H`` (then with ``--tip-radius`` or the metadata's R, else the
+  thesis's 10 nm); ``a0`` comes from ``--a0`` or the metadata, else the thesis's
+  0.2 nm is assumed (measured: a0 off by 50 % moves k0, k_inf, cd by < 0.02 %
+  and H R by -47 %, and raises the RMS residual 2000-fold); whether the
+  attraction pulls the surface too (``vdw_on_surface``) comes from the option
+  or the metadata, else both are fitted and the smaller residual kept.
+  Without the simulator's ``dt`` the surface is sub-stepped near the surface at
+  the thesis's 0.025 ns.
+* **Several arms.**  Fitted arm by arm on the first periods: the SLS fit,
+  then each further arm from candidates whose relaxation time is 1e-3 ... 1e3
+  times a present arm's, its spring taken from the arms or from ``k_inf``,
+  each tried for a few evaluations, the best fitted.  Arms are
+  exchangeable; the result orders them by relaxation time, rank for rank
+  onto the record's own arms when its metadata has them (else fastest first).
 * **State at the window start.**  The steady window spans whole drive
   periods with the base fixed, so the surface state at its start equals the
   state at its end.  The dashpot position ``Xd0`` there is solved for with
-  Newton's method on ``Xd_end(Xd0) = Xd0`` (``dXd_end/dXd0`` from the
+  Newton's method on ``Xd_end(Xd0) = Xd0`` (``dXd_end/dXd0``, N x N for N arms, from the
   tangent-linear kernel; the map is affine for a fixed contact schedule, so
   one or two passes do even when nothing relaxes within the window, where
   iterating the window would need ~tau/window repetitions); the periodicity

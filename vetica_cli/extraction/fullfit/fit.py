@@ -1,5 +1,6 @@
 """Bounded least squares of the force residuals of a :class:`~.model.SurfaceFit`
-(trust-region reflective over the log-parameters), with the starting-cd scan."""
+(trust-region reflective over the log-parameters), with the starting-cd scan of one
+arm and the arm-by-arm start of several."""
 
 from __future__ import annotations
 
@@ -8,64 +9,71 @@ import math
 import numpy as np
 from scipy.optimize import least_squares
 
-from ...core.prescribed import NDIR
 from .model import SurfaceFit
 
 CD_SCAN = np.logspace(-10, 2, 7)  # [kg/s] starting-cd scan, every two decades
 HAMAKER_BOUNDS = (1e-24, 1e-14)  # [J] fit range of the Hamaker constant (fit_hamaker)
 OFFSET_UNIT = 1e-10  # [m] unit of the surface height in the fit vector
-OFFSET_RANGE = 5e-9  # [m] the fitted surface height stays within this of the Z1 value
+OFFSET_RANGE = 5e-9  # [m] the fitted surface height stays within this of its reference (Z1 or the start)
 XD0_RANGE = 1e-6  # [m] bound of a fitted dashpot start position
 
 
 class FitVector:
-    """The fit vector ``ln k_inf, ln k0, ln cd [, ln(H R/6)] [, s0/OFFSET_UNIT] [, xd0/OFFSET_UNIT]``
-    of one model: its names, bounds and start, and the scaled residuals and Jacobian at a
-    point (each point evaluated once: least squares asks for both)."""
+    """The fit vector ``ln k_inf, ln k_1, ln cd_1, ... [, ln(H R/6)] [, s0/OFFSET_UNIT]
+    [, xd0_i/OFFSET_UNIT]`` of one model: its names, bounds and start, and the scaled
+    residuals and Jacobian at a point (each point evaluated once: least squares asks
+    for both).  ``names`` are the surface model's ``parameter_keys`` then ``hamaker``
+    (fitted as ``H R/6``), ``s0``, ``xd0`` (one arm) or ``xd0_1..N``."""
 
-    def __init__(self, model: SurfaceFit, theta0, bounds: dict, fit_hamaker: bool, s0, xd0):
+    def __init__(self, model: SurfaceFit, theta0, bounds: dict, fit_hamaker: bool, s0, xd0, s0_ref=None):
         self.model = model
-        self.fit_idx = [0, 1, 2] + ([3] if fit_hamaker else [])
-        self.ndir = NDIR if fit_hamaker else NDIR - 1
+        p = model.n_params
+        self.fit_idx = list(range(p)) + ([p] if fit_hamaker else [])
+        self.ndir = model.ndir if fit_hamaker else model.ndir - 1
         self.base = np.array(theta0, dtype=float)
         names = [list(bounds)[i] for i in self.fit_idx]
         r = model.radius
         lo = list(np.log([bounds[n][0] * (r / 6 if n == "hamaker" else 1.0) for n in names]))
         hi = list(np.log([bounds[n][1] * (r / 6 if n == "hamaker" else 1.0) for n in names]))
         x0 = list(np.log(self.base[self.fit_idx]))
-        s0_z1 = model.z1_offset(*self.base, tangents=False)[0]
+        self.s0_ref = model.initial_offset(self.base) if s0_ref is None else float(s0_ref)
         if model.fit_offset:
-            s0 = s0_z1 if s0 is None else s0
+            s0 = self.s0_ref if s0 is None else s0
             names.append("s0")
             x0.append(s0 / OFFSET_UNIT)
-            lo.append((s0_z1 - OFFSET_RANGE) / OFFSET_UNIT)
-            hi.append((s0_z1 + OFFSET_RANGE) / OFFSET_UNIT)
+            lo.append((self.s0_ref - OFFSET_RANGE) / OFFSET_UNIT)
+            hi.append((self.s0_ref + OFFSET_RANGE) / OFFSET_UNIT)
+        n = model.n_arms
         self.free = xd0 is not None
         if self.free:
-            names.append("xd0")
-            x0.append(xd0 / OFFSET_UNIT)
-            lo.append(-XD0_RANGE / OFFSET_UNIT)
-            hi.append(XD0_RANGE / OFFSET_UNIT)
+            xd0 = np.broadcast_to(np.asarray(xd0, float), (n,))
+            names += ["xd0"] if n == 1 else [f"xd0_{i}" for i in range(1, n + 1)]
+            x0 += list(xd0 / OFFSET_UNIT)
+            lo += [-XD0_RANGE / OFFSET_UNIT] * n
+            hi += [XD0_RANGE / OFFSET_UNIT] * n
         self.names = names
         self.lo, self.hi = np.array(lo), np.array(hi)
         self.x0 = np.clip(np.array(x0), self.lo + 1e-9, self.hi - 1e-9)
-        self.cols = self.fit_idx + ([4] if model.fit_offset else []) + ([5] if self.free else [])
+        self.state_cols = list(range(p + 2, p + 2 + n))
+        self.cols = self.fit_idx + ([p + 1] if model.fit_offset else []) + (self.state_cols if self.free else [])
         self.scale = np.ones(len(self.cols))
         self.scale[len(self.fit_idx) :] = OFFSET_UNIT
         self._cache = {}
 
     def unpack(self, x):
-        """``(theta, s0 or None, xd0 or None)`` [SI] of a fit vector."""
+        """``(theta, s0 or None, xd0 (N,) or None)`` [SI] of a fit vector."""
         theta = self.base.copy()
-        theta[self.fit_idx] = np.exp(x[: len(self.fit_idx)])
+        nf = len(self.fit_idx)
+        theta[self.fit_idx] = np.exp(x[:nf])
+        n = self.model.n_arms
         return (
             theta,
-            x[len(self.fit_idx)] * OFFSET_UNIT if self.model.fit_offset else None,
-            x[-1] * OFFSET_UNIT if self.free else None,
+            x[nf] * OFFSET_UNIT if self.model.fit_offset else None,
+            np.asarray(x[len(x) - n :]) * OFFSET_UNIT if self.free else None,
         )
 
     def evaluate(self, x):
-        """Scaled residuals, their Jacobian, and the column of the window's start state."""
+        """Scaled residuals, their Jacobian, and the columns of the window's start state."""
         key = x.tobytes()
         if key not in self._cache:
             self._cache.clear()
@@ -75,7 +83,7 @@ class FitVector:
             self._cache[key] = (
                 (f - model.f) / model.scale,
                 jac[:, self.cols] * self.scale / model.scale,
-                jac[:, 5] * OFFSET_UNIT / model.scale,
+                jac[:, self.state_cols] * OFFSET_UNIT / model.scale,
             )
         return self._cache[key]
 
@@ -85,61 +93,75 @@ class FitVector:
         f, _ = self.model.evaluate(theta, s0x, ndir=0, xd0=xd0x)
         return float(np.sum(((f - self.model.f) / self.model.scale) ** 2))
 
+    def gn_step(self, x, fixed=(), clip=2.0):
+        """``x`` after one Gauss-Newton step on every component but ``fixed``, each clipped
+        to ``+-clip`` and kept inside the bounds."""
+        others = [i for i in range(len(x)) if i not in fixed]
+        res, jac, _ = self.evaluate(x)
+        step = np.clip(np.linalg.lstsq(jac[:, others], -res, rcond=None)[0], -clip, clip)
+        x = x.copy()
+        x[others] = np.clip(x[others] + step, self.lo[others] + 1e-9, self.hi[others] - 1e-9)
+        return x
+
 
 def scan_cd(vec: FitVector) -> tuple[np.ndarray, list]:
-    """Starting cd: scan ``CD_SCAN`` (and the start) with one Gauss-Newton step on the other
-    parameters at each cd (a cheap profile: a wrong starting k_inf must not make the
-    glassy plateau of large cd look best).  Returns the best point and ``[(cost, x)]``."""
+    """Starting cd of one arm: scan ``CD_SCAN`` (and the start) with one Gauss-Newton step on
+    the other parameters at each cd (a cheap profile: a wrong starting k_inf must not make
+    the glassy plateau of large cd look best).  Returns the best point and ``[(cost, x)]``."""
     lo, hi = vec.lo, vec.hi
-    others = [i for i in range(len(vec.x0)) if i != 2]
     scanned = []
     for cd in [math.exp(vec.x0[2])] + list(CD_SCAN):
         x = vec.x0.copy()
         x[2] = np.clip(math.log(cd), lo[2] + 1e-9, hi[2] - 1e-9)
         vec.model.reset()
-        res, jac, _ = vec.evaluate(x)
-        step = np.linalg.lstsq(jac[:, others], -res, rcond=None)[0]
-        step = np.clip(step, -2.0, 2.0)
-        x[others] = np.clip(x[others] + step, lo[others] + 1e-9, hi[others] - 1e-9)
+        x = vec.gn_step(x, fixed=(2,))
         scanned.append((vec.cost(x), x))
     vec.model.reset()
     return min(scanned, key=lambda c: c[0])[1], scanned
 
 
 def fit_surface(
-    model: SurfaceFit, theta0, bounds: dict, fit_hamaker=False, scan=True, max_nfev=60, xtol=1e-10, s0=None, xd0=None
-) -> dict:
+    model: SurfaceFit, theta0, bounds: dict, fit_hamaker=False, scan=True, max_nfev=60, xtol=1e-10, s0=None, xd0=None,
+    s0_ref=None,
+) -> dict:  # fmt: skip
     """Bounded least squares of the force residuals (trust-region reflective).
 
-    Fit vector: ``ln k_inf, ln k0, ln cd [, ln(H R/6)] [, s0/OFFSET_UNIT]``
-    (:class:`FitVector`).  ``theta0`` = starting ``(k_inf, k0, cd, hr6)`` [SI;
-    hr6 = H R/6 in J m, held fixed unless ``fit_hamaker``]; ``bounds`` = fit range
-    [SI] of each of ``k_inf, k0, cd, hamaker`` in that order; ``s0`` the starting
-    surface height (default: from Z1; fitted when the model has an approach
-    record).  ``xd0``: None = periodic state at the window start, else the
-    starting dashpot position [m] of a fitted start state (``state='free'``).
-    ``scan``: first replace the starting cd by the best of ``CD_SCAN`` (and
-    itself) at the starting stiffnesses (:func:`scan_cd`).  Returns the fit
-    (parameters, residuals, Jacobian, counts).
+    Fit vector: :class:`FitVector`.  ``theta0`` = starting ``(k_inf, k_1, cd_1, ...,
+    H R/6)`` [SI; H R/6 in J m, held fixed unless ``fit_hamaker``]; ``bounds`` = fit
+    range [SI] of each parameter and ``hamaker``, in that order; ``s0`` the starting
+    surface height (default: from Z1 or the contacts, :meth:`SurfaceFit.initial_offset`)
+    and ``s0_ref`` the centre of its range (default the same).  ``xd0``: None =
+    periodic state at the window start, else the starting dashpot positions [m] of a
+    fitted start state (``state='free'``).  ``scan`` (one arm): first replace the
+    starting cd by the best of ``CD_SCAN`` (and itself) at the starting stiffnesses
+    (:func:`scan_cd`).  Returns the fit (parameters, residuals, Jacobian, counts).
     """
-    vec = FitVector(model, theta0, bounds, fit_hamaker, s0, xd0)
-    x0, scanned = scan_cd(vec) if scan else (vec.x0, [])
+    vec = FitVector(model, theta0, bounds, fit_hamaker, s0, xd0, s0_ref)
+    x0, scanned = scan_cd(vec) if scan and model.n_arms == 1 else (vec.x0, [])
+    return solve(vec, x0, max_nfev, xtol, scanned)
+
+
+def solve(vec: FitVector, x0, max_nfev=60, xtol=1e-10, scanned=()) -> dict:
+    """Least squares from ``x0`` on the fit vector ``vec`` (:func:`fit_surface`)."""
+    model = vec.model
     sol = least_squares(
         lambda x: vec.evaluate(x)[0], x0, jac=lambda x: vec.evaluate(x)[1], bounds=(vec.lo, vec.hi), method="trf",
         x_scale="jac", xtol=xtol, ftol=1e-12, gtol=1e-12, max_nfev=max_nfev,
     )  # fmt: skip
     res, jac, jac_xd0 = vec.evaluate(sol.x)
     theta, s0_fit, _ = vec.unpack(sol.x)
-    # Jacobian with the window's start state as one more unknown (already so when it is fitted)
+    # Jacobian with the window's start state as unknowns too (already so when it is fitted)
     jac_free = jac if vec.free else np.column_stack([jac, jac_xd0])
     return {
         "names": vec.names,
         "x": sol.x,
         "theta": theta,
-        "s0": s0_fit if s0_fit is not None else model.z1_offset(*theta, tangents=False)[0],
-        "s0_z1": model.z1_offset(*theta, tangents=False)[0],
+        "s0": s0_fit if s0_fit is not None else model.z1_offset(theta, tangents=False)[0],
+        "s0_ref": vec.s0_ref,
+        "s0_z1": model.z1_offset(theta, tangents=False)[0] if model.z1 is not None else None,
         "residual": res,
-        "xd0": float(model.window_start_xd),
+        "cost": float(res @ res),
+        "xd0": model.window_start_xd,
         "periodic_residual": float(model.periodic_residual),
         "jac": jac,
         "jac_free": jac_free,

@@ -10,6 +10,7 @@ from typing import Any, ClassVar
 
 import numpy as np
 
+from ... import surfaces
 from ...constants import TIP_RADIUS
 from ...errors import InputError
 from ...signals.taps import find_taps
@@ -17,7 +18,7 @@ from ...surfaces import COMMON_KEYS
 from ..base import ExtractionMethod, register
 from ..record import Record
 from ..result import ExtractionResult, estimates, finite_or_none
-from .fit import HAMAKER_BOUNDS, OFFSET_UNIT, fit_surface
+from .fit import HAMAKER_BOUNDS, OFFSET_UNIT, FitVector, fit_surface, solve
 from .model import SurfaceFit
 from .start import starting_point
 from .uncertainty import covariance, gn_gain, identifiability, propagate
@@ -25,54 +26,468 @@ from .uncertainty import covariance, gn_gain, identifiability, propagate
 STATES = ("auto", "periodic", "free")  # dashpot state at the window start
 FREE_NFEV = 25  # evaluation budget of the free-start-state stage (whole window)
 SUB_PERIODS = 1  # drive periods of the first (coarse) fit stage
+PINNED_NFEV = 30  # whole-window evaluations once the height, pinned to Z1 on the first periods, is freed
+ARM_TAU_STEPS = (1e-3, 1e-2, 1e-1, 10.0, 100.0, 1000.0)  # a new arm's tau relative to the nearest arm's
+ARM_TRY_NFEV = 5  # evaluations per candidate arm
+ARM_NFEV = 40  # evaluations of the best candidate on the first period
+# first-period evaluations when no approach tap pins the surface height: the height and the split of Kg
+# between k_inf and a slow dashpot form a long curved valley (on the periodic orbit the arms sit at the
+# surface's mean position <X> = -<Fts>/k_inf), which least squares follows slowly but surely; measured
+# (cd = 3e-4 kg/s, 16:1, stripped record): 25 evaluations stop at k_inf +375 %, 100 at +64 %, 300 at 1e-5
+FREE_HEIGHT_NFEV = 400
+SUBSTEP_DT = 0.025e-9  # [s] surface sub-step near the surface when the record does not say its dt (thesis dt)
 
 
-def _surface_constants(record: Record) -> tuple[float, float, float, bool]:
-    """``(a0, H R/6, tip radius, vdw_on_surface)`` from the metadata, else the thesis defaults."""
+# ------------------------------------------------------------------------- known and unknown constants
+
+
+def surface_constants(record: Record, opts: dict) -> dict:
+    """The constants of the attraction and their sources, ``name -> (value, source)``:
+    ``a0`` [m], ``tip_radius`` [m], ``hamaker`` [J] (None = unknown: fitted as ``H R``),
+    ``vdw_on_surface`` (None = unknown: both tried).  An option (``--a0``,
+    ``--tip-radius``, ``--hamaker``, ``--vdw-on-surface``) beats the file's metadata,
+    which beats the thesis's default (then 'assumed')."""
     surface, probe = record.surface, record.probe
-    a0 = float(surface.get("a0", COMMON_KEYS["a0"].default))
-    hamaker = float(surface.get("hamaker", COMMON_KEYS["hamaker"].default))
-    radius = float(probe.get("tip_radius", TIP_RADIUS))
-    vdw = bool(surface.get("vdw_on_surface", COMMON_KEYS["vdw_on_surface"].default))
-    return a0, hamaker * radius / 6.0, radius, vdw
+    out = {}
+    for name, given, meta, default in (
+        ("a0", opts["a0"], surface.get("a0"), COMMON_KEYS["a0"].default),
+        ("tip_radius", opts["tip_radius"], probe.get("tip_radius"), TIP_RADIUS),
+        ("hamaker", opts["hamaker"], surface.get("hamaker"), None),
+        ("vdw_on_surface", opts["vdw_on_surface"], surface.get("vdw_on_surface"), None),
+    ):
+        if given is not None:
+            out[name] = (given, "given")
+        elif meta is not None:
+            out[name] = (meta, "metadata")
+        else:
+            out[name] = (default, "assumed: thesis default" if default is not None else "unknown")
+    return out
 
 
-def _stages(make, n, taps, theta0, opts, bounds):
+def fit_model(record: Record, arms: int | None) -> surfaces.SurfaceModel:
+    """The surface model fitted: ``arms`` Maxwell arms (1 = the SLS, unless the record's
+    surface is a Wiechert), default the record's own surface (the SLS for measured data)."""
+    own = record.model.for_params(record.surface) if record.truth else record.model
+    if arms is None:
+        return own
+    if arms == 1 and record.model.key != "wiechert":
+        return surfaces.get("sls")
+    return surfaces.get("wiechert").with_arms(arms)
+
+
+def truth_for(record: Record, model: surfaces.SurfaceModel) -> dict | None:
+    """The record's theory values the fitted ``model`` can be compared with: all of them for
+    the same surface (model and arms), else those of the same name outside the arms."""
+    if not record.truth:
+        return None
+    own = record.model.for_params(record.surface)
+    if own.key == model.key and own.parameter_keys == model.parameter_keys:
+        return dict(record.truth)
+    return {k: v for k, v in record.truth.items() if k in ("k_g", "k_r", "k_inf")}
+
+
+# ------------------------------------------------------------------------- stages
+
+
+def _stages(make, n, taps, theta0, opts, bounds, n_arms, pin=False):
     """Coarse to fine: scan and fit on the first ``SUB_PERIODS`` drive periods (the periodic
     state of a whole number of periods is the window's), then refine on the whole window;
-    then, per ``state``, release the periodic state (module docstring).  Returns the
-    whole-window model, the fits of every stage and the free-state gain."""
+    then, per ``state``, release the periodic state (module docstring).  Several arms are
+    added one at a time on the first periods (:func:`_add_arms`).  ``pin``: the first
+    periods are fitted with the surface height pinned to Z1 (a record with Z1 but no
+    approach tap; the window then frees it): the height and the split of Kg between k_inf
+    and a slow dashpot form a long valley that a fit with a free height may not leave
+    (FREE_HEIGHT_NFEV).  Returns the whole-window model, the fits of every stage and the
+    free-state gain."""
     fit_hamaker, scan = opts["fit_hamaker"], opts["scan"]
-    model = make(n)
+    model = make(n, n_arms)
     cycles = round(n / taps.spacing) if taps.spacing > 0 else 0
+    n_sub = round(n * SUB_PERIODS / cycles) if cycles >= 2 * SUB_PERIODS else n
     stages = []
-    if cycles >= 2 * SUB_PERIODS:
-        sub = make(round(n * SUB_PERIODS / cycles))
-        stages.append(fit_surface(sub, theta0, bounds, fit_hamaker=fit_hamaker, scan=scan, xtol=1e-6, max_nfev=25))
+    given = opts["start"] is not None and len(theta0) == model.n_params + 1
+    if n_arms > 1 and not given:
+        stages = _add_arms(make, n_sub, theta0, bounds, fit_hamaker, scan, n_arms, pin)
+    elif n_sub < n:
+        sub = make(n_sub, n_arms, pin)
+        nfev = FREE_HEIGHT_NFEV if sub.fit_offset and sub.approach is None else 25
+        xtol = 1e-10 if sub.fit_offset and sub.approach is None else 1e-6
+        stages.append(fit_surface(sub, theta0, bounds, fit_hamaker=fit_hamaker, scan=scan, xtol=xtol, max_nfev=nfev))
+        stages[-1]["model"] = sub
+    if stages:
         theta0 = stages[-1]["theta"]
-        model.warm_start_from(sub)
+        model.warm_start_from(stages[-1]["model"])
     s0_start = stages[-1]["s0"] if stages else None
-    stages.append(fit_surface(model, theta0, bounds, fit_hamaker=fit_hamaker, scan=scan and not stages, s0=s0_start,
-                              xtol=1e-8 if stages else 1e-10, max_nfev=8 if stages else 60))  # fmt: skip
+    s0_ref = stages[0]["s0_ref"] if stages else None
+    coarse = bool(stages)
+    nfev = (PINNED_NFEV if pin and model.fit_offset else 8) if coarse else 60
+    stages.append(fit_surface(model, theta0, bounds, fit_hamaker=fit_hamaker, scan=scan and not coarse, s0=s0_start,
+                              s0_ref=s0_ref, xtol=1e-8 if coarse else 1e-10, max_nfev=nfev))  # fmt: skip
+    stages[-1]["model"] = model
     # the periodic state is an assumption (a record taken before the surface settled breaks it):
-    # 'auto' releases it -- fits the dashpot position at the window start too -- when the
+    # 'auto' releases it -- fits the dashpot positions at the window start too -- when the
     # linearised model says that would remove more than half the residual; 'free' always does
     gain = gn_gain(stages[-1]["residual"], stages[-1]["jac_free"])
     if opts["state"] == "free" or (opts["state"] == "auto" and gain > 0.5):
         # on the whole window: one period holds too little of a slow dashpot's creep
         last = stages[-1]
         stages.append(fit_surface(model, last["theta"], bounds, fit_hamaker=fit_hamaker, scan=False, s0=last["s0"],
-                                  xd0=last["xd0"], xtol=1e-8, max_nfev=FREE_NFEV))  # fmt: skip
+                                  s0_ref=s0_ref, xd0=last["xd0"], xtol=1e-8, max_nfev=FREE_NFEV))  # fmt: skip
+        stages[-1]["model"] = model
     return model, stages, gain
 
 
-def _fit_info(model, stages, cov, unc_periodic, opts) -> dict:
+def _add_arms(make, n_sub, theta0, bounds, fit_hamaker, scan, n_arms, pin=False):
+    """Several arms, on the first period: fit one arm (the SLS, with its cd scan), then add
+    an arm at a time -- its relaxation time ``ARM_TAU_STEPS`` times each present arm's, its
+    spring taken from the arms' springs or from ``k_inf`` -- try every candidate briefly,
+    and fit the best.  (A sum of exponentials is fitted term by term, as a Prony series
+    is: the fit of N - 1 arms is the start of N.)"""
+    stages = []
+    sub = make(n_sub, 1, pin)
+    sls_bounds = {k: bounds[k] for k in ("k_inf", "k_1", "cd_1", "hamaker")}
+    free_height = sub.fit_offset and sub.approach is None
+    first = fit_surface(sub, theta0, sls_bounds, fit_hamaker=fit_hamaker, scan=scan, xtol=1e-10 if free_height else 1e-6,
+                        max_nfev=FREE_HEIGHT_NFEV if free_height else 25)  # fmt: skip
+    first["model"] = sub
+    stages.append(first)
+    theta = first["theta"]
+    s0, s0_ref = first["s0"], first["s0_ref"]
+    for m in range(2, n_arms + 1):
+        sub = make(n_sub, m, pin)
+        keys = list(bounds)[: 2 * m + 1] + ["hamaker"]
+        mb = {k: bounds[k] for k in keys}
+        tried = []
+        for cand in _arm_candidates(theta, m - 1):
+            sub.reset()
+            vec = FitVector(sub, cand, mb, fit_hamaker, s0, None, s0_ref)
+            try:
+                trial = solve(vec, vec.x0, max_nfev=ARM_TRY_NFEV, xtol=1e-6)
+            except (ValueError, FloatingPointError, np.linalg.LinAlgError):
+                continue
+            if math.isfinite(trial["cost"]):
+                tried.append((trial["cost"], cand, trial))
+        if not tried:
+            raise InputError(f"the fit of {m} arms found no starting point")
+        _, _, best = min(tried, key=lambda c: c[0])
+        sub.reset()
+        vec = FitVector(sub, best["theta"], mb, fit_hamaker, best["s0"], None, s0_ref)
+        fit = solve(
+            vec, vec.x0, max_nfev=FREE_HEIGHT_NFEV if free_height else ARM_NFEV, xtol=1e-10 if free_height else 1e-7
+        )
+        fit["model"] = sub
+        fit["candidates"] = len(tried)
+        stages.append(fit)
+        theta, s0 = fit["theta"], fit["s0"]
+    return stages
+
+
+def _arm_candidates(theta, n_arms):
+    """Starting vectors of ``n_arms + 1`` arms from a fit of ``n_arms`` (:func:`_add_arms`)."""
+    k_inf, k, cd, hr6 = theta[0], np.array(theta[1:-1:2]), np.array(theta[2:-1:2]), theta[-1]
+    tau = cd / k
+    out = []
+    for j in range(n_arms):
+        for step in ARM_TAU_STEPS:
+            for source in ("arms", "k_inf"):
+                if source == "arms":
+                    kk, kn, ki = k * 0.7, 0.3 * float(np.sum(k)), k_inf
+                else:
+                    kk, kn, ki = k, 0.5 * k_inf, 0.5 * k_inf
+                tn = tau[j] * step
+                arms = sorted([*zip(kk, kk * tau), (kn, kn * tn)], key=lambda a: a[1] / a[0])
+                out.append(np.array([ki, *[v for a in arms for v in a], hr6]))
+    return out
+
+
+def order_arms(theta, n_arms: int, truth_taus: list | None):
+    """Arms are exchangeable: order the fitted arms by their relaxation time ``cd/k``, rank
+    for rank onto the record's own arms when they are known (``truth_taus`` in config order),
+    else fastest first.  Returns the permuted parameter vector and the permutation."""
+    k = np.asarray(theta[1 : 2 * n_arms + 1 : 2])
+    cd = np.asarray(theta[2 : 2 * n_arms + 1 : 2])
+    by_tau = np.argsort(cd / k, kind="stable")
+    if truth_taus is not None and len(truth_taus) == n_arms:
+        slots = np.argsort(np.asarray(truth_taus), kind="stable")  # slot of rank r
+        perm = np.empty(n_arms, int)
+        perm[slots] = by_tau
+    else:
+        perm = by_tau
+    out = np.array(theta, float)
+    out[1 : 2 * n_arms + 1 : 2] = k[perm]
+    out[2 : 2 * n_arms + 1 : 2] = cd[perm]
+    return out, perm
+
+
+# ------------------------------------------------------------------------- the method
+
+
+@register
+class FullFit(ExtractionMethod):
+    """Whole-cycle inversion (issue 6): the SLS or Wiechert surface driven by the measured
+    tip trajectory, fitted to every sample of the record (:mod:`vetica_cli.extraction.fullfit`)."""
+
+    key = "full"
+    description = (
+        "whole-cycle model inversion (SLS or Wiechert surface): the surface driven by the measured tip, "
+        "fitted to every sample"
+    )
+    title = "whole-cycle fit"
+    surface_models = ("sls", "wiechert")
+    options_default: ClassVar[dict[str, Any]] = {
+        "kg_points": 10, "start": None, "fit_hamaker": None, "near_stride": 4, "far_stride": 256, "scan": True,
+        "fit_offset": True, "state": "auto", "substeps": None, "arms": None, "hamaker": None, "tip_radius": None,
+        "a0": None, "vdw_on_surface": None,
+    }  # fmt: skip
+    needs_approach = True
+    needs_z1 = False
+    uniform_sampling = True
+    # both force sources, 10 periods at PS 0.125 ns, cd = 1e-3 kg/s at 16:1: 1.2 s (true) + 1.8 s
+    # (reconstructed), measured while the other core was busy
+    seconds_per_point = 3.0
+
+    def options(self, given: dict) -> dict:
+        opts = super().options(given)
+        if opts["state"] not in STATES:
+            raise InputError(f"state {opts['state']!r} not allowed; choose one of: {', '.join(STATES)}")
+        arms = opts["arms"]
+        if arms is not None and (isinstance(arms, bool) or not isinstance(arms, (int, np.integer)) or arms < 1):
+            raise InputError(f"arms {arms!r} not allowed; expected an integer >= 1 (Maxwell arms to fit)")
+        for name, unit in (("hamaker", "J"), ("tip_radius", "m"), ("a0", "m")):
+            v = opts[name]
+            if v is not None and (isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v)
+                                  or not v > 0):  # fmt: skip
+                raise InputError(f"{name.replace('_', '-')} {v!r} not allowed; expected a number > 0 {unit}")
+        if opts["vdw_on_surface"] not in (None, True, False):
+            raise InputError(f"vdw_on_surface {opts['vdw_on_surface']!r} not allowed; expected true, false or auto")
+        if opts["fit_hamaker"] not in (None, True, False):
+            raise InputError(f"fit_hamaker {opts['fit_hamaker']!r} not allowed; expected true, false or auto")
+        return opts
+
+    def run(self, record: Record, options: dict) -> ExtractionResult:
+        """Fit the surface's parameters (and what the record does not say: the surface height,
+        ``H R``, the surface pull) to the record (:mod:`vetica_cli.extraction.fullfit`)."""
+        opts = dict(options)
+        consts = surface_constants(record, opts)
+        vdw_known = consts["vdw_on_surface"][0]
+        choices = [bool(vdw_known)] if vdw_known is not None else [True, False]
+        results = [self._run_one(record, opts, consts, vdw) for vdw in choices]
+        best = min(results, key=lambda r: r.info["fit"]["residual_rms_pct"])
+        if len(results) > 1:  # the surface pull was unknown: both fitted, the better one kept
+            rms = {("on" if r.info["fit"]["vdw_on_surface"] else "off"): r.info["fit"]["residual_rms_pct"]
+                   for r in results}  # fmt: skip
+            best.info["constants"]["vdw_on_surface"] = {
+                "value": best.info["fit"]["vdw_on_surface"],
+                "source": "fitted: both tried, the smaller residual kept (RMS % of the peak: "
+                + ", ".join(f"{k} {v:.3g}" for k, v in rms.items()) + ")",
+            }  # fmt: skip
+            best.timing_s["total"] = time.perf_counter() - record.t_start
+        return best
+
+    def _run_one(self, record: Record, opts: dict, consts: dict, vdw: bool) -> ExtractionResult:
+        t, z, f = record.t, record.z, record.f
+        h = (t[-1] - t[0]) / (len(t) - 1)
+        surface = fit_model(record, opts["arms"])
+        n_arms = 1 if surface.key == "sls" else surface.n_arms
+        a0, radius = float(consts["a0"][0]), float(consts["tip_radius"][0])
+        hamaker = consts["hamaker"][0]
+        fit_hamaker = opts["fit_hamaker"] if opts["fit_hamaker"] is not None else hamaker is None
+        taps = find_taps(f)
+        if len(taps.contact) < 1:
+            raise InputError("too few taps: no complete tap in the record")
+        if hamaker is not None:
+            hr6 = float(hamaker) * radius / 6.0
+        else:  # start from the adhesion: the force minimum is -Fa(a0) = -H R/(6 a0^2)
+            hr6 = max(-float(np.min(f)), 1e-12) * a0 * a0
+        substeps, substeps_source = opts["substeps"], "given"
+        if substeps is None:  # the simulator's surface step: dt of the metadata, else the thesis dt
+            dt_sim = (record.params.get("numerics") or {}).get("dt")
+            substeps = max(1, round(h / (dt_sim or SUBSTEP_DT)))
+            substeps_source = "metadata dt" if dt_sim else f"{SUBSTEP_DT * 1e9:g} ns near the surface"
+        z1 = record.z1 if record.z1 is not None and math.isfinite(record.z1) else None
+        z_ref = z1 if z1 is not None else float(np.median(z[taps.contact]))
+        info, warnings = dict(record.info), []
+        if z1 is None and record.approach is None and opts["fit_offset"]:
+            warnings.append(
+                "no Z1 (no approach segment, no metadata, no --z1): the surface height is fitted from the steady taps "
+                "alone, and for a dashpot that creeps little between taps (e.g. cd >= 1e-3 kg/s at 16:1, 50 kHz) the "
+                "fit may split Kg wrongly between k_inf and that dashpot; pass --z1 (the tip position at the first "
+                "approach contact) to pin the height"
+            )
+        start_sls, source = starting_point(t, z, f, z_ref, taps, opts["kg_points"], _sls_start(opts["start"]))
+        t_start_done = time.perf_counter()
+
+        def make(n, arms, pinned=False):
+            return SurfaceFit(z[:n], f[:n], h, z1, record.approach, a0, radius, vdw,
+                              fit_offset=opts["fit_offset"] and not pinned, near_stride=opts["near_stride"],
+                              far_stride=opts["far_stride"], substeps=substeps, n_arms=arms, z_ref=z_ref)  # fmt: skip
+
+        bounds = {**surface.fit_bounds, "hamaker": HAMAKER_BOUNDS}
+        given = opts["start"]
+        if n_arms > 1 and given is not None and all(k in given for k in surface.parameter_keys):
+            theta0 = [float(given[k]) for k in surface.parameter_keys] + [hr6]
+            # stiffnesses rescaled onto the loading slope as the SLS start is (start.starting_point)
+            factor = (start_sls["k_inf"] + start_sls["k0"]) / (float(given["k_inf"]) + float(given["k_1"]))
+            theta0 = [v * factor if i % 2 == 1 or i == 0 else v for i, v in enumerate(theta0[:-1])] + [hr6]
+        else:
+            theta0 = [start_sls["k_inf"], start_sls["k0"], start_sls["cd"], hr6]
+        opts_run = {**opts, "fit_hamaker": fit_hamaker}
+        pin = z1 is not None and record.approach is None and opts["fit_offset"]
+        model, stages, info["free_state_gain"] = _stages(make, len(z), taps, theta0, opts_run, bounds, n_arms, pin)
+        t_fit = time.perf_counter()
+        info["start"] = {"source": source, **start_sls}
+        result = self._result(record, surface, model, stages, taps, h, radius, opts_run, info, warnings, consts, vdw)
+        result.info["fit"]["substeps_source"] = substeps_source
+        result.timing_s = {"reconstruction": record.reconstruction_s, "start": t_start_done - record.t_force,
+                           "fit": t_fit - t_start_done, "total": time.perf_counter() - record.t_start}  # fmt: skip
+        return result
+
+    def _result(self, record, surface, model, stages, taps, h, radius, opts, info, warnings, consts, vdw):
+        """Values, uncertainties, identifiability and diagnostics of the final stage."""
+        fit = stages[-1]
+        names, res = list(fit["names"]), fit["residual"]
+        n_arms = model.n_arms
+        p = model.n_params
+        truth = truth_for(record, surface)
+        truth_taus = [truth[f"tau_{i}"] for i in range(1, n_arms + 1)] if truth and "tau_1" in truth else None
+        theta, perm = order_arms(fit["theta"], n_arms, truth_taus)
+        # covariance with the window's start state as unknowns too (conservative: does not lean
+        # on the periodic state, which a record taken before the surface settled does not have)
+        cov, cov_model = covariance(res, fit["jac_free"]), covariance(res, fit["jac"])
+        order = [0] + [c for i in perm for c in (1 + 2 * i, 2 + 2 * i)]  # parameter columns after ordering
+        idx = order + list(range(p, len(cov)))
+        idm = idx[: len(cov_model)]
+        cov, cov_model = cov[np.ix_(idx, idx)], cov_model[np.ix_(idm, idm)]
+        x = np.asarray(fit["x"])[idx[: len(fit["x"])]]
+        lo, hi = np.asarray(fit["lo"])[idx[: len(fit["x"])]], np.asarray(fit["hi"])[idx[: len(fit["x"])]]
+        rel = np.sqrt(np.diag(cov))[: len(names)]
+        at_bound = (x - lo < 1e-6) | (hi - x < 1e-6)
+        k_inf, k, cd = float(theta[0]), theta[1:p:2], theta[2:p:2]
+        params = surface.from_arms(k_inf, k, cd)
+        values = surface.theory(params)
+        grads = surface.log_gradients(params)
+        sigma, sigma_model = propagate(cov, grads), propagate(cov_model, grads)
+        units = {q: v.unit for q, v in self.quantities(surface).items()}
+        hr = 6.0 * float(theta[p])  # H R [J m]
+        if opts["fit_hamaker"]:
+            j = names.index("hamaker")
+            units["hamaker_radius"] = "J m"
+            values["hamaker_radius"] = hr
+            sigma["hamaker_radius"], sigma_model["hamaker_radius"] = float(rel[j]), float(math.sqrt(cov_model[j, j]))
+            if record.surface.get("hamaker") is not None and record.probe.get("tip_radius") is not None:
+                truth = {**(truth or {}), "hamaker_radius": record.surface["hamaker"] * record.probe["tip_radius"]}
+            if consts["tip_radius"][1] in ("given", "metadata"):  # H itself only with a known tip radius
+                units["hamaker"] = "J"
+                values["hamaker"] = hr / radius
+                sigma["hamaker"], sigma_model["hamaker"] = sigma["hamaker_radius"], sigma_model["hamaker_radius"]
+                if record.surface.get("hamaker") is not None:
+                    truth = {**(truth or {}), "hamaker": record.surface["hamaker"]}
+        est = estimates(values, units, truth, sigmas=sigma)
+        fitted = [n for n in names if n in (*surface.parameter_keys, "hamaker")]  # not s0, xd0: nuisance
+        arm_names = [(surface.parameter_keys[1 + 2 * i], surface.parameter_keys[2 + 2 * i]) for i in range(n_arms)]
+        contact_s = float(np.median(taps.separation - taps.contact)) * h
+        ident = identifiability(fitted, rel, at_bound, k_inf, list(zip(k, cd)), arm_names, contact_s,
+                                float(taps.spacing) * h - contact_s, h, sigma["k_g"],
+                                math.sqrt(float(np.mean(res**2))))  # fmt: skip
+        if "hamaker" in ident:  # reported as H R (and H when the tip radius is known)
+            ok, why = ident.pop("hamaker")
+            ident["hamaker_radius"] = (ok, why)
+            fitted = [("hamaker_radius" if n == "hamaker" else n) for n in fitted]
+        unconverged = gn_gain(res, fit["jac"]) if fit["status"] == 0 else 0.0
+        if unconverged > 0.5:  # stopped by the evaluation budget far from the optimum
+            why = (f"the fit stopped before converging (one more Gauss-Newton step would remove "
+                   f"{100 * unconverged:.0f} % of the residual)")  # fmt: skip
+            ident = {k: (False, why + ("; " + v[1] if not v[0] else "")) for k, v in ident.items()}
+        for name, (ok, reason) in ident.items():
+            est[name] = replace(est[name], identifiable=bool(ok), reason=reason)
+        if "hamaker" in est and "hamaker_radius" in ident:
+            ok, reason = ident["hamaker_radius"]
+            est["hamaker"] = replace(est["hamaker"], identifiable=bool(ok), reason=reason)
+        info["fit"] = _fit_info(model, stages, cov, sigma_model, opts, perm)
+        info["fit"]["vdw_on_surface"] = vdw
+        info["constants"] = _constants_info(consts, opts, model, fit, vdw, hr)
+        rms_pct = info["fit"]["residual_rms_pct"]
+        if rms_pct > 1.0:
+            warnings.append(
+                f"the {surface.name} model does not reproduce the measured force (RMS residual {rms_pct:.2g} % of "
+                "the peak): a record taken before the surface settled, chatter, noise, or a surface that is not "
+                f"{surface.describe(params)}"
+            )
+        if fit["status"] <= 0:
+            warnings.append(f"least squares did not converge: {fit['message']}")
+        return ExtractionResult(method=self.key, force=record.force, taps=len(taps.contact), estimates=est,
+                                model=surface.key, fitted=tuple(ident), info=info,
+                                warnings=warnings + record.meta_warnings)  # fmt: skip
+
+    def summary_lines(self, res: ExtractionResult) -> list[str]:
+        """What was fitted and what known or assumed (the constants of the attraction, the
+        surface pull, the surface height): the record's metadata, an option or the thesis."""
+        c = res.info.get("constants") or {}
+        if not c:
+            return []
+        fitted = [("H R" if n == "hamaker_radius" else n) for n in res.fitted]
+        height = c.get("surface_height")
+        if height and height["source"].startswith("fitted"):
+            fitted.append("surface height")
+        pull = c.get("vdw_on_surface")
+        if pull and pull["source"].startswith("fitted"):
+            fitted.append("surface pull")
+        lines = ["fitted: " + ", ".join(fitted)]
+        known = []
+        for name, text, unit, scale in (("a0", "a0", "nm", 1e9), ("tip_radius", "tip radius", "nm", 1e9),
+                                        ("hamaker", "H", "J", 1.0), ("vdw_on_surface", "surface pull", "", 1.0)):  # fmt: skip
+            e = c.get(name)
+            if not e or e["source"].startswith("fitted") or e["value"] is None:
+                continue
+            v = e["value"]
+            shown = ("on" if v else "off") if isinstance(v, bool) else f"{v * scale:.4g} {unit}"
+            known.append(f"{text} {shown} ({e['source']})")
+        if known:
+            lines.append("known or assumed: " + "; ".join(known))
+        if pull and pull["source"].startswith("fitted"):
+            lines.append(f"surface pull (vdw_on_surface): {'on' if pull['value'] else 'off'}, {pull['source']}")
+        if height:
+            lines.append(f"surface height: {height['value'] * 1e9:.4f} nm in the record's z_tip ({height['source']})")
+        return lines
+
+
+def _sls_start(start: dict | None) -> dict | None:
+    """The SLS part of a given start (``k_inf, k0, cd``; ``k_1, cd_1`` of a Wiechert start)."""
+    if start is None:
+        return None
+    if all(k in start for k in ("k_inf", "k0", "cd")):
+        return start
+    if all(k in start for k in ("k_inf", "k_1", "cd_1")):
+        return {"k_inf": start["k_inf"], "k0": start["k_1"], "cd": start["cd_1"]}
+    raise InputError(f"start {start!r} not allowed; expected k_inf, k0, cd (or k_inf, k_1, cd_1, ...)")
+
+
+def _constants_info(consts: dict, opts: dict, model: SurfaceFit, fit: dict, vdw: bool, hr: float) -> dict:
+    """``info['constants']``: each constant of the attraction and the surface height with its
+    value and source (given, metadata, assumed, fitted)."""
+    out = {name: {"value": v, "source": src} for name, (v, src) in consts.items()}
+    out["vdw_on_surface"] = {"value": vdw, "source": consts["vdw_on_surface"][1]}
+    if opts["fit_hamaker"]:
+        out["hamaker_radius"] = {"value": hr, "source": "fitted"}
+        out["hamaker"] = {"value": consts["hamaker"][0], "source": "fitted as H R"}
+        if consts["tip_radius"][1].startswith("assumed"):  # it would only convert H R to H
+            out["tip_radius"] = {"value": None, "source": "unknown, not needed: H R fitted"}
+    elif consts["hamaker"][0] is None:
+        out["hamaker"] = {"value": COMMON_KEYS["hamaker"].default, "source": "assumed: thesis default"}
+    out["surface_height"] = {"value": float(fit["s0"]), "source": model.offset_source}
+    return out
+
+
+def _fit_info(model, stages, cov, unc_periodic, opts, perm) -> dict:
     """What the fit did, for ``info['fit']``."""
     fit = stages[-1]
     names, res = fit["names"], fit["residual"]
     s0_sigma = math.sqrt(cov[names.index("s0"), names.index("s0")]) * OFFSET_UNIT if "s0" in names else None
+    xd0 = np.asarray(fit["xd0"], float)[perm]
+    n = model.n_arms
+    xd0_sigma = [finite_or_none(math.sqrt(cov[-n + i, -n + i]) * OFFSET_UNIT) for i in perm]
     return {
         "parameters": names,
+        "arms": n,
         "nfev": [s["nfev"] for s in stages],
         "njev": [s["njev"] for s in stages],
         "status": fit["status"],
@@ -85,116 +500,14 @@ def _fit_info(model, stages, cov, unc_periodic, opts) -> dict:
         "surface_height_m": float(fit["s0"]),
         "surface_height_sigma_m": finite_or_none(s0_sigma),
         "uncertainty_periodic_state": {k: finite_or_none(v) for k, v in unc_periodic.items()},
-        "state": "free" if "xd0" in names else "periodic",
-        "surface_height_from_z1_m": float(fit["s0_z1"]),
-        "surface_height_source": "fit (approach tap + steady window)" if model.fit_offset else "Z1",
-        "xd0_m": fit["xd0"],
-        "xd0_sigma_m": finite_or_none(math.sqrt(cov[-1, -1]) * OFFSET_UNIT),
+        "state": "free" if any(nm.startswith("xd0") for nm in names) else "periodic",
+        "surface_height_from_z1_m": finite_or_none(fit.get("s0_z1")),
+        "surface_height_source": model.offset_source,
+        "xd0_m": float(xd0[0]) if n == 1 else [float(v) for v in xd0],
+        "xd0_sigma_m": xd0_sigma[0] if n == 1 else xd0_sigma,
         "periodic_residual_m": fit["periodic_residual"],
-        "model_passes": int(model.passes),
+        "model_passes": int(sum(s["model"].passes for s in stages if "model" in s and s["model"] is not model))
+        + int(model.passes),
         "stages": len(stages),
+        "arm_candidates": [s["candidates"] for s in stages if "candidates" in s],
     }
-
-
-@register
-class FullFit(ExtractionMethod):
-    """Whole-cycle inversion (issue 6): the SLS surface driven by the measured tip
-    trajectory, fitted to every sample of the record (:mod:`vetica_cli.extraction.fullfit`)."""
-
-    key = "full"
-    description = "whole-cycle SLS model inversion: the surface driven by the measured tip, fitted to every sample"
-    title = "whole-cycle fit"
-    surface_models = ("sls",)
-    options_default: ClassVar[dict[str, Any]] = {"kg_points": 10, "start": None, "fit_hamaker": False, "near_stride": 4, "far_stride": 256,
-                       "scan": True, "fit_offset": True, "state": "auto", "substeps": None}  # fmt: skip
-    needs_approach = True
-    uniform_sampling = True
-    # both force sources, 10 periods at PS 0.125 ns, cd = 1e-3 kg/s at 16:1: 1.2 s (true) + 1.8 s
-    # (reconstructed), measured while the other core was busy
-    seconds_per_point = 3.0
-
-    def options(self, given: dict) -> dict:
-        opts = super().options(given)
-        if opts["state"] not in STATES:
-            raise InputError(f"state {opts['state']!r} not allowed; choose one of: {', '.join(STATES)}")
-        return opts
-
-    def run(self, record: Record, options: dict) -> ExtractionResult:
-        """Fit ``k_inf, k0, cd`` (optionally ``H``) to the record (module docstring)."""
-        opts = options
-        t, z, f, surface = record.t, record.z, record.f, record.model
-        h = (t[-1] - t[0]) / (len(t) - 1)
-        a0, hr6, radius, vdw = _surface_constants(record)
-        substeps = opts["substeps"]
-        if substeps is None:  # the simulator's surface step: dt of the metadata, else one update per sample
-            dt_sim = (record.params.get("numerics") or {}).get("dt")
-            substeps = max(1, round(h / dt_sim)) if dt_sim else 1
-        info, warnings = dict(record.info), []
-        if record.approach is None:
-            warnings.append("no approach record: the dashpot is assumed undeformed at the first contact (Xd1 = 0)")
-        taps = find_taps(f)
-        if len(taps.contact) < 1:
-            raise InputError("too few taps: no complete tap in the record")
-        start, source = starting_point(t, z, f, record.z1, taps, opts["kg_points"], opts["start"])
-        t_start_done = time.perf_counter()
-
-        def make(n):
-            return SurfaceFit(z[:n], f[:n], h, record.z1, record.approach, a0, radius, vdw,
-                              fit_offset=opts["fit_offset"], near_stride=opts["near_stride"],
-                              far_stride=opts["far_stride"], substeps=substeps)  # fmt: skip
-
-        bounds = {**surface.fit_bounds, "hamaker": HAMAKER_BOUNDS}
-        theta0 = [start["k_inf"], start["k0"], start["cd"], hr6]
-        model, stages, info["free_state_gain"] = _stages(make, len(z), taps, theta0, opts, bounds)
-        t_fit = time.perf_counter()
-        info["start"] = {"source": source, **start}
-        result = self._result(record, model, stages, taps, h, radius, opts, info, warnings)
-        result.timing_s = {"reconstruction": record.reconstruction_s, "start": t_start_done - record.t_force,
-                           "fit": t_fit - t_start_done, "total": time.perf_counter() - record.t_start}  # fmt: skip
-        return result
-
-    def _result(self, record, model, stages, taps, h, radius, opts, info, warnings) -> ExtractionResult:
-        """Values, uncertainties, identifiability and diagnostics of the final stage."""
-        surface, fit = record.model, stages[-1]
-        names, res = fit["names"], fit["residual"]
-        # covariance with the window's start state as an unknown too (conservative: does not lean
-        # on the periodic state, which a record taken before the surface settled does not have)
-        cov, cov_model = covariance(res, fit["jac_free"]), covariance(res, fit["jac"])
-        rel = np.sqrt(np.diag(cov))[: len(names)]
-        at_bound = (fit["x"] - fit["lo"] < 1e-6) | (fit["hi"] - fit["x"] < 1e-6)
-        params = dict(zip(surface.parameter_keys, (float(v) for v in fit["theta"][:3])))
-        values = surface.theory(params)
-        grads = surface.log_gradients(params)
-        sigma, sigma_model = propagate(cov, grads), propagate(cov_model, grads)
-        units = {k: q.unit for k, q in self.quantities(surface).items()}
-        truth = dict(record.truth) if record.truth else None
-        if opts["fit_hamaker"]:
-            units["hamaker"] = "J"
-            values["hamaker"] = 6.0 * float(fit["theta"][3]) / radius
-            sigma["hamaker"], sigma_model["hamaker"] = float(rel[3]), float(math.sqrt(cov_model[3, 3]))
-            if record.surface.get("hamaker") is not None:
-                truth = {**(truth or {}), "hamaker": record.surface["hamaker"]}
-        est = estimates(values, units, truth, sigmas=sigma)
-        fitted = tuple(n for n in names if n in (*surface.parameter_keys, "hamaker"))  # not s0, xd0: nuisance
-        contact_s = float(np.median(taps.separation - taps.contact)) * h
-        ident = identifiability(fitted, rel, at_bound, params, values, contact_s, float(taps.spacing) * h - contact_s,
-                                h, sigma["k_g"], math.sqrt(float(np.mean(res**2))))  # fmt: skip
-        unconverged = gn_gain(res, fit["jac"]) if fit["status"] == 0 else 0.0
-        if unconverged > 0.5:  # stopped by the evaluation budget far from the optimum
-            why = (f"the fit stopped before converging (one more Gauss-Newton step would remove "
-                   f"{100 * unconverged:.0f} % of the residual)")  # fmt: skip
-            ident = {k: (False, why + ("; " + v[1] if not v[0] else "")) for k, v in ident.items()}
-        for k, (ok, reason) in ident.items():
-            est[k] = replace(est[k], identifiable=bool(ok), reason=reason)
-        info["fit"] = _fit_info(model, stages, cov, sigma_model, opts)
-        rms_pct = info["fit"]["residual_rms_pct"]
-        if rms_pct > 1.0:
-            warnings.append(
-                f"the SLS model does not reproduce the measured force (RMS residual {rms_pct:.2g} % of the peak): "
-                "a record taken before the surface settled, chatter, noise, or a surface that is not a Zener SLS"
-            )
-        if fit["status"] <= 0:
-            warnings.append(f"least squares did not converge: {fit['message']}")
-        return ExtractionResult(method=self.key, force=record.force, taps=len(taps.contact), estimates=est,
-                                model=surface.key, fitted=tuple(ident), info=info,
-                                warnings=warnings + record.meta_warnings)  # fmt: skip

@@ -47,44 +47,57 @@ def propagate(cov, gradients: dict) -> dict:
     return out
 
 
-def identifiability(names, rel, at_bound, params: dict, th: dict, t_contact, t_free, h, sigma_kg, rms):
-    """Per fitted SLS parameter: (identifiable, reason).
+def identifiability(names, rel, at_bound, k_inf, arms, arm_names, t_contact, t_free, h, sigma_kg, rms):
+    """Per fitted parameter: (identifiable, reason).
 
     Not identifiable: relative 1-sigma (Jacobian, start state unknown) above
-    ``REL_LIMIT``, or at a bound of the fit range, or when the fitted dashpot
-    does not act within the record: its signature in the force within a tap,
-    ``(k0/Kg) max(relaxation in a contact, creep between taps)`` relative to
-    the peak force, is below ``SIGNATURE`` times the relative RMS residual
-    (cd then has only a lower bound and the surface shows only its glassy
-    stiffness ``Kg = k0 + k_inf``), or it relaxes within one sample (cd has
-    only an upper bound).  ``params`` = fitted ``k_inf, k0, cd``; ``th`` their
-    theory values (``tau_r``, ``tau_c``, ``k_g``).
+    ``REL_LIMIT``, or at a bound of the fit range, or when a fitted dashpot does
+    not act within the record: arm i's signature in the force within a tap,
+    ``(k_i/Kg) max(relaxation in a contact, creep between taps)`` relative to the
+    peak force, is below ``SIGNATURE`` times the relative RMS residual (``cd_i``
+    then has only a lower bound and the arm acts as a spring in parallel with
+    ``k_inf``: one arm shows only its glassy stiffness ``Kg = k0 + k_inf``), or it
+    relaxes within one sample (``cd_i`` has only an upper bound).  Relaxation time
+    ``tau_i = cd_i/k_i``; creep time of the arm with the others held,
+    ``cd_i Kg/(k_i (Kg - k_i))`` (the SLS's ``tau_c`` for one arm).  ``arms`` =
+    fitted ``[(k_i, cd_i)]``, ``arm_names`` their parameter names
+    (``[("k0", "cd")]`` for the SLS).
     """
-    relax = -math.expm1(-t_contact / th["tau_r"])  # fraction the dashpot relaxes in one contact
-    creep = -math.expm1(-t_free / th["tau_c"])  # fraction it creeps between taps
-    signature = params["k0"] / th["k_g"] * max(relax, creep)
-    frozen = signature < SIGNATURE * rms
-    why_frozen = (
-        f"the dashpot hardly moves within a tap (relaxes {100 * relax:.2g} % in contact, creeps "
-        f"{100 * creep:.2g} % between taps; force signature {signature:.2g} of the peak < "
-        f"{SIGNATURE:g} x RMS residual {rms:.2g})"
-    )
+    kg = k_inf + sum(k for k, _ in arms)
+    single = len(arms) == 1
+    extra: dict[str, str] = {}
+    instant = {}
+    for (k, cd), (kname, cdname) in zip(arms, arm_names):
+        tau_r = cd / k
+        tau_c = cd * kg / (k * (kg - k))
+        relax = -math.expm1(-t_contact / tau_r)  # fraction the dashpot relaxes in one contact
+        creep = -math.expm1(-t_free / tau_c)  # fraction it creeps between taps
+        signature = k / kg * max(relax, creep)
+        instant[cdname] = tau_r < h and tau_c < h
+        if signature < SIGNATURE * rms:
+            why = (
+                f"the dashpot hardly moves within a tap (relaxes {100 * relax:.2g} % in contact, creeps "
+                f"{100 * creep:.2g} % between taps; force signature {signature:.2g} of the peak < "
+                f"{SIGNATURE:g} x RMS residual {rms:.2g})"
+            )
+            extra[cdname] = f"; {why}: {cdname} has only a lower bound"
+            if single:
+                spring = f"; {why}: only k_g = {kname} + k_inf is determined (1-sigma {sigma_kg:.2g})"
+            else:
+                spring = f"; {why} of arm {cdname}: only k_inf + {kname} together are determined"
+            for name in (kname, "k_inf"):
+                extra[name] = extra.get(name, "") + spring if name == "k_inf" and name in extra else spring
     out = {}
     for i, name in enumerate(names):
-        if name == "cd":
-            extra = f"; {why_frozen}: cd has only a lower bound" if frozen else ""
-        elif name in ("k0", "k_inf"):
-            extra = f"; {why_frozen}: only k_g = k0 + k_inf is determined (1-sigma {sigma_kg:.2g})" if frozen else ""
-        else:
-            extra = ""
+        more = extra.get(name, "")
         if at_bound[i]:
-            out[name] = (False, "at the bound of the fit range" + extra)
+            out[name] = (False, "at the bound of the fit range" + more)
         elif not math.isfinite(rel[i]) or rel[i] > REL_LIMIT:
-            out[name] = (False, f"relative 1-sigma uncertainty {rel[i]:.3g} > {REL_LIMIT:g} (Jacobian)" + extra)
-        elif extra:
-            out[name] = (False, extra[2:])
-        elif name == "cd" and th["tau_r"] < h and th["tau_c"] < h:
-            out[name] = (False, "the dashpot relaxes within one sample: cd has only an upper bound")
+            out[name] = (False, f"relative 1-sigma uncertainty {rel[i]:.3g} > {REL_LIMIT:g} (Jacobian)" + more)
+        elif more:
+            out[name] = (False, more[2:])
+        elif instant.get(name):
+            out[name] = (False, f"the dashpot relaxes within one sample: {name} has only an upper bound")
         else:
             out[name] = (True, f"relative 1-sigma uncertainty {rel[i]:.2g}")
     return out
