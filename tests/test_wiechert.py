@@ -129,9 +129,10 @@ def test_constant_indentation_relaxes_as_the_relaxation_modulus():
     table, _, _, kc = C.surface_step(K_INF, K, CD, h, True)
     xd = np.zeros(2)
     f_sim = np.empty(n)
+    x = x_last = -delta  # the indentation is there from t = 0: the linear target is constant
     for i in range(n):  # the kernel's contact update (tapping._fine)
-        f_sim[i] = -(kc * -delta - table[C.A_KER] @ xd)
-        xd = xd + table[C.A_OMER] * (-delta - xd)
+        f_sim[i] = -(kc * x - table[C.A_KER] @ xd - (K * table[C.A_LIN]).sum() * x_last)
+        xd = xd + table[C.A_OMER] * (x - xd) - table[C.A_LIN] * (x - x_last)
     np.testing.assert_allclose(f_sim, f, rtol=1e-12)
 
 
