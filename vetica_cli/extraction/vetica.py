@@ -316,6 +316,12 @@ def _stage1(t, z, f, z1, kg_points):
         raise InputError(
             f"too few taps: {n_taps} complete tap(s) in the record ({taps.incomplete} cut by its ends), need at least 2"
         )
+    longest = int(np.max(taps.separation - taps.contact)) - 1  # samples after the contact minimum, before separation
+    if kg_points > longest:
+        raise InputError(
+            f"kg_points {kg_points} is not allowed for this record; expected an integer in [2, {max(longest, 2)}] "
+            "(samples after the contact minimum in its longest contact)"
+        )
     warnings = []
     pk = np.diff(taps.peak)
     if len(pk) and np.ptp(pk) > 0.1 * np.median(pk):

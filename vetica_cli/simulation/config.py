@@ -13,8 +13,9 @@ value and what is allowed; the CLI turns it into exit status 2 before any work.
 from __future__ import annotations
 
 import copy
-import dataclasses
+import functools
 import json
+import math
 from dataclasses import dataclass, field, fields
 from pathlib import Path
 from typing import Any
@@ -129,11 +130,11 @@ class Config:
     numerics: Numerics = field(default_factory=Numerics)
 
     def to_dict(self) -> dict:
-        return {
-            "probe": dataclasses.asdict(self.probe),
-            "operation": dataclasses.asdict(self.operation),
+        return {  # the probe, operation and numerics fields are scalars: a shallow copy is dataclasses.asdict
+            "probe": _shallow(self.probe),
+            "operation": _shallow(self.operation),
             "surface": self.surface.to_dict(),
-            "numerics": dataclasses.asdict(self.numerics),
+            "numerics": _shallow(self.numerics),
         }
 
     def with_overrides(self, overrides: dict[str, Any]) -> "Config":
@@ -142,6 +143,15 @@ class Config:
         for key, value in overrides.items():
             _set_dotted(d, key, value)
         return from_dict(d)
+
+
+@functools.lru_cache(maxsize=None)
+def _field_names(cls) -> tuple[str, ...]:
+    return tuple(f.name for f in fields(cls))
+
+
+def _shallow(obj) -> dict:
+    return {name: getattr(obj, name) for name in _field_names(type(obj))}
 
 
 SECTIONS = {"probe": Probe, "operation": Operation, "surface": Surface, "numerics": Numerics}
@@ -271,6 +281,12 @@ def defaults(model: str = DEFAULT_MODEL) -> dict:
     return Config(surface=Surface(params=surfaces.get(model).parse({}), model=model)).to_dict()
 
 
+@functools.lru_cache(maxsize=None)
+def _defaults_cached(model: str) -> dict:
+    """:func:`defaults`, computed once per model (read only: callers must not change it)."""
+    return defaults(model)
+
+
 def _check_cross(cfg: Config) -> None:
     """Checks that involve more than one key."""
     n = cfg.numerics
@@ -323,10 +339,18 @@ def parse_set(items: list[str] | None) -> dict[str, Any]:
 def read_yaml(path: str | Path) -> dict:
     """Read a YAML mapping or raise ConfigError (missing file, bad YAML)."""
     p = Path(path)
-    if not p.is_file():
+    try:
+        is_dir, is_file = p.is_dir(), p.is_file()
+    except (OSError, ValueError) as exc:  # e.g. a name too long for the file system
+        raise ConfigError(f"config file {str(p)!r} is not a usable path ({type(exc).__name__})") from None
+    if is_dir:
+        raise ConfigError(f"config file {str(p)!r} is a folder; expected a YAML file")
+    if not is_file:
         raise ConfigError(f"config file {str(p)!r} does not exist")
     try:
-        data = yaml.safe_load(p.read_text())
+        data = yaml.safe_load(p.read_bytes().decode("utf-8"))
+    except (OSError, UnicodeDecodeError) as exc:
+        raise ConfigError(f"config file {str(p)!r} cannot be read as UTF-8 text ({type(exc).__name__})") from None
     except yaml.YAMLError as exc:
         line = getattr(getattr(exc, "problem_mark", None), "line", None)
         where = f" (line {line + 1})" if line is not None else ""
@@ -338,12 +362,57 @@ def read_yaml(path: str | Path) -> dict:
     return data
 
 
+def resolve_derived(sections: dict, derived: dict[str, Any]) -> None:
+    """Set each derived key's target in ``sections`` (nested dicts, changed in place):
+    ``target = value * source`` (:data:`DERIVED`; the source from ``sections`` or the
+    defaults), rounded to 12 significant digits as sweep values are.  ConfigError for a
+    value that is not a number > 0."""
+    if not derived:
+        return
+    surface = sections.get("surface")
+    model = surface.get("model") if isinstance(surface, dict) else None
+    dflt = _defaults_cached(model if isinstance(model, str) and model in surfaces.MODELS else DEFAULT_MODEL)
+    for dkey, value in derived.items():
+        target, source = DERIVED[dkey]
+        v = number(value)
+        if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v) or not v > 0:
+            raise ConfigError(f"{dkey}: {value!r} is not allowed; expected a ratio > 0")
+        ssec, sname = source.split(".")
+        src = (sections.get(ssec) or {}).get(sname, dflt[ssec][sname])
+        src = coerce(source, src, "float")
+        tsec, tname = target.split(".")
+        if not isinstance(sections.get(tsec), dict):
+            sections[tsec] = {}
+        sections[tsec][tname] = float(f"{v * src:.12g}")
+
+
 def load(path: str | Path | None = None, overrides: dict[str, Any] | None = None) -> Config:
-    """Load a single-point config (YAML or defaults) with dotted overrides."""
+    """Load a single-point config (YAML or defaults) with dotted overrides.  Derived keys
+    (:data:`DERIVED`, e.g. ``surface.stiffness_ratio``) may be set in the file or by an
+    override, as in a study's base; an override of either a derived key or its target
+    replaces the other one set in the file."""
     d = read_yaml(path) if path else {}
     if "sweep" in d:
         raise ConfigError(f"{path}: has a 'sweep:' block; run it with 'vetica sweep', not 'vetica simulate'")
     cfg_d = {k: dict(v) if isinstance(v, dict) else v for k, v in d.items()}
+    derived: dict[str, Any] = {}
+    for dkey, (target, _) in DERIVED.items():
+        dsec, dname = dkey.split(".")
+        body = cfg_d.get(dsec)
+        if isinstance(body, dict) and dname in body:
+            if target.split(".")[1] in body:
+                raise ConfigError(f"{dkey} and {target} are both set in {path}; set one of them")
+            derived[dkey] = body.pop(dname)
+    targets = {t: dk for dk, (t, _) in DERIVED.items()}
     for key, value in (overrides or {}).items():
+        if key in DERIVED:
+            tsec, tname = DERIVED[key][0].split(".")
+            if isinstance(cfg_d.get(tsec), dict):
+                cfg_d[tsec].pop(tname, None)
+            derived[key] = value
+            continue
+        if key in targets:
+            derived.pop(targets[key], None)
         _set_dotted(cfg_d, key, value)
+    resolve_derived(cfg_d, derived)
     return from_dict(cfg_d)
