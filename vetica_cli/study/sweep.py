@@ -311,13 +311,13 @@ def sweep_command(
     out = check_sweep_output(Path(output) if output is not None else default_output(config))
     check_launcher_options(run_kw.get("backend", "loky"), jobs, run_kw.get("scheduler"))
     g.check_values()
+    log = log or (lambda line: None)
+    if run_kw.get("backend", "loky") == "loky" and jobs > cores():
+        log(f"warning: --jobs {jobs} is more than the {cores()} cores here; the workers will share them")
     if dry_run:
         return dry_run_text(g, out, jobs)
     cost = grid_cost(g)
     size_guard(cost, jobs, yes)
-    log = log or (lambda line: None)
-    if run_kw.get("backend", "loky") == "loky" and jobs > cores():
-        log(f"warning: --jobs {jobs} is more than the {cores()} cores here; workers will share cores")
     if cost.points > 2000:
         log(f"checking the {cost.points} points of {g.name} ...")
     study = g.study()
