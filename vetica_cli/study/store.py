@@ -146,7 +146,7 @@ class PartsReport:
         """One line for the user when anything was removed; None otherwise."""
         if not self.removed and not self.temporaries:
             return None
-        items = [f"{n} {why}" for why, n in self.removed.items()]
+        items = [f"{self.removed[why]} {why}" for why in (CORRUPT, STALE, FOREIGN, DISCARDED) if why in self.removed]
         if self.temporaries:
             items.append(f"{self.temporaries} half-written (a killed write)")
         return f"parts in {self.folder}/: {self.reused} reused; removed " + ", ".join(items)
