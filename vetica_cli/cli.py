@@ -50,7 +50,7 @@ class VeticaGroup(TyperGroup):
             hint = f" (see: {exc.ctx.command_path} --help)" if getattr(exc, "ctx", None) is not None else ""
             typer.echo(f"error: {one_line(exc.format_message())}{hint}", err=True)
             rv = exc.exit_code
-        except click_errors.Abort:
+        except typer.Abort:
             typer.echo("aborted", err=True)
             rv = 1
         if not standalone_mode:
@@ -185,7 +185,7 @@ def sweep(
 ):
     """Run a parametric study: simulate every point of the grid, extract it
     with the true and the reconstructed force (extract.force), by a registered
-    extraction method (extract.method; see vetica extract --help), and write one tidy
+    extraction method (extract.method: [vetica, full]; see vetica extract --help), and write one tidy
     table (one row per point, method and force source) plus <name>.config.yaml.
     Points differing only in method or instrument noise share one simulation.
 

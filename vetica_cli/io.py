@@ -92,13 +92,13 @@ def check_output_file(path: str | Path, option: str = "-o", suffix: str | None =
     file.  InputError (one line, naming ``option``) otherwise; nothing is created."""
     p = Path(path)
     label = f"{option} {str(p)!r}"
-    if suffix and p.suffix.lower() != suffix:
-        raise InputError(f"{label}: the output is written as {suffix[1:].title()}; expected a {suffix} path")
     st = _stat(p, label)
     if st is not None and p.is_dir():
         raise InputError(f"{label}: is an existing folder; expected a file path")
     if st is not None and not p.is_file():
         raise InputError(f"{label}: is not a regular file; expected a file path")
+    if suffix and p.suffix.lower() != suffix:
+        raise InputError(f"{label}: the output is written as {suffix[1:].title()}; expected a {suffix} path")
     _writable_folder(p.parent, label)
     return p
 

@@ -15,7 +15,6 @@ from __future__ import annotations
 import copy
 import functools
 import json
-import math
 from dataclasses import dataclass, field, fields
 from pathlib import Path
 from typing import Any
@@ -235,7 +234,8 @@ def from_dict(d: dict | None) -> Config:
         raise ConfigError(f"unknown section {sorted(unknown)[0]!r}; allowed: {', '.join(SECTIONS)}")
     built = {}
     for sec, cls in SECTIONS.items():
-        raw = d.get(sec) or {}
+        raw = d.get(sec)
+        raw = {} if raw is None else raw  # an empty section; 0, '' or [] are not sections
         if not isinstance(raw, dict):
             raise ConfigError(f"section {sec!r} must be a mapping, got {raw!r}")
         built[sec] = _surface(raw) if sec == "surface" else _section(sec, cls, raw)
@@ -287,6 +287,9 @@ def _defaults_cached(model: str) -> dict:
     return defaults(model)
 
 
+MAX_RECORD_SAMPLES = 5e7  # recorded steady samples (8 float64 columns: 3.2 GB in memory); the default holds 1.6e6
+
+
 def _check_cross(cfg: Config) -> None:
     """Checks that involve more than one key."""
     n = cfg.numerics
@@ -313,6 +316,13 @@ def _check_cross(cfg: Config) -> None:
     if n.print_step > period / 20:
         raise ConfigError(
             f"numerics.print_step: {n.print_step!r} is not allowed; expected <= 1/20 of the drive period ({period / 20:.3g} s)"
+        )
+    samples = n.record_cycles * period / n.print_step
+    if samples > MAX_RECORD_SAMPLES:
+        raise ConfigError(
+            f"numerics.record_cycles: {n.record_cycles!r} is not allowed at this print step; expected at most "
+            f"{int(MAX_RECORD_SAMPLES * n.print_step / period)} periods (the record would hold {samples:.3g} samples, "
+            f"limit {MAX_RECORD_SAMPLES:.0e})"
         )
     if n.max_time < (n.record_cycles + n.settle_cycles + 2) * period:
         raise ConfigError(
@@ -374,8 +384,11 @@ def resolve_derived(sections: dict, derived: dict[str, Any]) -> None:
     dflt = _defaults_cached(model if isinstance(model, str) and model in surfaces.MODELS else DEFAULT_MODEL)
     for dkey, value in derived.items():
         target, source = DERIVED[dkey]
-        v = number(value)
-        if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v) or not v > 0:
+        try:
+            v = coerce(dkey, number(value), "float")
+        except ConfigError:
+            v = None
+        if v is None or not v > 0:
             raise ConfigError(f"{dkey}: {value!r} is not allowed; expected a ratio > 0")
         ssec, sname = source.split(".")
         src = (sections.get(ssec) or {}).get(sname, dflt[ssec][sname])

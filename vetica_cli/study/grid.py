@@ -168,9 +168,16 @@ def _num(key: str, v: Any, what: str) -> float:
             v = float(v)
         except ValueError:
             pass
-    if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
+    if isinstance(v, bool) or not isinstance(v, (int, float)) or not _finite(v):
         raise ConfigError(f"sweep.{key}: {what} {v!r} is not allowed; expected a finite number")
     return float(v)
+
+
+def _finite(v: int | float) -> bool:
+    try:
+        return math.isfinite(float(v))
+    except OverflowError:  # an integer beyond the float range
+        return False
 
 
 def _clean(x: float) -> float:
@@ -198,7 +205,7 @@ def parse_values(key: str, spec: Any) -> list:
                 n = float(n)
             except ValueError:
                 pass
-        if isinstance(n, bool) or not isinstance(n, (int, float)) or n != int(n) or n < 0:
+        if isinstance(n, bool) or not isinstance(n, (int, float)) or not _finite(n) or n != int(n) or n < 0:
             raise ConfigError(f"sweep.{key}: {form} count {n!r} is not allowed; expected an integer >= 1")
         n = int(n)
         if n == 0:
