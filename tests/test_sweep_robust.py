@@ -92,6 +92,14 @@ def test_a_not_steady_row_keeps_its_status_and_still_says_why_a_value_is_missing
     assert row_status(True, [], r) == ("ok", "")
 
 
+def test_figure_notes_count_rows_without_an_estimate():
+    from vetica_cli.plots.data import status_note
+
+    t = pd.DataFrame({"surface.cd": [1e-5, 1e-4, 1e-3], "status": ["ok", "no_estimate", "failed"]})
+    note = status_note(t, ["surface.cd"])
+    assert "1 failed point(s) excluded" in note and "1 steady point(s) without an estimate" in note
+
+
 def test_acceptance_text_counts_rows_without_an_estimate():
     t = pd.DataFrame({"surface.cd": [1e-5, 1e-4, 1e-3], "force_source": "true",
                       "status": ["ok", "ok", "no_estimate"], "tau_c_err_pct": [5.0, 10.0, math.nan]})  # fmt: skip
@@ -188,6 +196,25 @@ def test_workers_exit_within_seconds_when_the_sweep_is_killed(tmp_path):
     assert lock_path(out).exists()  # left by kill -9, but not held
     text = sweep_command(cfg, out, jobs=2, progress=False)
     assert f"{10 - persisted} computed, {persisted} reused" in text
+
+
+def test_shm_left_by_a_killed_process_group_is_removed_and_live_entries_kept(tmp_path):
+    """What kill -9 of a whole sweep process group leaves (loky semaphores, joblib memmapping
+    folders named after the dead sweep's pid) is removed; entries of a live pid and other
+    files are kept (measured: 10 entries left by killpg -9, 0 after the next sweep)."""
+    from vetica_cli.study.launch import remove_orphaned_shm
+
+    dead = subprocess.Popen([sys.executable, "-c", "pass"])
+    dead.wait()
+    shm = tmp_path / "shm"
+    shm.mkdir()
+    (shm / f"sem.loky-{dead.pid}-abcd1234").write_bytes(b"")
+    (shm / f"joblib_memmapping_folder_{dead.pid}_x_y").mkdir()
+    (shm / f"joblib_memmapping_folder_{dead.pid}_x_y" / "a.pkl").write_bytes(b"")
+    (shm / f"sem.loky-{os.getpid()}-live0001").write_bytes(b"")
+    (shm / "sem.other-1").write_bytes(b"")
+    assert remove_orphaned_shm(shm) == 2
+    assert sorted(p.name for p in shm.iterdir()) == ["sem.loky-%d-live0001" % os.getpid(), "sem.other-1"]
 
 
 @pytest.mark.skipif(sys.platform != "linux", reason="flock")

@@ -16,16 +16,22 @@ A worker process whose parent is the sweep watches it (:func:`watch_parent`) and
 exits within :data:`PARENT_POLL_S` seconds once the sweep is gone (``kill -9`` of the
 sweep): loky would otherwise keep its idle workers for five minutes, and with them its
 two resource trackers and their semaphores in /dev/shm, which the trackers remove
-when the last worker has exited.
+when the last worker has exited.  What a ``kill -9`` of the whole process group leaves
+in /dev/shm (nobody is left to remove it) the next loky sweep removes
+(:func:`remove_orphaned_shm`).
 """
 
 from __future__ import annotations
 
 import os
+import re
+import shutil
 import threading
 import time
+import warnings
 from abc import ABC, abstractmethod
 from collections.abc import Callable
+from pathlib import Path
 from typing import Any
 
 from ..errors import InputError
@@ -61,6 +67,45 @@ def watch_parent(sweep_pid: int) -> bool:
 
     threading.Thread(target=watch, name="vetica-parent-watch", daemon=True).start()
     return True
+
+
+SHM = Path("/dev/shm")  # where loky's named semaphores and joblib's memmapping folders live (Linux)
+_SHM_OWNED = (re.compile(r"^sem\.loky-(\d+)-"), re.compile(r"^joblib_memmapping_folder_(\d+)_"))
+
+
+def _pid_alive(pid: int) -> bool:
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except PermissionError:  # another user's live process
+        return True
+    return True
+
+
+def remove_orphaned_shm(shm: Path = SHM) -> int:
+    """Remove loky's semaphores and joblib's memmapping folders in ``shm`` whose creating
+    process (the pid in the name) is gone and that belong to this user: what a ``kill -9``
+    of a whole sweep process group leaves (no resource tracker survives to remove them).
+    Entries of live processes are never touched.  Returns how many were removed."""
+    if not shm.is_dir():
+        return 0
+    removed = 0
+    for entry in shm.iterdir():
+        m = next((m for m in (r.match(entry.name) for r in _SHM_OWNED) if m), None)
+        if m is None or _pid_alive(int(m.group(1))):
+            continue
+        try:
+            if entry.lstat().st_uid != os.getuid():
+                continue
+            if entry.is_dir() and not entry.is_symlink():
+                shutil.rmtree(entry)
+            else:
+                entry.unlink()
+            removed += 1
+        except OSError:  # removed meanwhile, or not ours to remove
+            continue
+    return removed
 
 
 def indexed_call(fn: Callable, i: int, arg: Any, sweep_pid: int | None = None) -> tuple[int, Any]:
@@ -113,8 +158,15 @@ class _JoblibLauncher(Launcher):
         with config:
             par = Parallel(return_as="generator_unordered", batch_size=1, **par_kw)
             me = os.getpid()
-            for i, res in par(delayed(indexed_call)(fn, i, a, me) for i, a in enumerate(args)):
-                on_result(i, res)
+            results = par(delayed(indexed_call)(fn, i, a, me) for i, a in enumerate(args))
+            try:
+                for i, res in results:
+                    on_result(i, res)
+            except BaseException:  # Ctrl-C, SIGTERM, an error in on_result: stop the workers now
+                with warnings.catch_warnings():
+                    warnings.simplefilter("ignore")  # joblib's note on cancelled tasks: the caller reports
+                    results.close()
+                raise
 
 
 class LokyLauncher(_JoblibLauncher):

@@ -51,7 +51,7 @@ from ..io import check_output_file, write_table, write_text
 from .acceptance import ACCEPT_ERR_PCT, acceptance_regime, format_acceptance
 from .cost import Cost, dry_run_text, duration, grid_cost
 from .grid import Study, load_grid
-from .launch import Launcher, check_launcher_options, make_launcher
+from .launch import Launcher, LokyLauncher, check_launcher_options, make_launcher, remove_orphaned_shm
 from .lock import lock_path, output_lock
 from .plan import plan
 from .progress import Progress
@@ -176,14 +176,28 @@ def run_sweep(
 
     own = launcher is None
     launcher = make_launcher(backend, jobs, scheduler) if own else launcher
+    if own and isinstance(launcher, LokyLauncher):
+        stale = remove_orphaned_shm()
+        if stale:
+            note(f"removed {stale} semaphore(s) and memory folder(s) left in /dev/shm by killed sweeps")
+    pdir = parts_dir(output)
     try:
         with output_lock(output):
             done, computed, reused = _run_tasks(study, output, launcher, task or PointTask(), resume, progress,
                                                 console, note)  # fmt: skip
             res = _write_table(study, output, done)
-            res.parts_kept = keep_parts or not remove_parts(parts_dir(output))
+            res.parts_kept = keep_parts or not remove_parts(pdir)
             if res.parts_kept and not keep_parts:
-                note(f"{parts_dir(output)}/ holds other files; left in place")
+                note(f"{pdir}/ holds other files; left in place")
+    except KeyboardInterrupt as exc:  # Ctrl-C, or SIGTERM/SIGHUP as Terminated
+        signum = getattr(exc, "signum", signal.SIGINT)
+        keys = {p.key for p in study.points}
+        n = sum(1 for f in pdir.glob("*.parquet") if f.stem in keys) if pdir.is_dir() else 0
+        raise SweepInterrupted(
+            f"interrupted ({signal.Signals(signum).name}): {n} of {len(study.points)} points are persisted "
+            f"in {pdir}/; run the same command again to compute the rest",
+            128 + int(signum),
+        ) from None
     finally:
         if own:
             launcher.close()
@@ -219,16 +233,8 @@ def _run_tasks(study, output, launcher, task, resume, progress, console, note):
             bar.advance(1, failed)
 
     items = [[(p.key, p.config.to_dict(), p.method, p.force) for p in t.points] for t in todo]
-    try:
-        with bar:
-            launcher.launch(task, items, on_result)
-    except KeyboardInterrupt as exc:
-        signum = getattr(exc, "signum", signal.SIGINT)
-        raise SweepInterrupted(
-            f"interrupted ({signal.Signals(signum).name}): {len(done)} of {len(study.points)} points are persisted "
-            f"in {pdir}/; run the same command again to compute the rest",
-            128 + int(signum),
-        ) from None
+    with bar:
+        launcher.launch(task, items, on_result)
     return done, computed, reused
 
 
