@@ -111,7 +111,7 @@ def test_no_contact_is_rejected(tmp_path):
     d = pd.DataFrame({"t": t, "z_tip": 20e-9 + 10e-9 * np.cos(2 * np.pi * 50e3 * t), "f_ts": -1e-12 + 0 * t})
     p = tmp_path / "free.csv"
     d.to_csv(p, index=False)
-    _one_line_error(invoke(p, "--z1", "2e-10"), "no contact found")
+    _one_line_error(invoke(p, "--z1", "1.5e-8"), "no contact found")  # Z1 inside the tip's range (else refused)
 
 
 def test_too_few_taps_is_rejected(frame, tmp_path):
@@ -125,7 +125,7 @@ def test_too_few_taps_is_rejected(frame, tmp_path):
     "args, words",
     [
         (["--force", "measured"], ["force", "reconstructed", "true"]),
-        (["--kg-points", "1"], ["kg_points", ">= 2"]),
+        (["--kg-points", "1"], ["--kg-points", ">= 2"]),
         (["--method", "fancy"], ["method", "vetica", "full"]),
         (["--force", "true", "--cutoff", "1e9"], []),  # cut-off only matters when reconstructing: accepted
     ],

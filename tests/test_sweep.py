@@ -243,7 +243,7 @@ def test_killed_sweep_resumes_only_missing_points_and_ends_with_the_same_table(t
     assert not out.exists()
 
     st = cheap_study({"surface.cd": {"logspace": [-5, -3, 5]}})
-    res = run_sweep(st, out, jobs=1, progress=False, task=FAKE)
+    res = run_sweep(st, out, jobs=1, progress=False, task=FAKE, keep_parts=True)
     assert set(res.reused) == persisted
     assert set(res.computed) == {p.key for p in st.points} - persisted
 
@@ -251,12 +251,14 @@ def test_killed_sweep_resumes_only_missing_points_and_ends_with_the_same_table(t
     assert len(ref.computed) == 5
     numeric_equal(res.table, ref.table)
     numeric_equal(read_table(out)[0], read_table(tmp_path / "b" / "t.parquet")[0])
-    # a third run reuses everything; --no-resume recomputes everything
-    again = run_sweep(st, out, jobs=1, progress=False, task=FAKE)
+    # a third run reuses everything (the parts were kept); --no-resume recomputes everything and,
+    # without keep_parts, removes the parts folder after success
+    again = run_sweep(st, out, jobs=1, progress=False, task=FAKE, keep_parts=True)
     assert again.computed == [] and len(again.reused) == 5
     fresh = run_sweep(st, out, jobs=1, resume=False, progress=False, task=FAKE)
-    assert len(fresh.computed) == 5
+    assert len(fresh.computed) == 5 and any("5 discarded (--no-resume)" in n for n in fresh.notes)
     numeric_equal(fresh.table, ref.table)
+    assert not parts.exists() and not ref.parts_kept
 
 
 def test_parts_made_by_other_code_or_config_are_recomputed(tmp_path):
@@ -266,7 +268,7 @@ def test_parts_made_by_other_code_or_config_are_recomputed(tmp_path):
 
     st = cheap_study({"surface.cd": [1e-5, 1e-4, 1e-3]})
     out = tmp_path / "t.parquet"
-    first = run_sweep(st, out, jobs=1, progress=False, task=FAKE)
+    first = run_sweep(st, out, jobs=1, progress=False, task=FAKE, keep_parts=True)
     assert len(first.computed) == 3
     k0, k1 = st.points[0].key, st.points[1].key
     part = parts_dir(out) / f"{k0}.parquet"
@@ -371,7 +373,7 @@ def _bad(tmp_path, text):
         ("sweep:\n  operation.setpoint: [0.5, 1.5]\n", [], "operation.setpoint"),
         ("sweep:\n  surface.cd: [1.0e-4]\n", ["--backend", "spark"], "--backend 'spark'"),
         ("sweep:\n  surface.cd: [1.0e-4]\n", ["--scheduler", "tcp://127.0.0.1:1"], "--scheduler needs --backend dask"),
-        ("sweep:\n  surface.cd: [1.0e-4]\n", ["--jobs", "0"], "--jobs 0"),
+        ("sweep:\n  surface.cd: [1.0e-4]\n", ["--jobs", "0"], "'--jobs' / '-j': 0 is not allowed"),
         ("sweep:\n  surface.cd: [1.0e-4]\n", ["--set", "surface.cd=1e-3"], "swept"),
         ("sweep:\n  surface.cd: [1.0e-4]\n", ["--set", "surface.nope=1"], "surface.nope"),
     ],

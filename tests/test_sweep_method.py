@@ -134,7 +134,7 @@ def test_points_differing_in_method_and_noise_share_one_simulation(tmp_path):
         return simulate(cfg)
 
     task = PointTask(simulate=counting, extract=fake_extract)
-    res = run_sweep(st, tmp_path / "t.parquet", jobs=1, progress=False, task=task)
+    res = run_sweep(st, tmp_path / "t.parquet", jobs=1, progress=False, task=task, keep_parts=True)
     assert len(calls) == 2 and all(c.numerics.position_noise == 0 for c in calls)
     t = res.table
     assert len(t) == 16 and list(t["method"]) == (["vetica"] * 4 + ["full"] * 4) * 2
@@ -146,7 +146,7 @@ def test_points_differing_in_method_and_noise_share_one_simulation(tmp_path):
     np.testing.assert_allclose(full["cd_sigma_pct"], 200.0)
     assert set(full["unidentified"]) == {"cd"} and set(t[t.method == "vetica"]["unidentified"]) == {""}
     assert t[t.method == "vetica"]["k0_sigma_pct"].isna().all()
-    # a rerun reuses all 8 parts
+    # a rerun reuses all 8 parts (kept)
     again = run_sweep(st, tmp_path / "t.parquet", jobs=1, progress=False, task=task)
     assert again.computed == [] and len(again.reused) == 8
 
@@ -162,7 +162,7 @@ def test_force_key_restricts_the_sources_and_zips_with_the_noise(tmp_path):
     assert "extract.force" in st.keys
     out = tmp_path / "f.parquet"
     task = PointTask(extract=fake_extract)
-    res = run_sweep(st, out, jobs=1, progress=False, task=task)
+    res = run_sweep(st, out, jobs=1, progress=False, task=task, keep_parts=True)
     t = res.table
     assert list(zip(t["numerics.position_noise"], t["force_source"])) == [
         (0.0, "true"), (0.0, "reconstructed"), (1e-11, "true")]  # fmt: skip

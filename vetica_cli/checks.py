@@ -41,6 +41,14 @@ def number(value: Any) -> Any:
     return value
 
 
+def _finite(value: int | float) -> bool:
+    """A finite number that a float holds (an integer beyond 1.8e308 is not)."""
+    try:
+        return math.isfinite(float(value))
+    except OverflowError:
+        return False
+
+
 def coerce(key: str, value: Any, tp: str) -> Any:
     """Coerce a YAML value to the declared type ('float', 'int', 'bool', 'float | None',
     'str') or raise ConfigError."""
@@ -55,7 +63,7 @@ def coerce(key: str, value: Any, tp: str) -> Any:
             return value
         raise ConfigError(f"{key}: {value!r} is not allowed; expected true or false")
     if tp == "int":
-        if isinstance(value, bool) or not isinstance(value, (int, float)) or float(value) != int(value):
+        if isinstance(value, bool) or not isinstance(value, (int, float)) or not _finite(value) or value != int(value):
             raise ConfigError(f"{key}: {value!r} is not allowed; expected an integer")
         return int(value)
     if tp == "float | None":
@@ -63,7 +71,7 @@ def coerce(key: str, value: Any, tp: str) -> Any:
             return None
         tp = "float"
     if tp == "float":
-        if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
+        if isinstance(value, bool) or not isinstance(value, (int, float)) or not _finite(value):
             raise ConfigError(f"{key}: {value!r} is not allowed; expected a finite number")
         return float(value)
     raise AssertionError(tp)

@@ -1,25 +1,89 @@
-"""The ``vetica`` command line.  Each command parses its arguments and calls
-one importable function; user errors print one line and exit with status 2."""
+"""The ``vetica`` command line.  Each command parses its arguments and calls one
+importable function.  Every user error -- a bad option value (typer/click's own
+checks included), config, input file or output path -- prints one line on stderr
+and exits with status 2, before any work and with nothing written.
+
+Adding a command is one decorated function here: ``@app.command()`` then
+``@user_errors``, options parsed by typer (value checks through :func:`checked`),
+and one call into the package.
+"""
 
 from __future__ import annotations
 
 import functools
+import importlib
+import math
 import sys
 from pathlib import Path
 from typing import List, Optional
 
 import typer
+from typer.core import TyperGroup
 
+from . import __version__
 from .errors import USER_ERRORS
 from .extraction import DEFAULT_METHOD, METHODS
 
+
+def one_line(text: str) -> str:
+    """``text`` on one line (click's messages may hold line breaks)."""
+    return " ".join(str(text).split())
+
+
+# click's exception classes: click's own, or the copy typer >= 0.26 vendors (typer's errors are its subclasses)
+click_errors = importlib.import_module(typer.BadParameter.__module__)
+NoArgsIsHelp = getattr(click_errors, "NoArgsIsHelpError", ())  # click >= 8.2: a bare command shows its help
+
+
+class VeticaGroup(TyperGroup):
+    """The command group: click's usage errors (unknown option, bad integer, missing
+    argument...) become one line ``error: ...`` with exit status 2 instead of a usage block."""
+
+    def main(self, args=None, prog_name=None, complete_var=None, standalone_mode=True, **extra):
+        try:
+            rv = super().main(args=args, prog_name=prog_name, complete_var=complete_var, standalone_mode=False,
+                              **extra)  # fmt: skip
+        except NoArgsIsHelp as exc:  # `vetica` or `vetica CMD` alone: the help
+            typer.echo(exc.ctx.get_help() if exc.ctx is not None else str(exc))
+            rv = 0
+        except click_errors.ClickException as exc:
+            hint = f" (see: {exc.ctx.command_path} --help)" if getattr(exc, "ctx", None) is not None else ""
+            typer.echo(f"error: {one_line(exc.format_message())}{hint}", err=True)
+            rv = exc.exit_code
+        except typer.Abort:
+            typer.echo("aborted", err=True)
+            rv = 1
+        if not standalone_mode:
+            return rv
+        sys.exit(rv if isinstance(rv, int) else 0)
+
+
 app = typer.Typer(
+    cls=VeticaGroup,
+    name="vetica",
     add_completion=False,
     no_args_is_help=True,
     help="Simulate tapping-mode AFM (torsional harmonic cantilever) on a viscoelastic SLS surface "
     "and extract the surface's k0, k_inf, cd back with VETICA.  All values SI.",
     pretty_exceptions_enable=False,
+    rich_markup_mode=None,  # help text is printed as written: '[vetica, full]' is text, not markup
 )
+
+
+def show_version(value: bool) -> None:
+    if value:
+        typer.echo(f"vetica {__version__}")
+        raise typer.Exit()
+
+
+@app.callback()
+def root(
+    version: bool = typer.Option(
+        False, "--version", help="Print the version and exit.", is_eager=True, callback=show_version
+    ),
+):
+    """Simulate tapping-mode AFM (torsional harmonic cantilever) on a viscoelastic SLS surface
+    and extract the surface's k0, k_inf, cd back with VETICA.  All values SI."""
 
 
 def user_errors(fn):
@@ -30,10 +94,24 @@ def user_errors(fn):
         try:
             return fn(*args, **kwargs)
         except USER_ERRORS as exc:
-            typer.echo(f"error: {exc}", err=True)
+            typer.echo(f"error: {one_line(exc)}", err=True)
             raise typer.Exit(2) from None
 
     return wrapper
+
+
+def checked(allowed: str, ok):
+    """An option callback: the value (None passes) must be finite and satisfy ``ok(value)``;
+    otherwise a usage error naming the value and ``allowed``."""
+
+    def callback(value):
+        if value is None:
+            return value
+        if isinstance(value, float) and not math.isfinite(value) or not ok(value):
+            raise typer.BadParameter(f"{value!r} is not allowed; expected {allowed}")
+        return value
+
+    return callback
 
 
 SET_HELP = "Override one config key, e.g. --set surface.cd=1e-4 (repeatable)."
@@ -44,14 +122,15 @@ SET_HELP = "Override one config key, e.g. --set surface.cd=1e-4 (repeatable)."
 def simulate(
     config: Optional[Path] = typer.Argument(None, help="YAML config of one point; defaults = thesis worked example."),
     set_: Optional[List[str]] = typer.Option(None, "--set", help=SET_HELP),
-    output: Path = typer.Option(Path("run.parquet"), "-o", "--output", help="Parquet file to write."),
+    output: Path = typer.Option(Path("run.parquet"), "-o", "--output", help="Parquet file to write (checked first)."),
     quiet: bool = typer.Option(False, "--quiet", "-q", help="Do not print the summary."),
 ):
     """Simulate one point to steady state and write the recorded signals.
 
     Writes columns t, z_tip, z_cantilever, z_paddle, z_base, f_ts, x_surface,
     x_dashpot, segment (approach | steady); the Parquet metadata key 'vetica'
-    holds the resolved params, units, stop_reason and observables.
+    holds the resolved params, units, stop_reason and observables.  Derived keys
+    work as in a study: --set surface.stiffness_ratio=16 sets k0 = 16 k_inf.
     """
     from .report import run_summary
     from .simulation.config import parse_set
@@ -65,7 +144,9 @@ def simulate(
 @app.command()
 @user_errors
 def bench(
-    repeat: int = typer.Option(3, min=1, help="Timed runs after one warm-up (compilation) run."),
+    repeat: int = typer.Option(
+        3, help="Timed runs after one warm-up (compilation) run.", callback=checked("an integer >= 1", lambda v: v >= 1)
+    ),
     set_: Optional[List[str]] = typer.Option(None, "--set", help=SET_HELP),
 ):
     """Time the simulation on the worked example, all-fine Verlet against the hybrid
@@ -82,9 +163,12 @@ def bench(
 def sweep(
     config: Path = typer.Argument(..., help="Study YAML: single-point sections plus a 'sweep:' block (see configs/)."),
     output: Optional[Path] = typer.Option(
-        None, "-o", "--output", help="Parquet table to write (default: results/<config name>.parquet)."
+        None, "-o", "--output", help="Parquet table to write (default: sweeps/<config name>.parquet)."
     ),
-    jobs: int = typer.Option(2, "--jobs", "-j", help="Parallel workers (processes), one core each."),
+    jobs: int = typer.Option(
+        2, "--jobs", "-j", help="Parallel workers (processes), one core each; more than the cores warns.",
+        callback=checked("an integer >= 1", lambda v: v >= 1),
+    ),  # fmt: skip
     backend: str = typer.Option("loky", help="loky (local processes) or dask (a Dask cluster via joblib)."),
     scheduler: Optional[str] = typer.Option(
         None, help="Dask scheduler address, e.g. tcp://host:8786 (with --backend dask; default: a local cluster)."
@@ -93,28 +177,38 @@ def sweep(
         True, "--resume/--no-resume", help="Reuse points persisted in <output>.parts/ by an earlier (killed) run."
     ),
     set_: Optional[List[str]] = typer.Option(None, "--set", help=SET_HELP + " Applies to the base; not to swept keys."),
-    dry_run: bool = typer.Option(False, "--dry-run", help="Print the points and a cost bound, run nothing."),
+    dry_run: bool = typer.Option(False, "--dry-run", help="Print the points and a cost estimate, run nothing."),
+    yes: bool = typer.Option(
+        False, "--yes", "-y", help="Start a study over 5000 points or 2 h estimated (otherwise it stops and says so)."
+    ),
+    keep_parts: bool = typer.Option(False, "--keep-parts", help="Keep <output>.parts/ after a successful sweep."),
     quiet: bool = typer.Option(False, "--quiet", "-q", help="No progress bar."),
 ):
     """Run a parametric study: simulate every point of the grid, extract it
     with the true and the reconstructed force (extract.force), by a registered
-    extraction method (extract.method; see vetica extract --help), and write one tidy
+    extraction method (extract.method: [vetica, full]; see vetica extract --help), and write one tidy
     table (one row per point, method and force source) plus <name>.config.yaml.
     Points differing only in method or instrument noise share one simulation.
 
     Prints the acceptance regime at the end: for every combination of the
     other swept keys, the range of surface.cd where the tau_c error is below
-    30 %.  A killed sweep run again computes only the missing points.
+    30 % (status ok).  Rows have status ok, no_estimate (steady, but the
+    extraction gave no value; why: the error column), not_steady or failed.
+
+    Finished points are kept in <output>.parts/ while the sweep runs; Ctrl-C or
+    SIGTERM stops it, a rerun computes only the missing points, and the folder is
+    removed after success.  A second sweep on the same output exits at once.
     """
     from .simulation.config import parse_set
     from .study.sweep import SweepInterrupted, sweep_command
 
     try:
-        text = sweep_command(config, output, parse_set(set_), dry_run=dry_run, jobs=jobs, backend=backend,
-                             scheduler=scheduler, resume=resume, progress=not quiet)  # fmt: skip
+        text = sweep_command(config, output, parse_set(set_), dry_run=dry_run, jobs=jobs, yes=yes, backend=backend,
+                             scheduler=scheduler, resume=resume, progress=not quiet, keep_parts=keep_parts,
+                             log=lambda line: typer.echo(line, err=True))  # fmt: skip
     except SweepInterrupted as exc:
         typer.echo(str(exc), err=True)
-        raise typer.Exit(130) from None
+        raise typer.Exit(exc.exit_code) from None
     typer.echo(text)
 
 
@@ -130,6 +224,7 @@ def plot(
         "--cutoff",
         help="Low-pass cut-off [Hz] of the force reconstruction and tip velocity of a run; default: Nyquist. "
         "Noisy records need one.",
+        callback=checked("a frequency > 0 Hz", lambda v: v > 0),
     ),
 ):
     """Draw the thesis's figures from a run or a sweep table (PNG, headless).
@@ -160,47 +255,57 @@ def extract(
     force: str = typer.Option(
         "auto",
         "--force",
-        help="Force to analyse: reconstructed (spectral inversion of z_paddle) or true (the f_ts column); "
-        "auto = reconstructed when z_paddle is present.",
+        help="Force to analyse: reconstructed (spectral inversion of z_paddle), true (the f_ts column) or "
+        "auto (reconstructed when the table has z_paddle, else true).",
     ),
     kg_points: int = typer.Option(
-        10, "--kg-points", help="Samples after the contact minimum in the Kg fit (thesis: 10)."
-    ),
+        10, "--kg-points", help="Samples after the contact minimum in the Kg fit (thesis: 10); at least 2 and "
+        "fewer than the longest contact of the record.", callback=checked("an integer >= 2", lambda v: v >= 2),
+    ),  # fmt: skip
     method: str = typer.Option(
         DEFAULT_METHOD,
         "--method",
         help="Extraction method: " + "; ".join(f"{k} = {m.description}" for k, m in METHODS.items()) + ".",
     ),
     json_out: bool = typer.Option(False, "--json", help="Print one JSON object instead of the table."),
-    k2: Optional[float] = typer.Option(None, "--k2", help="Paddle stiffness, N/m (data without metadata)."),
-    f2: Optional[float] = typer.Option(None, "--f2", help="Paddle resonance, Hz (data without metadata)."),
-    q2: Optional[float] = typer.Option(None, "--q2", help="Paddle quality factor (data without metadata)."),
+    k2: Optional[float] = typer.Option(None, "--k2", help="Paddle stiffness, N/m (data without metadata).",
+                                       callback=checked("a stiffness > 0 N/m", lambda v: v > 0)),
+    f2: Optional[float] = typer.Option(None, "--f2", help="Paddle resonance, Hz (data without metadata).",
+                                       callback=checked("a frequency > 0 Hz", lambda v: v > 0)),
+    q2: Optional[float] = typer.Option(None, "--q2", help="Paddle quality factor (data without metadata).",
+                                       callback=checked("a quality factor > 0.5", lambda v: v > 0.5)),
     z1: Optional[float] = typer.Option(
-        None, "--z1", help="Tip position at the first approach force minimum, m; default: from the approach segment."
+        None, "--z1", help="Tip position at the first approach force minimum, m (within the record's z_tip range); "
+        "default: from the approach segment.", callback=checked("a finite tip position in m", lambda v: True),
     ),
     f1: Optional[float] = typer.Option(
-        None, "--f1", help="Drive frequency, Hz; only labels the cut-off in harmonics."
+        None, "--f1", help="Drive frequency, Hz; only labels the cut-off in harmonics.",
+        callback=checked("a frequency > 0 Hz", lambda v: v > 0),
     ),
     cutoff: Optional[float] = typer.Option(
-        None, "--cutoff", help="Low-pass cut-off of the force reconstruction, Hz; default: Nyquist, 1/(2 print step)."
+        None, "--cutoff", help="Low-pass cut-off of the force reconstruction, Hz; default: Nyquist, 1/(2 print step).",
+        callback=checked("a frequency > 0 Hz", lambda v: v > 0),
     ),
     arms: Optional[int] = typer.Option(
         None, "--arms", help="--method full: Maxwell arms to fit (1 = SLS, 2+ = Wiechert); default: the file's surface, "
-        "else 1."
+        "else 1.", callback=checked("an integer >= 1", lambda v: v >= 1),
     ),
     hamaker: Optional[float] = typer.Option(
-        None, "--hamaker", help="--method full: Hamaker constant H, J (fixes H R; default: metadata, else H R fitted)."
+        None, "--hamaker", help="--method full: Hamaker constant H, J (fixes H R; default: metadata, else H R fitted).",
+        callback=checked("a Hamaker constant > 0 J", lambda v: v > 0),
     ),
     tip_radius: Optional[float] = typer.Option(
-        None, "--tip-radius", help="--method full: tip radius R, m (default: metadata, else 10 nm assumed)."
+        None, "--tip-radius", help="--method full: tip radius R, m (default: metadata, else 10 nm assumed).",
+        callback=checked("a radius > 0 m", lambda v: v > 0),
     ),
     a0: Optional[float] = typer.Option(
-        None, "--a0", help="--method full: intermolecular distance a0, m (default: metadata, else 0.2 nm assumed)."
+        None, "--a0", help="--method full: intermolecular distance a0, m (default: metadata, else 0.2 nm assumed).",
+        callback=checked("a distance > 0 m", lambda v: v > 0),
     ),
     vdw_on_surface: str = typer.Option(
         "auto", "--vdw-on-surface", help="--method full: does the attraction pull the surface too? true | false | "
         "auto (the metadata's, else both fitted and the smaller residual kept)."
-    ),
+    ),  # fmt: skip
 ):
     """Extract k0, k_inf, cd (and tau_c, Kg, Kr, tau_r) from a run with VETICA
     or another registered method (--method; full fits the SLS or Wiechert surface

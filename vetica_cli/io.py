@@ -1,9 +1,16 @@
-"""Parquet read/write with self-describing metadata.
+"""Parquet read/write with self-describing metadata, and the checks of input and
+output paths every command makes before it starts work.
 
 Every table vetica writes carries, in the Parquet schema metadata under the
 key ``vetica``, a JSON object with the resolved parameters, the unit of each
 column and the version.  Writes are atomic: a temporary file in the same
 directory is renamed over the target, so a reader never sees half a file.
+
+Paths are checked at the boundary (:func:`check_input_file`,
+:func:`check_output_file`, :func:`check_output_dir`): a missing file, a folder
+where a file is expected, a file where a folder is expected, or a place that
+cannot be written raise :class:`~vetica_cli.errors.InputError` with one line
+before any work starts, and the checks themselves leave nothing behind.
 """
 
 from __future__ import annotations
@@ -23,6 +30,91 @@ from .errors import InputError
 META_KEY = b"vetica"
 
 
+def _stat(p: Path, label: str) -> os.stat_result | None:
+    """``os.stat(p)``, None when nothing is there; InputError for a path the system refuses
+    (name too long, a file used as a folder, a symlink loop, an embedded NUL byte...)."""
+    try:
+        return p.stat()
+    except FileNotFoundError:
+        return None
+    except NotADirectoryError:
+        raise InputError(f"{label}: a part of the path is a file, not a folder") from None
+    except (OSError, ValueError) as exc:
+        raise InputError(f"{label}: not a usable path ({_reason(exc)})") from None
+
+
+def _reason(exc: BaseException) -> str:
+    return getattr(exc, "strerror", None) or str(exc) or type(exc).__name__
+
+
+def check_input_file(path: str | Path, what: str = "file") -> Path:
+    """``path`` if it is a readable regular file; InputError (one line) saying what it is
+    instead: missing, a folder, a device, unreadable."""
+    p = Path(path)
+    label = str(p)
+    st = _stat(p, label)
+    if st is None:
+        raise InputError(f"{label}: no such file")
+    if p.is_dir():
+        raise InputError(f"{label}: is a folder; expected a {what}")
+    if not p.is_file():
+        raise InputError(f"{label}: not a regular file; expected a {what}")
+    try:
+        with open(p, "rb"):
+            pass
+    except OSError as exc:
+        raise InputError(f"{label}: cannot be read ({_reason(exc)})") from None
+    return p
+
+
+def _writable_folder(folder: Path, label: str) -> None:
+    """InputError unless ``folder`` exists and takes a new file, or can be created under its
+    nearest existing ancestor.  Probed by creating and removing a temporary file there (the
+    permission bits do not tell: root may not write /proc); nothing is left behind."""
+    anc = folder
+    while _stat(anc, label) is None:
+        if anc.parent == anc:
+            break
+        anc = anc.parent
+    if not anc.is_dir():
+        raise InputError(f"{label}: {anc} is a file, not a folder")
+    try:
+        fd, tmp = tempfile.mkstemp(prefix=".vetica-write-check-", dir=anc)
+    except OSError as exc:
+        raise InputError(f"{label}: cannot write in {anc} ({_reason(exc)})") from None
+    os.close(fd)
+    os.unlink(tmp)
+
+
+def check_output_file(path: str | Path, option: str = "-o", suffix: str | None = ".parquet") -> Path:
+    """``path`` if a file can be written there (atomically, by rename): the name ends in
+    ``suffix`` (when given), it is not a folder or a device, and its folder takes a new
+    file.  InputError (one line, naming ``option``) otherwise; nothing is created."""
+    p = Path(path)
+    label = f"{option} {str(p)!r}"
+    st = _stat(p, label)
+    if st is not None and p.is_dir():
+        raise InputError(f"{label}: is an existing folder; expected a file path")
+    if st is not None and not p.is_file():
+        raise InputError(f"{label}: is not a regular file; expected a file path")
+    if suffix and p.suffix.lower() != suffix:
+        raise InputError(f"{label}: the output is written as {suffix[1:].title()}; expected a {suffix} path")
+    _writable_folder(p.parent, label)
+    return p
+
+
+def check_output_dir(path: str | Path, option: str = "-o") -> Path:
+    """``path`` if figures can be written into it: an existing folder, or a new one that can
+    be created.  InputError (one line) for an existing file or an unwritable place."""
+    p = Path(path)
+    label = f"{option} {str(p)!r}"
+    st = _stat(p, label)
+    if st is not None and not p.is_dir():
+        raise InputError(f"{label}: is an existing file; expected a folder")
+    _writable_folder(p, label)
+    return p
+
+
 def _json_default(o):
     try:
         return float(o)
@@ -40,15 +132,23 @@ def _umask() -> int:
 def atomic_path(path: str | Path):
     """Yield a temporary path next to ``path``; when the block succeeds it is
     renamed over ``path`` (atomic on one file system) with normal permissions,
-    when it fails it is removed.  A reader never sees half a file."""
+    when it fails it is removed.  A reader never sees half a file.  A failure of the
+    file system (disk full, the place vanished since the checks) is an InputError
+    naming the path, not a traceback."""
     path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
+    except OSError as exc:
+        raise InputError(f"cannot write {path} ({_reason(exc)})") from None
     os.close(fd)
     try:
         yield Path(tmp)
         os.chmod(tmp, 0o666 & ~_umask())  # mkstemp makes 0600
         os.replace(tmp, path)
+    except OSError as exc:
+        Path(tmp).unlink(missing_ok=True)
+        raise InputError(f"cannot write {path} ({_reason(exc)})") from None
     except BaseException:
         Path(tmp).unlink(missing_ok=True)
         raise
@@ -92,20 +192,41 @@ def read_table(path: str | Path) -> tuple[pd.DataFrame, dict]:
 
     Raises InputError with one line for a missing, unreadable or corrupt file.
     """
-    p = Path(path)
-    if not p.is_file():
-        raise InputError(f"{p}: no such file")
+    p = check_input_file(path, "Parquet or CSV file")
     if p.suffix.lower() == ".csv":
-        try:
-            return pd.read_csv(p), {}
-        except Exception as exc:
-            raise InputError(f"{p}: not a readable CSV file ({type(exc).__name__})") from None
+        return read_csv(p), {}
     meta = read_meta(p)
     try:
         df = pq.read_table(p).to_pandas()
     except Exception as exc:
         raise InputError(f"{p}: not a readable Parquet file ({type(exc).__name__})") from None
     return df, meta
+
+
+def read_csv(path: Path) -> pd.DataFrame:
+    """A CSV table whose columns are numbers, except a text ``segment`` column; InputError
+    naming the first cell that is not a number (column, row and value) or a file pandas
+    cannot parse."""
+    try:
+        df = pd.read_csv(path, low_memory=False)
+    except Exception as exc:  # pandas raises several types (ParserError, UnicodeDecodeError, EmptyDataError)
+        raise InputError(f"{path}: not a readable CSV file ({type(exc).__name__})") from None
+    if df.columns.duplicated().any():
+        dup = df.columns[df.columns.duplicated()][0]
+        raise InputError(f"{path}: column {dup!r} appears twice")
+    for name in df.columns:
+        if name == "segment" or pd.api.types.is_numeric_dtype(df[name]):
+            continue
+        num = pd.to_numeric(df[name], errors="coerce")
+        bad = num.isna() & df[name].notna()
+        if bad.any():
+            i = int(bad.to_numpy().argmax())
+            raise InputError(
+                f"{path}: column {name!r}, data row {i + 1}: {df[name].iloc[i]!r} is not a number; "
+                "expected numbers (only 'segment' may hold text)"
+            )
+        df[name] = num
+    return df
 
 
 def write_run(run, path: str | Path) -> Path:

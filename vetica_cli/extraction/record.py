@@ -14,6 +14,7 @@ raises :class:`~vetica_cli.errors.InputError` (one line) for whatever is missing
 
 from __future__ import annotations
 
+import math
 import time
 from dataclasses import dataclass, field
 
@@ -73,7 +74,10 @@ def segment(df: pd.DataFrame, name: str) -> pd.DataFrame | None:
 
 def column(df: pd.DataFrame, name: str, where: str) -> np.ndarray:
     """A column as floats; InputError for missing or non-finite values."""
-    a = df[name].to_numpy(dtype=float)
+    try:
+        a = df[name].to_numpy(dtype=float)
+    except (TypeError, ValueError):
+        raise InputError(f"column {name!r} holds values that are not numbers in {where}") from None
     if not np.all(np.isfinite(a)):
         raise InputError(f"column {name!r} has missing or non-finite values in {where}")
     return a
@@ -236,6 +240,11 @@ def build_record(
     t = column(steady, "t", "the steady record")
     check_time(t, "the steady record")
     z = column(steady, "z_tip", "the steady record")
+    if z1 is not None and not (math.isfinite(z1) and z.min() <= z1 <= z.max()):
+        raise InputError(
+            f"--z1 {z1!r} is not allowed for this record; expected a tip position within its z_tip range "
+            f"[{z.min():.4g}, {z.max():.4g}] m"
+        )
     if uniform:
         h = (t[-1] - t[0]) / (len(t) - 1)
         if np.max(np.abs(np.diff(t) - h)) > 1e-3 * h:

@@ -30,10 +30,10 @@ contact instant::
 
 ``Fc`` is the force measured at the contact minimum (-F_vdW(a0)); the
 thesis does not say how it handled this offset, and fitting without it
-biases Kr by the adhesion force over the indentation.  ``Kr`` is found by
-bounded least squares of ``F_SLS - F`` over the contact samples
-(scipy ``least_squares``, trust-region-reflective, the equivalent of the
-thesis's MATLAB ``lsqnonlin``), bounded to ``0 < Kr < Kg``.  Then
+biases Kr by the adhesion force over the indentation.  ``Kr`` is the
+least-squares fit of ``F_SLS - F`` over the contact samples, bounded to
+``0 < Kr < Kg`` (the thesis's MATLAB ``lsqnonlin``), solved as the root of the
+cost's derivative so that rounding does not move it (:func:`stage2_kr`).  Then
 ``k_inf = Kr``, ``k0 = Kg - Kr``, ``cd = tau_r k0`` (thesis eqs. 81-83).
 
 The superposition integral of a sum of sines against the exponential kernel
@@ -49,7 +49,7 @@ from dataclasses import dataclass, field
 from typing import Any, ClassVar
 
 import numpy as np
-from scipy.optimize import least_squares
+from scipy.optimize import brentq, least_squares, minimize_scalar
 
 from ..errors import InputError
 from ..signals.taps import Taps, find_taps
@@ -249,6 +249,21 @@ class Superposition:
         decay = np.exp(-self.u / tau)
         return (self.cos @ a) + (self.sin @ (bt * a)) - decay * np.dot(a, self.cos0 + bt * self.sin0)
 
+    def conv_dtau(self, tau: float) -> tuple[np.ndarray, np.ndarray]:
+        """:meth:`conv` and its derivative with respect to ``tau`` [m, m/s], from the complex
+        form of each column: with ``lam = 1/tau``, ``int_0^u exp(-lam (u-s)) exp(i(b s + c)) ds
+        = exp(ic) (exp(ibu) - exp(-lam u)) / (lam + ib)``, whose ``lam``-derivative is
+        ``exp(ic) (u exp(-lam u) (lam + ib) - (exp(ibu) - exp(-lam u))) / (lam + ib)^2``;
+        ``d/dtau = -d/dlam / tau^2``."""
+        lam = 1.0 / tau
+        den = lam + 1j * self.b
+        e_c = self.cos0 + 1j * self.sin0
+        tail = e_c * np.exp(-lam * self.u)[:, None]  # exp(ic) exp(-lam u)
+        diff = (self.cos + 1j * self.sin) - tail  # exp(i(bu + c)) - exp(ic) exp(-lam u)
+        conv = (diff / den).real @ self.w
+        dlam = ((self.u[:, None] * tail * den - diff) / den**2).real @ self.w
+        return conv, -dlam / tau**2
+
     def force(self, kg: float, kr: float, tau_r: float, fc: float = 0.0) -> np.ndarray:
         """``Fc + Kr delta + (Kg - Kr) conv(tau_r)`` [N] (thesis eqs. 75-78)."""
         return fc + kr * self.delta + (kg - kr) * self.conv(tau_r)
@@ -264,25 +279,75 @@ def boltzmann_force(u: np.ndarray, fit: SineFit, kg: float, kr: float, tau_r: fl
     return Superposition(u, fit).force(kg, kr, tau_r, fc)
 
 
+KR_SCAN = 16  # log-spaced Kr values over the bounds (12 decades) on which stage 2 looks for the lowest cost
+KR_RTOL = 4 * np.finfo(float).eps  # Brent's relative tolerance on the root of the cost's derivative
+
+
 def stage2_kr(
     u, f, fit: SineFit, kg: float, tau_c: float, fc: float, kr_guess: float | None = None, max_points: int = 1000
 ):
-    """Rubbery stiffness of one tap: bounded least squares of ``F_SLS - F``
-    (thesis eqs. 79-80), ``0 < Kr < Kg``, over at most ``max_points`` evenly
-    spaced contact samples.  Returns ``(Kr, residual RMS [N], nfev)``."""
+    """Rubbery stiffness of one tap: least squares of ``F_SLS - F`` (thesis eqs. 79-80),
+    ``0 < Kr < Kg``, over at most ``max_points`` evenly spaced contact samples.  Returns
+    ``(Kr, residual RMS [N], cost evaluations)``.
+
+    The cost ``S(Kr) = sum r^2`` (residuals in units of the peak force) is flat near its
+    minimum: its value fixes Kr only to ~1e-8 relative, so a solver that stops on the
+    change of Kr or S (the thesis's ``lsqnonlin``; scipy's trust-region least squares at
+    ``xtol`` 1e-10) returns Kr to ~1e-10, and a last-bit change of the input -- another
+    CPU's ``exp`` -- moves the answer by that much.  Kr is instead the root of the analytic
+    derivative ``S'(Kr) = 2 sum r dr/dKr`` (``dr/dKr = (delta - conv + (Kg - Kr) dconv/dtau
+    tau_c/Kg)/scale``, :meth:`Superposition.conv_dtau`), a simple root (``S'' > 0``), which
+    rounding fixes to ~1e-15 relative: the lowest ``S`` on a log-spaced scan of the bounds
+    (:data:`KR_SCAN` values, plus ``kr_guess``) brackets it, Brent's method solves it to
+    :data:`KR_RTOL`.  A minimum on a bound returns the bound.
+    """
     step = max(1, len(u) // max_points)
     sup = Superposition(np.asarray(u)[::step], fit)
     f = np.asarray(f)[::step]
     lo, hi = 1e-12 * kg, kg * (1.0 - 1e-9)
-    x0 = min(max(kr_guess if kr_guess is not None else 0.1 * kg, lo * 10), hi * 0.999)
     scale = float(np.max(np.abs(f))) or 1.0  # residuals in units of the peak force
+    calls = [0]
 
-    def resid(x):
-        kr = x[0]
+    def resid(kr: float) -> np.ndarray:
+        calls[0] += 1
         return (sup.force(kg, kr, tau_c * kr / kg, fc) - f) / scale
 
-    sol = least_squares(resid, [x0], bounds=([lo], [hi]), method="trf", xtol=1e-10)
-    return float(sol.x[0]), float(scale * np.sqrt(np.mean(sol.fun**2))), int(sol.nfev)
+    def slope(kr: float) -> float:  # S'(Kr) / 2
+        calls[0] += 1
+        conv, dconv = sup.conv_dtau(tau_c * kr / kg)
+        r = (fc + kr * sup.delta + (kg - kr) * conv - f) / scale
+        return float(r @ ((sup.delta - conv + (kg - kr) * dconv * tau_c / kg) / scale))
+
+    xs = np.geomspace(lo, hi, KR_SCAN)
+    if kr_guess is not None and lo < kr_guess < hi:
+        xs = np.unique(np.append(xs, kr_guess))
+    i = int(np.argmin([float(np.sum(resid(x) ** 2)) for x in xs]))
+    gi = slope(xs[i])
+    if gi == 0.0:
+        kr = float(xs[i])
+    elif gi > 0:  # the minimum is below xs[i]
+        kr = lo if i == 0 else _root(slope, xs[i - 1], xs[i], gi_right=gi)
+    else:  # above xs[i]
+        kr = hi if i == len(xs) - 1 else _root(slope, xs[i], xs[i + 1], gi_left=gi)
+    if kr is None:  # S' does not change sign across the neighbour: minimise S itself there
+        a, b = xs[max(i - 1, 0)], xs[min(i + 1, len(xs) - 1)]
+        kr = float(minimize_scalar(lambda x: float(np.sum(resid(x) ** 2)), bounds=(a, b), method="bounded",
+                                   options={"xatol": KR_RTOL * b}).x)  # fmt: skip
+    return float(kr), float(scale * np.sqrt(np.mean(resid(kr) ** 2))), calls[0]
+
+
+def _root(slope, a: float, b: float, gi_left: float | None = None, gi_right: float | None = None) -> float | None:
+    """The root of ``slope`` in ``[a, b]`` by Brent's method when it goes from negative to
+    positive there; None otherwise."""
+    ga = slope(a) if gi_left is None else gi_left
+    gb = slope(b) if gi_right is None else gi_right
+    if ga == 0.0:
+        return float(a)
+    if gb == 0.0:
+        return float(b)
+    if not (ga < 0.0 < gb):
+        return None
+    return float(brentq(slope, a, b, xtol=1e-300, rtol=KR_RTOL))
 
 
 # ----------------------------------------------------------------------------- driver
@@ -315,6 +380,12 @@ def _stage1(t, z, f, z1, kg_points):
     if n_taps < 2:
         raise InputError(
             f"too few taps: {n_taps} complete tap(s) in the record ({taps.incomplete} cut by its ends), need at least 2"
+        )
+    longest = int(np.max(taps.separation - taps.contact)) - 1  # samples after the contact minimum, before separation
+    if kg_points > longest:
+        raise InputError(
+            f"kg_points {kg_points} is not allowed for this record; expected an integer in [2, {max(longest, 2)}] "
+            "(samples after the contact minimum in its longest contact)"
         )
     warnings = []
     pk = np.diff(taps.peak)

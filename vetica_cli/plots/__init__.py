@@ -17,7 +17,9 @@ Displayed units are the engineering ones a researcher reads (nm, nN, us, eV,
 kHz, ns); the tables stay SI.  Conventions shared by every sweep figure:
 true force = solid line, filled marker; reconstructed force = dashed line,
 open marker; ``not_steady`` points are drawn with a grey cross over the
-marker and do not count for the acceptance regime; ``failed`` points are
+marker and do not count for the acceptance regime; ``no_estimate`` points (the
+extraction gave no value; why is in the table's ``error``) show as triangles on the
+top edge where a value is missing and are counted in the note; ``failed`` points are
 excluded and counted in the note at the bottom of the figure.
 
 Modules: :mod:`.style` (conventions and helpers), :mod:`.run` (run figures),
@@ -35,7 +37,7 @@ from pathlib import Path
 import pandas as pd
 
 from ..errors import InputError
-from ..io import read_table
+from ..io import check_output_dir, read_table
 from .run import run_figures
 from .study import sweep_figures
 from .style import save_png
@@ -68,13 +70,13 @@ def plot(path: str | Path, outdir: str | Path | None = None, cutoff_hz: float | 
     path = Path(path)
     if cutoff_hz is not None and not (math.isfinite(cutoff_hz) and cutoff_hz > 0):
         raise InputError(f"--cutoff {cutoff_hz!r} is not allowed; expected a frequency > 0 Hz")
+    outdir = check_output_dir(Path(outdir) if outdir is not None else path.parent / "figures")
     df, meta = read_table(path)
     kind = table_kind(df, meta, path)
     if kind == "run":
         figures, notes = run_figures(df, meta, cutoff_hz)
     else:
         figures, notes = sweep_figures(df, meta)
-    outdir = Path(outdir) if outdir is not None else path.parent / "figures"
     result = PlotResult(notes=notes)
     for name, fig in figures:
         result.paths.append(save_png(fig, outdir / f"{path.stem}_{name}.png"))

@@ -142,9 +142,12 @@ def status_note(d: pd.DataFrame, swept: list, extra: str = "", regime: bool = Fa
     pts = d.drop_duplicates(subset=swept + ["status"])
     n_f = int((pts["status"].astype(str) == "failed").sum())
     n_ns = int((pts["status"].astype(str) == "not_steady").sum())
+    n_ne = int((pts["status"].astype(str) == "no_estimate").sum())
     parts = []
     if n_f:
         parts.append(f"{n_f} failed point(s) excluded")
+    if n_ne:
+        parts.append(f"{n_ne} steady point(s) without an estimate (reason in the table's error column)")
     if n_ns and marked:
         parts.append(
             f"{n_ns} not-steady point(s) marked with a grey cross"

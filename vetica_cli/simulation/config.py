@@ -13,7 +13,7 @@ value and what is allowed; the CLI turns it into exit status 2 before any work.
 from __future__ import annotations
 
 import copy
-import dataclasses
+import functools
 import json
 from dataclasses import dataclass, field, fields
 from pathlib import Path
@@ -132,11 +132,11 @@ class Config:
     numerics: Numerics = field(default_factory=Numerics)
 
     def to_dict(self) -> dict:
-        return {
-            "probe": dataclasses.asdict(self.probe),
-            "operation": dataclasses.asdict(self.operation),
+        return {  # the probe, operation and numerics fields are scalars: a shallow copy is dataclasses.asdict
+            "probe": _shallow(self.probe),
+            "operation": _shallow(self.operation),
             "surface": self.surface.to_dict(),
-            "numerics": dataclasses.asdict(self.numerics),
+            "numerics": _shallow(self.numerics),
         }
 
     def with_overrides(self, overrides: dict[str, Any]) -> "Config":
@@ -145,6 +145,15 @@ class Config:
         for key, value in overrides.items():
             _set_dotted(d, key, value)
         return from_dict(d)
+
+
+@functools.lru_cache(maxsize=None)
+def _field_names(cls) -> tuple[str, ...]:
+    return tuple(f.name for f in fields(cls))
+
+
+def _shallow(obj) -> dict:
+    return {name: getattr(obj, name) for name in _field_names(type(obj))}
 
 
 SECTIONS = {"probe": Probe, "operation": Operation, "surface": Surface, "numerics": Numerics}
@@ -234,7 +243,8 @@ def from_dict(d: dict | None) -> Config:
         raise ConfigError(f"unknown section {sorted(unknown)[0]!r}; allowed: {', '.join(SECTIONS)}")
     built = {}
     for sec, cls in SECTIONS.items():
-        raw = d.get(sec) or {}
+        raw = d.get(sec)
+        raw = {} if raw is None else raw  # an empty section; 0, '' or [] are not sections
         if not isinstance(raw, dict):
             raise ConfigError(f"section {sec!r} must be a mapping, got {raw!r}")
         built[sec] = _surface(raw) if sec == "surface" else _section(sec, cls, raw)
@@ -284,6 +294,15 @@ def defaults(model: str = DEFAULT_MODEL) -> dict:
     return Config(surface=Surface(params=surfaces.get(model).parse({}), model=model)).to_dict()
 
 
+@functools.lru_cache(maxsize=None)
+def _defaults_cached(model: str) -> dict:
+    """:func:`defaults`, computed once per model (read only: callers must not change it)."""
+    return defaults(model)
+
+
+MAX_RECORD_SAMPLES = 5e7  # recorded steady samples (8 float64 columns: 3.2 GB in memory); the default holds 1.6e6
+
+
 def _check_cross(cfg: Config) -> None:
     """Checks that involve more than one key."""
     n = cfg.numerics
@@ -311,6 +330,13 @@ def _check_cross(cfg: Config) -> None:
         raise ConfigError(
             f"numerics.print_step: {n.print_step!r} is not allowed; expected <= 1/20 of the drive period ({period / 20:.3g} s)"
         )
+    samples = n.record_cycles * period / n.print_step
+    if samples > MAX_RECORD_SAMPLES:
+        raise ConfigError(
+            f"numerics.record_cycles: {n.record_cycles!r} is not allowed at this print step; expected at most "
+            f"{int(MAX_RECORD_SAMPLES * n.print_step / period)} periods (the record would hold {samples:.3g} samples, "
+            f"limit {MAX_RECORD_SAMPLES:.0e})"
+        )
     if n.max_time < (n.record_cycles + n.settle_cycles + 2) * period:
         raise ConfigError(
             f"numerics.max_time: {n.max_time!r} is not allowed; expected >= (record_cycles + settle_cycles + 2) drive periods "
@@ -336,10 +362,18 @@ def parse_set(items: list[str] | None) -> dict[str, Any]:
 def read_yaml(path: str | Path) -> dict:
     """Read a YAML mapping or raise ConfigError (missing file, bad YAML)."""
     p = Path(path)
-    if not p.is_file():
+    try:
+        is_dir, is_file = p.is_dir(), p.is_file()
+    except (OSError, ValueError) as exc:  # e.g. a name too long for the file system
+        raise ConfigError(f"config file {str(p)!r} is not a usable path ({type(exc).__name__})") from None
+    if is_dir:
+        raise ConfigError(f"config file {str(p)!r} is a folder; expected a YAML file")
+    if not is_file:
         raise ConfigError(f"config file {str(p)!r} does not exist")
     try:
-        data = yaml.safe_load(p.read_text())
+        data = yaml.safe_load(p.read_bytes().decode("utf-8"))
+    except (OSError, UnicodeDecodeError) as exc:
+        raise ConfigError(f"config file {str(p)!r} cannot be read as UTF-8 text ({type(exc).__name__})") from None
     except yaml.YAMLError as exc:
         line = getattr(getattr(exc, "problem_mark", None), "line", None)
         where = f" (line {line + 1})" if line is not None else ""
@@ -351,12 +385,60 @@ def read_yaml(path: str | Path) -> dict:
     return data
 
 
+def resolve_derived(sections: dict, derived: dict[str, Any]) -> None:
+    """Set each derived key's target in ``sections`` (nested dicts, changed in place):
+    ``target = value * source`` (:data:`DERIVED`; the source from ``sections`` or the
+    defaults), rounded to 12 significant digits as sweep values are.  ConfigError for a
+    value that is not a number > 0."""
+    if not derived:
+        return
+    surface = sections.get("surface")
+    model = surface.get("model") if isinstance(surface, dict) else None
+    dflt = _defaults_cached(model if isinstance(model, str) and model in surfaces.MODELS else DEFAULT_MODEL)
+    for dkey, value in derived.items():
+        target, source = DERIVED[dkey]
+        try:
+            v = coerce(dkey, number(value), "float")
+        except ConfigError:
+            v = None
+        if v is None or not v > 0:
+            raise ConfigError(f"{dkey}: {value!r} is not allowed; expected a ratio > 0")
+        ssec, sname = source.split(".")
+        src = (sections.get(ssec) or {}).get(sname, dflt[ssec][sname])
+        src = coerce(source, src, "float")
+        tsec, tname = target.split(".")
+        if not isinstance(sections.get(tsec), dict):
+            sections[tsec] = {}
+        sections[tsec][tname] = float(f"{v * src:.12g}")
+
+
 def load(path: str | Path | None = None, overrides: dict[str, Any] | None = None) -> Config:
-    """Load a single-point config (YAML or defaults) with dotted overrides."""
+    """Load a single-point config (YAML or defaults) with dotted overrides.  Derived keys
+    (:data:`DERIVED`, e.g. ``surface.stiffness_ratio``) may be set in the file or by an
+    override, as in a study's base; an override of either a derived key or its target
+    replaces the other one set in the file."""
     d = read_yaml(path) if path else {}
     if "sweep" in d:
         raise ConfigError(f"{path}: has a 'sweep:' block; run it with 'vetica sweep', not 'vetica simulate'")
     cfg_d = {k: dict(v) if isinstance(v, dict) else v for k, v in d.items()}
+    derived: dict[str, Any] = {}
+    for dkey, (target, _) in DERIVED.items():
+        dsec, dname = dkey.split(".")
+        body = cfg_d.get(dsec)
+        if isinstance(body, dict) and dname in body:
+            if target.split(".")[1] in body:
+                raise ConfigError(f"{dkey} and {target} are both set in {path}; set one of them")
+            derived[dkey] = body.pop(dname)
+    targets = {t: dk for dk, (t, _) in DERIVED.items()}
     for key, value in (overrides or {}).items():
+        if key in DERIVED:
+            tsec, tname = DERIVED[key][0].split(".")
+            if isinstance(cfg_d.get(tsec), dict):
+                cfg_d[tsec].pop(tname, None)
+            derived[key] = value
+            continue
+        if key in targets:
+            derived.pop(targets[key], None)
         _set_dotted(cfg_d, key, value)
+    resolve_derived(cfg_d, derived)
     return from_dict(cfg_d)

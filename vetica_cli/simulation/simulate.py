@@ -48,7 +48,7 @@ import pandas as pd
 
 from .. import __version__
 from ..core import engine, tapping
-from ..io import write_run
+from ..io import check_output_file, write_run
 from .config import Config, load
 from .instrument import apply_instrument
 from .observables import compute_observables
@@ -295,7 +295,10 @@ def simulate(cfg: Config) -> Run:
 
 def simulate_file(config=None, output="run.parquet", overrides: dict | None = None) -> Run:
     """``vetica simulate``: load a one-point YAML config (None = the defaults) with dotted
-    ``overrides``, simulate it and write the run to ``output`` (Parquet with metadata)."""
-    run = simulate(load(config, overrides))
+    ``overrides``, simulate it and write the run to ``output`` (Parquet with metadata).
+    The config and the output path are checked before the simulation starts."""
+    cfg = load(config, overrides)
+    check_output_file(output)
+    run = simulate(cfg)
     write_run(run, output)
     return run

@@ -1,5 +1,7 @@
-"""The acceptance regime (thesis fig. 52, SPEC 7): the range of the dashpot ``cd`` whose
-points have status 'ok' and a ``tau_c`` error of magnitude below 30 %.
+"""The acceptance regime (thesis fig. 52): the range of the dashpot ``cd`` whose points
+have status 'ok' (a steady record with every quantity estimated) and a ``tau_c`` error of
+magnitude below 30 %; points with status 'no_estimate', 'not_steady' or 'failed' are
+counted, never accepted.
 
 One definition for ``vetica sweep`` (printed, and stored in the table's metadata),
 ``vetica plot`` (shaded regions, interval bars, the 30 % contour) and the scripts.
@@ -49,7 +51,7 @@ def regime(d: pd.DataFrame, err_col: str = ERR_COL, cd_key: str = CD_KEY) -> Reg
     return Regime(float(acc[0]), float(acc[-1]), acc, contiguous)
 
 
-_FIELDS = ("n_points", "n_accepted", "n_not_steady", "n_failed", "cd_min", "cd_max", "decades", "contiguous")
+_FIELDS = ("n_points", "n_accepted", "n_no_estimate", "n_not_steady", "n_failed", "cd_min", "cd_max", "decades", "contiguous")
 
 
 def acceptance_regime(table: pd.DataFrame, keys, cd_key: str = CD_KEY, err_col: str = ERR_COL) -> list[dict]:
@@ -70,6 +72,7 @@ def acceptance_regime(table: pd.DataFrame, keys, cd_key: str = CD_KEY, err_col: 
         entry.update(
             n_points=len(g),
             n_accepted=len(r.accepted) if r else 0,
+            n_no_estimate=int((g["status"] == "no_estimate").sum()),
             n_not_steady=int((g["status"] == "not_steady").sum()),
             n_failed=int((g["status"] == "failed").sum()),
             cd_min=r.lo if r else None,
@@ -106,6 +109,8 @@ def format_acceptance(acc: list[dict], keys) -> str:
             if not e["contiguous"]:
                 body += ", with gaps"
         extra = f"{e['n_accepted']}/{e['n_points']} points"
+        if e.get("n_no_estimate"):
+            extra += f", {e['n_no_estimate']} without an estimate"
         if e["n_not_steady"]:
             extra += f", {e['n_not_steady']} not steady"
         if e["n_failed"]:

@@ -1,12 +1,19 @@
-"""The ``--dry-run`` estimate: points, simulations and a bound on the cost."""
+"""The cost of a study before it runs: points, simulations and a rough bound on the
+time, computed from the grid's factors without resolving every point, so that
+``--dry-run`` and the size guard answer at once for a grid of a million points."""
 
 from __future__ import annotations
 
+import itertools
+import math
+from dataclasses import dataclass
 from pathlib import Path
 
+from ..checks import number
 from ..extraction import METHODS, get
-from .grid import Study
-from .plan import plan
+from ..simulation.config import Numerics, Probe
+from ..simulation.instrument import INSTRUMENT_KEYS
+from .grid import EXTRACT_KEYS, Grid
 from .schema import point_sources
 from .store import parts_dir
 
@@ -15,42 +22,165 @@ from .store import parts_dir
 # the surface for ~9 % of it), a recorded one RECORD_NS per print-step sample more; an orbit solve
 # with its approach takes ORBIT_PERIODS periods (p90 over the study grid), a transient up to
 # numerics.max_time.  Each extraction method states its own seconds per point
-# (ExtractionMethod.seconds_per_point, both force sources).  Used only for the --dry-run estimate.
+# (ExtractionMethod.seconds_per_point, both force sources).  Used only for estimates.
 NS_PER_STEP = 11.0
 NEAR_FRACTION = 0.09
 RECORD_NS = 50.0
 ORBIT_PERIODS = 60
 
+# keys the kernel-time estimate reads (section.name -> default), and keys that never need a
+# simulation of their own (points differing only in them share one: study.plan)
+COST_KEYS = {
+    "probe.f1": Probe.f1,
+    "numerics.dt": Numerics.dt,
+    "numerics.print_step": Numerics.print_step,
+    "numerics.record_cycles": Numerics.record_cycles,
+    "numerics.integrator": Numerics.integrator,
+    "numerics.steady": Numerics.steady,
+    "numerics.max_time": Numerics.max_time,
+}
+SHARING_KEYS = (*EXTRACT_KEYS, *(f"numerics.{k}" for k in INSTRUMENT_KEYS))
+EXACT_COMBOS = 20000  # cost combinations summed one by one; above, a regular sample of them is scaled
 
-def kernel_seconds(cfg) -> float:
+
+def kernel_seconds_of(f1, dt, print_step, record_cycles, integrator, steady, max_time) -> float:
     """Rough upper estimate of one simulation's kernel time [s] (module comment)."""
-    n = cfg.numerics
-    steps = round(1.0 / cfg.probe.f1 / n.dt)
-    fraction = NEAR_FRACTION if n.integrator == "hybrid" else 1.0
+    steps = round(1.0 / f1 / dt)
+    fraction = NEAR_FRACTION if integrator == "hybrid" else 1.0
     period = steps * fraction * NS_PER_STEP * 1e-9
-    periods = ORBIT_PERIODS if n.steady == "orbit" else n.max_time * cfg.probe.f1
-    record = n.record_cycles * steps / round(n.print_step / n.dt) * RECORD_NS * 1e-9
+    periods = ORBIT_PERIODS if steady == "orbit" else max_time * f1
+    record = record_cycles * steps / max(1, round(print_step / dt)) * RECORD_NS * 1e-9
     return periods * period + record
 
 
-def dry_run_text(study: Study, output: Path, jobs: int) -> str:
-    """Points, jobs and a cost estimate: the kernel (:func:`kernel_seconds`) plus the
-    extraction of every point."""
-    tasks = plan(study)
-    kernel = sum(kernel_seconds(t.points[0].config) for t in tasks)
-    extract = sum(get(p.method).seconds_per_point * len(point_sources(p.force)) / 2 for p in study.points)
-    total = kernel + extract
+def kernel_seconds(cfg) -> float:
+    """:func:`kernel_seconds_of` a resolved config."""
+    n = cfg.numerics
+    return kernel_seconds_of(cfg.probe.f1, n.dt, n.print_step, n.record_cycles, n.integrator, n.steady, n.max_time)
+
+
+@dataclass(frozen=True)
+class Cost:
+    """What a study will cost: points, simulations, core-seconds of kernel and extraction."""
+
+    points: int
+    simulations: int
+    kernel_s: float
+    extract_s: float
+
+    @property
+    def core_s(self) -> float:
+        return self.kernel_s + self.extract_s
+
+    def wall_s(self, jobs: int) -> float:
+        return self.core_s / max(1, jobs)
+
+
+def _base_value(g: Grid, key: str, default):
+    sec, name = key.split(".")
+    if key in EXTRACT_KEYS:
+        return g.extract.get(name, default)
+    body = g.base_clean.get(sec)
+    return body.get(name, default) if isinstance(body, dict) else default
+
+
+def _sum_over(factors: list[list[dict]], fn) -> float:
+    """Sum of ``fn(merged assignment)`` over the cartesian product of ``factors``; a regular
+    sample scaled to the full count when the product exceeds :data:`EXACT_COMBOS`."""
+    if not factors:
+        return fn({})
+    total = math.prod(len(f) for f in factors)
+    if total <= EXACT_COMBOS:
+        combos = itertools.product(*factors)
+        scale = 1.0
+    else:  # every k-th combination (k coprime with nothing in particular: a spread sample)
+        k = total // EXACT_COMBOS + 1
+        combos = (_nth(factors, i) for i in range(0, total, k))
+        scale = total / len(range(0, total, k))
+    acc = 0.0
+    for combo in combos:
+        merged: dict = {}
+        for part in combo:
+            merged.update(part)
+        acc += fn(merged)
+    return acc * scale
+
+
+def _nth(factors, i: int) -> tuple:
+    out = []
+    for f in reversed(factors):
+        i, j = divmod(i, len(f))
+        out.append(f[j])
+    return tuple(reversed(out))
+
+
+def grid_cost(g: Grid) -> Cost:
+    """Points, simulations and the estimated core-seconds of grid ``g`` (:func:`kernel_seconds_of`
+    per simulation, each method's ``seconds_per_point`` per point), from its factors alone."""
+    # per factor: the distinct simulations it makes (its assignments without the sharing keys)
+    sim_factors = []
+    for f in g.factors:
+        distinct = {}
+        for a in f:
+            sim = {k: v for k, v in a.items() if k not in SHARING_KEYS}
+            distinct.setdefault(repr(sorted(sim.items(), key=lambda kv: kv[0])), sim)
+        sim_factors.append(list(distinct.values()))
+    simulations = math.prod(len(f) for f in sim_factors)
+    base_cost = {k: _base_value(g, k, d) for k, d in COST_KEYS.items()}
+
+    def kernel(assign: dict) -> float:
+        v = {**base_cost, **{k: x for k, x in assign.items() if k in COST_KEYS}}
+        try:
+            return kernel_seconds_of(*(number(v[k]) if k not in ("numerics.integrator", "numerics.steady") else v[k]
+                                       for k in COST_KEYS))  # fmt: skip
+        except (TypeError, ValueError, ZeroDivisionError, OverflowError):
+            return 0.0  # an invalid value: the point checks report it
+
+    costly = [any(k in COST_KEYS for a in f for k in a) for f in sim_factors]
+    others = math.prod(len(f) for f, c in zip(sim_factors, costly) if not c)
+    kernel_s = others * _sum_over([f for f, c in zip(sim_factors, costly) if c], kernel)
+
+    base_ext = {k: _base_value(g, k, d) for k, (_, d) in EXTRACT_KEYS.items()}
+
+    def extract(assign: dict) -> float:
+        v = {**base_ext, **{k: x for k, x in assign.items() if k in EXTRACT_KEYS}}
+        return get(v["extract.method"]).seconds_per_point * len(point_sources(v["extract.force"])) / 2
+
+    ext_factors = [[{k: x for k, x in a.items() if k in EXTRACT_KEYS} for a in f] for f in g.factors]
+    used = [any(f) for f in ext_factors]
+    rest = math.prod(len(f) for f, u in zip(ext_factors, used) if not u)
+    extract_s = rest * _sum_over([f for f, u in zip(ext_factors, used) if u], extract)
+    return Cost(points=g.n_points, simulations=simulations, kernel_s=kernel_s, extract_s=extract_s)
+
+
+def duration(seconds: float) -> str:
+    """``seconds`` as a short human duration: 45 s, 12 min, 3.4 h, 2.1 days."""
+    if seconds < 90:
+        return f"{seconds:.0f} s"
+    if seconds < 5400:
+        return f"{seconds / 60:.0f} min"
+    if seconds < 48 * 3600:
+        return f"{seconds / 3600:.1f} h"
+    return f"{seconds / 86400:.1f} days"
+
+
+def dry_run_text(g: Grid, output: Path, jobs: int) -> str:
+    """Points, simulations, a cost estimate (:func:`grid_cost`) and the first points."""
+    c = grid_cost(g)
     per_method = ", ".join(f"{m.seconds_per_point:g} s a {k} point" for k, m in METHODS.items())
     lines = [
-        f"study {study.name}: {len(study.points)} points over {', '.join(study.keys)}; {len(tasks)} simulations",
+        f"study {g.name}: {c.points} points over {', '.join(g.keys)}; {c.simulations} simulations",
         (
-            f"cost ~{total:.0f} core-s = {total / max(jobs, 1) / 60:.1f} min wall on {jobs} workers: "
-            f"kernel ~{kernel:.0f} core-s, extraction ~{extract:.0f} core-s ({per_method})"
+            f"cost ~{c.core_s:.0f} core-s = {duration(c.wall_s(jobs))} wall on {jobs} workers: "
+            f"kernel ~{c.kernel_s:.0f} core-s, extraction ~{c.extract_s:.0f} core-s ({per_method})"
         ),
         f"output: {output} (parts in {parts_dir(output)}/)",
     ]
-    for p in study.points[:5]:
-        lines.append(f"  point {p.index}: {p.label()}")
-    if len(study.points) > 5:
-        lines.append(f"  ... {len(study.points) - 5} more")
+    for i in range(min(5, c.points)):
+        lines.append(f"  point {i}: {g.point(i).label()}")
+    if c.points > 5:
+        lines.append(f"  ... {c.points - 5} more")
+    lines.append(
+        "checked: every swept value against the base config; each combination is checked when the sweep starts"
+    )
     return "\n".join(lines)

@@ -59,7 +59,17 @@ from typing import Any
 from .. import __version__
 from ..errors import ConfigError
 from ..extraction import DEFAULT_METHOD, METHODS, SOURCES
-from ..simulation.config import DERIVED, SECTIONS, Config, defaults, from_dict, item_key, read_yaml, section_names
+from ..simulation.config import (
+    DERIVED,
+    SECTIONS,
+    Config,
+    defaults,
+    from_dict,
+    item_key,
+    read_yaml,
+    resolve_derived,
+    section_names,
+)
 from ..surfaces import DEFAULT_MODEL, MODELS
 
 META_KEYS = ("name", "description")
@@ -166,9 +176,16 @@ def _num(key: str, v: Any, what: str) -> float:
             v = float(v)
         except ValueError:
             pass
-    if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
+    if isinstance(v, bool) or not isinstance(v, (int, float)) or not _finite(v):
         raise ConfigError(f"sweep.{key}: {what} {v!r} is not allowed; expected a finite number")
     return float(v)
+
+
+def _finite(v: int | float) -> bool:
+    try:
+        return math.isfinite(float(v))
+    except OverflowError:  # an integer beyond the float range
+        return False
 
 
 def _clean(x: float) -> float:
@@ -196,7 +213,7 @@ def parse_values(key: str, spec: Any) -> list:
                 n = float(n)
             except ValueError:
                 pass
-        if isinstance(n, bool) or not isinstance(n, (int, float)) or n != int(n) or n < 0:
+        if isinstance(n, bool) or not isinstance(n, (int, float)) or not _finite(n) or n != int(n) or n < 0:
             raise ConfigError(f"sweep.{key}: {form} count {n!r} is not allowed; expected an integer >= 1")
         n = int(n)
         if n == 0:
@@ -316,23 +333,87 @@ def _resolve(base_clean: dict, base_derived: dict, assign: dict) -> dict:
             if not isinstance(d[sec], dict):
                 raise ConfigError(f"section {sec!r} must be a mapping, got {d[sec]!r}")
             d[sec][name] = value
-    if derived:
-        dflt = defaults(_model_of(d))
-        for dkey, value in derived.items():
-            target, source = DERIVED[dkey]
-            v = _num(dkey, value, "value")
-            if not v > 0:
-                raise ConfigError(f"{dkey}: {value!r} is not allowed; expected a ratio > 0")
-            ssec, sname = source.split(".")
-            src = (d.get(ssec) or {}).get(sname, dflt[ssec][sname])
-            src = _num(source, src, "value")
-            tsec, tname = target.split(".")
-            d.setdefault(tsec, {})[tname] = _clean(v * src)
+    resolve_derived(d, derived)
     return d
 
 
-def expand(raw: dict, name: str = "study", overrides: dict | None = None) -> Study:
-    """Study config mapping -> :class:`Study` with every point resolved and validated."""
+@dataclass(frozen=True)
+class Grid:
+    """A study before its points are resolved: the base, the swept keys and their factors
+    (one list of assignments per cartesian factor).  Cheap to build whatever the size of
+    the grid, so the point count, the cost estimate (``--dry-run``) and the size guard
+    come before the points are resolved one by one (:meth:`points`)."""
+
+    name: str
+    description: str
+    keys: tuple  # swept keys, column order
+    factors: tuple  # of lists of {key: value} assignments
+    base: dict  # base sections as given (after overrides), derived keys included
+    base_clean: dict  # base sections without derived keys
+    base_derived: dict  # derived dotted key -> value set in the base
+    sweep: Any  # the sweep block as given
+    extract: dict  # the base 'extract:' section (after overrides)
+
+    @property
+    def n_points(self) -> int:
+        return math.prod(len(f) for f in self.factors)
+
+    def assignment(self, index: int) -> dict:
+        """The swept assignments of point ``index`` (cartesian order, the first factor slowest)."""
+        assign: dict = {}
+        digits = []
+        for f in reversed(self.factors):
+            index, j = divmod(index, len(f))
+            digits.append(j)
+        for f, j in zip(self.factors, reversed(digits)):
+            assign.update(f[j])
+        return assign
+
+    def point(self, index: int, assign: dict | None = None) -> Point:
+        """Point ``index`` resolved and validated (ConfigError naming the point)."""
+        assign = self.assignment(index) if assign is None else assign
+        return _point(index, list(self.keys), assign, self.extract, self.base_clean, self.base_derived)
+
+    def check_values(self) -> None:
+        """Resolve, for every swept value, the point that has it and the first value of every
+        other factor: each value is checked against the base (range, type, the model's rules)
+        in ``sum(len(factor))`` resolutions instead of one per point.  Combinations (e.g. a
+        print step against a swept dt) are checked by :meth:`points`."""
+        strides = [math.prod(len(f) for f in self.factors[i + 1 :]) for i in range(len(self.factors))]
+        for stride, f in zip(strides, self.factors):
+            for j in range(len(f)):
+                self.point(j * stride)
+
+    def points(self, on_progress=None) -> tuple:
+        """Every point, resolved and validated, in grid order; ConfigError for an invalid or a
+        duplicate point.  ``on_progress(done)`` is called every 10000 points."""
+        points = []
+        seen: dict[str, int] = {}
+        for i, combo in enumerate(itertools.product(*self.factors)):
+            assign: dict = {}
+            for part in combo:
+                assign.update(part)
+            p = self.point(i, assign)
+            if p.key in seen:
+                label = ", ".join(f"{k}={assign[k]!r}" for k in self.keys)
+                raise ConfigError(
+                    f"points {seen[p.key]} and {i} ({label}) resolve to the same config; remove the duplicate"
+                )
+            seen[p.key] = i
+            points.append(p)
+            if on_progress is not None and (i + 1) % 10000 == 0:
+                on_progress(i + 1)
+        return tuple(points)
+
+    def study(self, on_progress=None) -> Study:
+        """The :class:`Study` with every point resolved (:meth:`points`)."""
+        return Study(name=self.name, description=self.description, keys=self.keys, points=self.points(on_progress),
+                     base=self.base, sweep=self.sweep, extract=self.extract)  # fmt: skip
+
+
+def grid(raw: dict, name: str = "study", overrides: dict | None = None) -> Grid:
+    """Study config mapping -> :class:`Grid`: the top-level keys, the sweep block, the
+    extract section and the overrides checked; no point resolved yet."""
     if not isinstance(raw, dict):
         raise ConfigError(f"a study config must be a mapping, got {type(raw).__name__}")
     allowed_top = set(SECTIONS) | {EXTRACT_SECTION, "sweep", *META_KEYS}
@@ -348,22 +429,13 @@ def expand(raw: dict, name: str = "study", overrides: dict | None = None) -> Stu
     keys, factors = _factors(sweep)
     _apply_overrides(base, extract, keys, overrides or {})
     base_clean, base_derived = _split_derived(base)
-    points = []
-    seen: dict[str, int] = {}
-    for i, combo in enumerate(itertools.product(*factors)):
-        assign: dict = {}
-        for part in combo:
-            assign.update(part)
-        p = _point(i, keys, assign, extract, base_clean, base_derived)
-        if p.key in seen:
-            label = ", ".join(f"{k}={assign[k]!r}" for k in keys)
-            raise ConfigError(
-                f"points {seen[p.key]} and {i} ({label}) resolve to the same config; remove the duplicate"
-            )
-        seen[p.key] = i
-        points.append(p)
-    return Study(name=name, description=description, keys=tuple(keys), points=tuple(points), base=base, sweep=sweep,
-                 extract=extract)  # fmt: skip
+    return Grid(name=name, description=description, keys=tuple(keys), factors=tuple(factors), base=base,
+                base_clean=base_clean, base_derived=base_derived, sweep=sweep, extract=extract)  # fmt: skip
+
+
+def expand(raw: dict, name: str = "study", overrides: dict | None = None) -> Study:
+    """Study config mapping -> :class:`Study` with every point resolved and validated."""
+    return grid(raw, name, overrides).study()
 
 
 def _apply_overrides(base: dict, extract: dict, keys: list, overrides: dict) -> None:
@@ -436,7 +508,11 @@ def _extract_section(body: Any) -> dict:
     return out
 
 
+def load_grid(path: str | Path, overrides: dict | None = None) -> Grid:
+    """Read a study YAML as a :class:`Grid` (no point resolved); the name defaults to the file stem."""
+    return grid(read_yaml(path), name=Path(path).stem, overrides=overrides)
+
+
 def load_study(path: str | Path, overrides: dict | None = None) -> Study:
     """Read and expand a study YAML; the study name defaults to the file stem."""
-    raw = read_yaml(path)
-    return expand(raw, name=Path(path).stem, overrides=overrides)
+    return load_grid(path, overrides).study()

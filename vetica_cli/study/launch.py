@@ -11,13 +11,27 @@ result)`` in this process as it finishes, in any order.
 Inner numba/BLAS threads are capped at one per worker (:data:`THREAD_VARS`) so
 two workers use two cores.  A launcher is opened before any output is written,
 so an unreachable scheduler exits with one line and leaves nothing.
+
+A worker process whose parent is the sweep watches it (:func:`watch_parent`) and
+exits within :data:`PARENT_POLL_S` seconds once the sweep is gone (``kill -9`` of the
+sweep): loky would otherwise keep its idle workers for five minutes, and with them its
+two resource trackers and their semaphores in /dev/shm, which the trackers remove
+when the last worker has exited.  What a ``kill -9`` of the whole process group leaves
+in /dev/shm (nobody is left to remove it) the next loky sweep removes
+(:func:`remove_orphaned_shm`).
 """
 
 from __future__ import annotations
 
 import os
+import re
+import shutil
+import threading
+import time
+import warnings
 from abc import ABC, abstractmethod
 from collections.abc import Callable
+from pathlib import Path
 from typing import Any
 
 from ..errors import InputError
@@ -32,9 +46,74 @@ def cap_threads() -> None:
         os.environ.setdefault(var, "1")
 
 
-def indexed_call(fn: Callable, i: int, arg: Any) -> tuple[int, Any]:
+PARENT_POLL_S = 0.5  # [s] how often a worker checks that the sweep that started it is alive
+_watching: list = []  # the parent pid this process watches (at most one watchdog per process)
+
+
+def watch_parent(sweep_pid: int) -> bool:
+    """In a worker process started by the sweep process ``sweep_pid`` (its parent): start, once,
+    a daemon thread that ends this process when the parent is gone (the worker is re-parented,
+    ``os.getppid()`` changes).  Does nothing in the sweep process itself (serial launcher, an
+    in-process Dask cluster) or in a process the sweep did not start directly (a Dask nanny's
+    worker, a remote cluster).  Returns whether a watchdog runs in this process."""
+    if _watching or os.getpid() == sweep_pid or os.getppid() != sweep_pid:
+        return bool(_watching)
+    _watching.append(sweep_pid)
+
+    def watch() -> None:
+        while os.getppid() == sweep_pid:
+            time.sleep(PARENT_POLL_S)
+        os._exit(1)  # the sweep is gone: nobody will read this worker's results
+
+    threading.Thread(target=watch, name="vetica-parent-watch", daemon=True).start()
+    return True
+
+
+SHM = Path("/dev/shm")  # where loky's named semaphores and joblib's memmapping folders live (Linux)
+_SHM_OWNED = (re.compile(r"^sem\.loky-(\d+)-"), re.compile(r"^joblib_memmapping_folder_(\d+)_"))
+
+
+def _pid_alive(pid: int) -> bool:
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except PermissionError:  # another user's live process
+        return True
+    return True
+
+
+def remove_orphaned_shm(shm: Path = SHM) -> int:
+    """Remove loky's semaphores and joblib's memmapping folders in ``shm`` whose creating
+    process (the pid in the name) is gone and that belong to this user: what a ``kill -9``
+    of a whole sweep process group leaves (no resource tracker survives to remove them).
+    Entries of live processes are never touched.  Returns how many were removed."""
+    if not shm.is_dir():
+        return 0
+    removed = 0
+    for entry in shm.iterdir():
+        m = next((m for m in (r.match(entry.name) for r in _SHM_OWNED) if m), None)
+        if m is None or _pid_alive(int(m.group(1))):
+            continue
+        try:
+            if entry.lstat().st_uid != os.getuid():
+                continue
+            if entry.is_dir() and not entry.is_symlink():
+                shutil.rmtree(entry)
+            else:
+                entry.unlink()
+            removed += 1
+        except OSError:  # removed meanwhile, or not ours to remove
+            continue
+    return removed
+
+
+def indexed_call(fn: Callable, i: int, arg: Any, sweep_pid: int | None = None) -> tuple[int, Any]:
     """``(i, fn(arg))``: a job that names its own place in the argument list (module level:
-    joblib pickles it)."""
+    joblib pickles it).  With ``sweep_pid`` the worker first makes sure it watches the sweep
+    process (:func:`watch_parent`)."""
+    if sweep_pid is not None:
+        watch_parent(sweep_pid)
     return i, fn(arg)
 
 
@@ -78,8 +157,16 @@ class _JoblibLauncher(Launcher):
         config, par_kw = self._config()
         with config:
             par = Parallel(return_as="generator_unordered", batch_size=1, **par_kw)
-            for i, res in par(delayed(indexed_call)(fn, i, a) for i, a in enumerate(args)):
-                on_result(i, res)
+            me = os.getpid()
+            results = par(delayed(indexed_call)(fn, i, a, me) for i, a in enumerate(args))
+            try:
+                for i, res in results:
+                    on_result(i, res)
+            except BaseException:  # Ctrl-C, SIGTERM, an error in on_result: stop the workers now
+                with warnings.catch_warnings():
+                    warnings.simplefilter("ignore")  # joblib's note on cancelled tasks: the caller reports
+                    results.close()
+                raise
 
 
 class LokyLauncher(_JoblibLauncher):
@@ -126,15 +213,20 @@ class DaskLauncher(_JoblibLauncher):
             self.cluster.close()
 
 
-def make_launcher(backend: str = "loky", jobs: int = 2, scheduler: str | None = None) -> Launcher:
-    """The launcher for the CLI's ``--backend``, ``--jobs`` and ``--scheduler``; InputError
-    (one line) for a bad combination or an unreachable scheduler."""
-    if jobs < 1:
+def check_launcher_options(backend: str = "loky", jobs: int = 2, scheduler: str | None = None) -> None:
+    """InputError (one line) for a bad ``--backend``, ``--jobs`` or ``--scheduler`` combination."""
+    if isinstance(jobs, bool) or not isinstance(jobs, int) or jobs < 1:
         raise InputError(f"--jobs {jobs}: expected an integer >= 1")
     if backend not in BACKENDS:
         raise InputError(f"--backend {backend!r} is not allowed; expected loky or dask")
     if scheduler and backend != "dask":
         raise InputError("--scheduler needs --backend dask")
+
+
+def make_launcher(backend: str = "loky", jobs: int = 2, scheduler: str | None = None) -> Launcher:
+    """The launcher for the CLI's ``--backend``, ``--jobs`` and ``--scheduler``; InputError
+    (one line) for a bad combination or an unreachable scheduler."""
+    check_launcher_options(backend, jobs, scheduler)
     cap_threads()
     if backend == "dask":
         return DaskLauncher(jobs, scheduler)

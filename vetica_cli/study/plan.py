@@ -1,4 +1,4 @@
-"""Planning a study: which points share one simulation (SPEC 8).
+"""Planning a study: which points share one simulation.
 
 Points that differ only in ``extract.method`` or in the instrument keys
 ``numerics.position_noise``, ``force_noise``, ``noise_seed`` and

@@ -17,7 +17,10 @@ from ..extraction import METHODS, SOURCES
 from ..simulation.observables import OBSERVABLE_UNITS
 from .grid import EXTRACT_KEYS, Study
 
-STATUSES = ("ok", "not_steady", "failed")
+# row status: ok = steady record, every reported quantity estimated; no_estimate = steady record, the
+# extraction returned but some quantity has no value (the reason is in 'error'); not_steady = the record
+# is not proven periodic (values, if any, are not trustworthy); failed = the simulation or extraction raised
+STATUSES = ("ok", "no_estimate", "not_steady", "failed")
 OBSERVABLES = tuple(OBSERVABLE_UNITS)
 
 
@@ -81,10 +84,16 @@ def column_units(study: Study) -> dict:
     units["taps"] = "complete taps in the record"
     for name in OBSERVABLES:
         units[name] = OBSERVABLE_UNITS.get(name, "")
-    units["stop_reason"] = "steady | max_time (numerics.max_time reached before steady state)"
+    units["stop_reason"] = (
+        "steady | steady (transient fallback) | max_time | max_time (orbit solver failed): steady = the recorded "
+        "window is proven periodic"
+    )
     units["sim_time"] = "s: simulated time to steady state plus the recorded periods (or numerics.max_time)"
-    units["status"] = "ok | not_steady (stop_reason max_time) | failed (see error)"
-    units["error"] = "error text of a failed simulation or extraction"
+    units["status"] = (
+        "ok (steady record, every quantity estimated) | no_estimate (steady record, some quantity has no value; "
+        "why: error) | not_steady (record not proven periodic: stop_reason max_time ...) | failed (see error)"
+    )
+    units["error"] = "error text of a failed simulation or extraction, or why a quantity has no estimate"
     units["wall_s"] = (
         "s: wall time of the point's simulation (shared by the points of a print-step group) plus this row's extraction"
     )

@@ -5,7 +5,10 @@ points (STYLE: sweeps behave like hydra's multirun).
 A part records the point key (a hash of the resolved point config and the
 package version) and a fingerprint of the source that computed it
 (:func:`code_fingerprint`); a part made by other code, for another print-step
-group, method or force sources is stale and recomputed.
+group, method or force sources is stale and recomputed.  :func:`scan_parts` says
+how many parts it reuses and removes the others, by reason: corrupt, stale, or
+foreign (not a point of the study).  A sweep holds :func:`output_lock`
+on its output while it runs.
 """
 
 from __future__ import annotations
@@ -14,6 +17,7 @@ import ast
 import functools
 import hashlib
 import math
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import pandas as pd
@@ -91,23 +95,105 @@ def part_path(pdir: Path, key: str) -> Path:
     return pdir / f"{key}.parquet"
 
 
-def read_part(path: Path, point: Point, sim_print_step: float) -> pd.DataFrame | None:
-    """A persisted point, or None if absent, unreadable or made differently."""
+# why a part file is not used (PartsReport counts them; the files are removed)
+CORRUPT = "corrupt (unreadable, empty or incomplete)"
+STALE = "stale (made by other code, or for another setting of its point)"
+FOREIGN = "foreign (not a point of this study: an older config or another study)"
+DISCARDED = "discarded (--no-resume)"
+
+
+def check_part(path: Path, point: Point, sim_print_step: float) -> tuple[pd.DataFrame | None, str]:
+    """``(rows, '')`` for a usable persisted point, else ``(None, why)`` with ``why`` one of
+    :data:`CORRUPT` or :data:`STALE` (``''`` with None when there is no file)."""
     if not path.is_file():
-        return None
+        return None, ""
     try:
         df, meta = read_table(path)
     except InputError:
-        return None
+        return None, CORRUPT
+    want = list(point_sources(point.force))
+    if not {"force_source", "method", "status"} <= set(df.columns) or len(df) == 0:
+        return None, CORRUPT
     if meta.get("point") != point.key or meta.get("code") != code_fingerprint():
-        return None
-    if not math.isclose(float(meta.get("sim_print_step", -1)), sim_print_step, rel_tol=1e-12):
-        return None
-    if list(df["force_source"]) != list(point_sources(point.force)):
-        return None
-    if "method" not in df.columns or set(df["method"]) != {point.method}:
-        return None
-    return df
+        return None, STALE
+    try:
+        same_step = math.isclose(float(meta.get("sim_print_step", -1)), sim_print_step, rel_tol=1e-12)
+    except (TypeError, ValueError):
+        return None, CORRUPT
+    if not same_step or set(df["method"]) != {point.method}:
+        return None, STALE
+    if list(df["force_source"]) != want:
+        return None, CORRUPT if set(df["force_source"]) < set(want) else STALE
+    return df, ""
+
+
+def read_part(path: Path, point: Point, sim_print_step: float) -> pd.DataFrame | None:
+    """A persisted point, or None if absent, unreadable or made differently (:func:`check_part`)."""
+    return check_part(path, point, sim_print_step)[0]
+
+
+@dataclass
+class PartsReport:
+    """What :func:`scan_parts` found in a parts folder: points reused, and the files it removed
+    by reason."""
+
+    folder: Path
+    reused: int = 0
+    removed: dict = field(default_factory=dict)  # reason -> number of part files
+    temporaries: int = 0  # half-written files of a killed write
+
+    def note(self) -> str | None:
+        """One line for the user when anything was removed; None otherwise."""
+        if not self.removed and not self.temporaries:
+            return None
+        items = [f"{self.removed[why]} {why}" for why in (CORRUPT, STALE, FOREIGN, DISCARDED) if why in self.removed]
+        if self.temporaries:
+            items.append(f"{self.temporaries} half-written (a killed write)")
+        return f"parts in {self.folder}/: {self.reused} reused; removed " + ", ".join(items)
+
+
+def scan_parts(pdir: Path, expected: dict, resume: bool) -> tuple[dict, PartsReport]:
+    """The usable persisted points of a study and a report of the rest, which is removed.
+
+    ``expected``: point key -> ``(Point, sim_print_step)`` of every point of the study.  A
+    part file is reused when :func:`check_part` accepts it (and ``resume``); it is removed
+    when it is corrupt, stale, foreign (its key is no point of the study) or, without
+    ``resume``, in any case.  Returns ``(point key -> rows, report)``."""
+    report = PartsReport(pdir)
+    done: dict[str, pd.DataFrame] = {}
+    if not pdir.is_dir():
+        return done, report
+    for tmp in pdir.glob(".*.tmp"):  # temporaries of a killed write
+        tmp.unlink(missing_ok=True)
+        report.temporaries += 1
+    for f in sorted(pdir.glob("*.parquet")):
+        if f.stem not in expected:
+            why = FOREIGN
+        elif not resume:
+            why = DISCARDED
+        else:
+            rows, why = check_part(f, *expected[f.stem])
+            if rows is not None:
+                done[f.stem] = rows
+                continue
+        report.removed[why] = report.removed.get(why, 0) + 1
+        f.unlink(missing_ok=True)
+    report.reused = len(done)
+    return done, report
+
+
+def remove_parts(pdir: Path) -> bool:
+    """Remove the parts folder of a finished sweep (its part files and half-written
+    temporaries, then the folder).  False, leaving the folder, when it holds anything else."""
+    if not pdir.is_dir():
+        return True
+    for f in [*pdir.glob("*.parquet"), *pdir.glob(".*.tmp")]:
+        f.unlink(missing_ok=True)
+    try:
+        pdir.rmdir()
+    except OSError:
+        return False
+    return True
 
 
 def rows_frame(point: Point, rows: list[dict]) -> pd.DataFrame:

@@ -80,6 +80,25 @@ def fill_row(row: dict, res: ExtractionResult, fitted: tuple[str, ...]) -> None:
     row["taps"] = int(res.taps if res.taps is not None else -1)
 
 
+def missing_estimates(row: dict, res: ExtractionResult) -> list[str]:
+    """The quantities the method reports for which ``row`` holds no value (in report order)."""
+    return [name for name in res.estimates if f"{name}_err_pct" in row and not math.isfinite(row[name])]
+
+
+def row_status(steady_ok: bool, missing: list[str], res: ExtractionResult) -> tuple[str, str]:
+    """``(status, error)`` of a row whose extraction returned: 'not_steady' when the record
+    is not proven periodic, else 'no_estimate' when a reported quantity has no value, else
+    'ok'.  A missing estimate's reason (the method's warnings) goes into ``error`` whatever
+    the status, so a row without values always says why."""
+    error = ""
+    if missing:
+        why = "; ".join(str(w) for w in res.warnings) or "the method returned no value"
+        error = " ".join(f"no estimate of {', '.join(missing)}: {why}".split())[:500]
+    if not steady_ok:
+        return "not_steady", error
+    return ("no_estimate" if missing else "ok"), error
+
+
 def failed_rows(cfg: Config, exc: BaseException, where: str, wall: float, method: str, force: str) -> Rows:
     rows = []
     for source in point_sources(force):
@@ -149,9 +168,9 @@ class PointTask:
             row["sim_time"] = float(run.info["t_end"])
             t0 = time.perf_counter()
             try:
-                fill_row(row, self.extract(df, meta, source, method), fitted)
-                row["status"] = "ok" if run.steady_ok else "not_steady"
-                row["error"] = ""
+                res = self.extract(df, meta, source, method)
+                fill_row(row, res, fitted)
+                row["status"], row["error"] = row_status(run.steady_ok, missing_estimates(row, res), res)
             except Exception as exc:  # noqa: BLE001 - a failed point becomes a row
                 row["status"] = "failed"
                 where = source if method == DEFAULT_METHOD else f"{source}, {method}"
