@@ -56,7 +56,7 @@ def run_bench(overrides: dict | None = None, repeat: int = 3) -> str:
     for integ in ("verlet", "hybrid"):
         cfg = load(None, {**(overrides or {}), "numerics.integrator": integ})
         run = simulate(cfg)
-        timings = [simulate(cfg).info["timing_s"] for _ in range(repeat)]
+        timings = [simulate(cfg).timing_s for _ in range(repeat)]
         ms, fine = _period_ms(run, cfg)
         med = {k: statistics.median(t[k] for t in timings) for k in timings[0]}
         rows.append((integ, ms, fine, med, run))

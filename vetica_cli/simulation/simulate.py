@@ -168,6 +168,7 @@ class Run:
     energy: dict = field(default_factory=dict)  # per-cycle energy balance [eV]
     warnings: list = field(default_factory=list)
     wall_s: float = 0.0
+    timing_s: dict = field(default_factory=dict)  # kernel wall time: approach, steady, record, total [s]
 
     @property
     def n_arms(self) -> int:
@@ -196,6 +197,7 @@ class Run:
             "energy_ev_per_cycle": self.energy,
             "warnings": self.warnings,
             "wall_s": self.wall_s,
+            "timing_s": self.timing_s,
             "kernel": _plain(self.info),
         }
 
@@ -253,7 +255,6 @@ def run_info(rr: engine.RunResult, st: engine.KernelSetup, d: Derived) -> dict:
         "zb_final": float(w.states[-1][T.S_ZB]),
         "fine_steps": o[T.O_FINE],
         "far_steps": o[T.O_FAR],
-        "timing_s": rr.info["timing_s"],
         "steady": {
             "method": rr.info["steady_method"],
             "orbit": rr.info.get("orbit"),
@@ -286,6 +287,7 @@ def simulate(cfg: Config) -> Run:
         stop_reason=rr.stop_reason,
         params=cfg.to_dict(),
         wall_s=wall,
+        timing_s=rr.info["timing_s"],
     )
     compute_observables(run, cfg, d)  # from the noise-free signals
     run.warnings = rr.warnings + run.warnings
