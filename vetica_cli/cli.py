@@ -183,23 +183,46 @@ def extract(
     cutoff: Optional[float] = typer.Option(
         None, "--cutoff", help="Low-pass cut-off of the force reconstruction, Hz; default: Nyquist, 1/(2 print step)."
     ),
+    a0: Optional[float] = typer.Option(
+        None, "--a0", help="Intermolecular distance, m: Z1 = a0 (thesis eq. 84) for a record without approach segment, "
+        "with z_tip measured from the undeformed surface; default: the metadata's."
+    ),
+    vdw_on_surface: Optional[bool] = typer.Option(
+        None, "--vdw-on-surface/--no-vdw-on-surface",
+        help="Whether the surface feels the tip's van der Waals pull (Z1 = a0 + Fa(a0)/Kg when it does; the pre-stress "
+        "of vetica-prestress); default: the metadata's.",
+    ),
+    contact: Optional[List[str]] = typer.Option(
+        None, "--contact", help="Contact constant of the material units, key=value (repeatable): tip_radius [m], nu_tip, "
+        "nu_sample, e_tip [Pa]; default thesis table 6 (R = the metadata's tip radius, else 10 nm).",
+    ),
+    prestress: Optional[str] = typer.Option(
+        None, "--prestress", help="vetica-prestress: auto (adhesion if the surface feels the pull, else creep), "
+        "adhesion, creep or fit.",
+    ),
 ):
     """Extract k0, k_inf, cd (and tau_c, Kg, Kr, tau_r) from a run with VETICA
     or another registered method (--method; e.g. full fits the SLS surface model
-    to every sample).
+    to every sample), and the material units: DMT, glassy and rubbery moduli [Pa]
+    and viscosity [Pa s] (thesis 4.6.2, eqs. 90-92).
 
     Prints value, theory and error % (theory known only when the file's
     metadata holds the surface parameters), the spread over taps, the
     force-reconstruction error against f_ts when both are present, and the
-    extraction time.
+    extraction time.  A CSV or Parquet with only t, z_tip and f_ts (or z_paddle
+    with --k2 --f2 --q2) is read as measured: Z1 from --z1, else from --a0
+    (thesis eq. 84) with --vdw-on-surface/--no-vdw-on-surface.
     """
     import json
 
     from .extraction import extract_file
     from .extraction.format import format_table, to_json
+    from .extraction.material import parse_contact
 
-    res = extract_file(run, force=force, method=method, kg_points=kg_points,
-                       k2=k2, f2=f2, q2=q2, z1=z1, f1=f1, cutoff_hz=cutoff)  # fmt: skip
+    opts = {} if prestress is None else {"prestress": prestress}
+    res = extract_file(run, force=force, method=method, kg_points=kg_points, k2=k2, f2=f2, q2=q2, z1=z1, f1=f1,
+                       cutoff_hz=cutoff, a0=a0, vdw_on_surface=vdw_on_surface, contact=parse_contact(contact),
+                       **opts)  # fmt: skip
     typer.echo(json.dumps(to_json(res), allow_nan=False) if json_out else format_table(res, run))
 
 

@@ -56,6 +56,10 @@ class ExtractionMethod(ABC):
     def run(self, record: Record, options: dict) -> ExtractionResult:
         """Extract the surface from one prepared record (options as :meth:`options` returns them)."""
 
+    def detail_lines(self, res: ExtractionResult) -> list[str]:
+        """Lines of the text table about what the method did (default: none)."""
+        return []
+
     def timing_line(self, timing_s: dict) -> str:
         """One line of the text table: where the time went."""
         return "time: " + ", ".join(f"{k} {v:.2f} s" for k, v in timing_s.items() if isinstance(v, (int, float)))

@@ -41,6 +41,12 @@ simulated; they may be swept or set in an ``extract:`` section of the base:
   ``reconstructed`` (one row).  E.g. with detector noise the reconstruction at
   the Nyquist cut-off is hopeless and costly; zip it with the noise key.
 
+The optional ``material:`` section sets the contact model of the table's material
+columns (thesis 4.6.2, table 6; :mod:`vetica_cli.extraction.material`): ``tip_radius``
+(default: each point's ``probe.tip_radius``), ``nu_tip``, ``nu_sample``, ``e_tip``.
+It is applied when the table is assembled, so changing it recomputes no point
+(``--set material.nu_sample=0.45`` works too).
+
 Every problem raises :class:`ConfigError` with one line before any job starts:
 unknown key, bad range, empty grid, an invalid point (with the point named),
 duplicate points.
@@ -59,6 +65,7 @@ from typing import Any
 from .. import __version__
 from ..errors import ConfigError
 from ..extraction import DEFAULT_METHOD, METHODS, SOURCES
+from ..extraction.material import CONTACT_KEYS, contact_model
 from ..simulation.config import DERIVED, SECTIONS, Config, defaults, from_dict, read_yaml, section_names
 from ..surfaces import DEFAULT_MODEL, MODELS
 
@@ -69,6 +76,7 @@ EXTRACT_KEYS = {
     "extract.force": (("both", *SOURCES), "both"),
 }
 EXTRACT_SECTION = "extract"
+MATERIAL_SECTION = "material"  # contact model of the material columns (applied at assembly)
 RANGE_FORMS = ("logspace", "linspace")
 
 
@@ -116,6 +124,7 @@ class Study:
     base: dict  # base sections as given (after overrides), derived keys included
     sweep: dict  # the sweep block as given
     extract: dict = None  # the base 'extract:' section as given (after overrides), e.g. {"method": "full"}
+    material: dict = None  # the 'material:' section as given (after overrides), e.g. {"nu_sample": 0.45}
 
     def resolved(self) -> dict:
         """A re-runnable study config: every base key resolved, sweep block as given."""
@@ -136,6 +145,8 @@ class Study:
         out.update(base)
         if self.extract:
             out[EXTRACT_SECTION] = dict(self.extract)
+        if self.material:
+            out[MATERIAL_SECTION] = dict(self.material)
         out["sweep"] = self.sweep
         return out
 
@@ -329,18 +340,23 @@ def expand(raw: dict, name: str = "study", overrides: dict | None = None) -> Stu
     """Study config mapping -> :class:`Study` with every point resolved and validated."""
     if not isinstance(raw, dict):
         raise ConfigError(f"a study config must be a mapping, got {type(raw).__name__}")
-    allowed_top = set(SECTIONS) | {EXTRACT_SECTION, "sweep", *META_KEYS}
+    allowed_top = set(SECTIONS) | {EXTRACT_SECTION, MATERIAL_SECTION, "sweep", *META_KEYS}
     for k in raw:
         if k not in allowed_top:
-            allowed = ", ".join([*SECTIONS, EXTRACT_SECTION, "sweep", *META_KEYS])
+            allowed = ", ".join([*SECTIONS, EXTRACT_SECTION, MATERIAL_SECTION, "sweep", *META_KEYS])
             raise ConfigError(f"unknown top-level key {k!r}; allowed: {allowed}")
     name = str(raw.get("name") or name)
     description = str(raw.get("description") or "")
     sweep = raw.get("sweep")
     base = {k: (dict(v) if isinstance(v, dict) else v) for k, v in raw.items() if k in SECTIONS}
     extract = _extract_section(raw.get(EXTRACT_SECTION))
+    material = _material_section(raw.get(MATERIAL_SECTION))
     keys, factors = _factors(sweep)
-    _apply_overrides(base, extract, keys, overrides or {})
+    overrides = dict(overrides or {})
+    for key in [k for k in overrides if k.startswith(MATERIAL_SECTION + ".")]:
+        material[key.split(".", 1)[1]] = overrides.pop(key)
+    material = _material_section(material, "--set material")
+    _apply_overrides(base, extract, keys, overrides)
     base_clean, base_derived = _split_derived(base)
     points = []
     seen: dict[str, int] = {}
@@ -357,7 +373,7 @@ def expand(raw: dict, name: str = "study", overrides: dict | None = None) -> Stu
         seen[p.key] = i
         points.append(p)
     return Study(name=name, description=description, keys=tuple(keys), points=tuple(points), base=base, sweep=sweep,
-                 extract=extract)  # fmt: skip
+                 extract=extract, material=material)  # fmt: skip
 
 
 def _apply_overrides(base: dict, extract: dict, keys: list, overrides: dict) -> None:
@@ -422,6 +438,17 @@ def _extract_section(body: Any) -> dict:
             raise ConfigError(f"unknown key {key!r}; allowed: {', '.join(EXTRACT_KEYS)}")
         out[name] = check_extract_value(key, value, key)
     return out
+
+
+def _material_section(body: Any, where: str = MATERIAL_SECTION) -> dict:
+    """The ``material:`` section, checked (keys of the contact model, values in range):
+    ``{key: float}``; ConfigError (one line) otherwise."""
+    if body is None:
+        return {}
+    if not isinstance(body, dict):
+        raise ConfigError(f"section {MATERIAL_SECTION!r} must be a mapping of {', '.join(CONTACT_KEYS)}, got {body!r}")
+    cm = contact_model(body, where=where)
+    return {k: getattr(cm, k) for k in body}
 
 
 def load_study(path: str | Path, overrides: dict | None = None) -> Study:

@@ -41,7 +41,7 @@ from .grid import Study, load_study
 from .launch import Launcher, make_launcher
 from .plan import Task, plan
 from .progress import Progress
-from .schema import STATUSES, assemble, column_units
+from .schema import STATUSES, assemble, column_units, material_metadata
 from .store import code_fingerprint, part_path, parts_dir, read_part, rows_frame, write_part
 from .task import PointTask
 
@@ -147,6 +147,7 @@ def _write_table(study, output, done) -> SweepResult:
         "config": study.resolved(),
         "swept_keys": list(study.keys),
         "units": column_units(study),
+        "material": material_metadata(study),
         "version": __version__,
         "code": code_fingerprint(),
         "points": len(study.points),
