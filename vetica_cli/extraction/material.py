@@ -133,6 +133,14 @@ def sample_modulus(e_star, cm: ContactModel):
     return out if out.ndim else float(out)
 
 
+def stiffness(e_sample, depth: float, cm: ContactModel) -> float:
+    """The spring [N/m] a sample modulus [Pa] acts as at a penetration ``depth`` [m]: the
+    inverse of :func:`moduli`'s conversion, ``K = 4/3 E* sqrt(R delta)`` (secant of thesis
+    eq. 90) with ``1/E* = (1 - nu_t^2)/E_t + (1 - nu_s^2)/E_s`` (eq. 92)."""
+    e_star = 1.0 / ((1.0 - cm.nu_tip**2) / cm.e_tip + (1.0 - cm.nu_sample**2) / float(e_sample))
+    return 4.0 / 3.0 * e_star * math.sqrt(cm.tip_radius * depth)
+
+
 def moduli(peak_force, penetration, k_g, k_r, tau_r, cm: ContactModel) -> dict:
     """``E_dmt, E_glassy, E_rubbery`` [Pa] and ``viscosity`` [Pa s] (module docstring) from
     the peak force [N], the penetration at it [m], the glassy and rubbery stiffness [N/m]
