@@ -67,9 +67,7 @@ def advice_figure(adv: Advice):
 def _cmap():
     import matplotlib
 
-    cmap = matplotlib.colormaps["RdYlGn"].copy()
-    cmap.set_bad("0.8")
-    return cmap
+    return matplotlib.colormaps["RdYlGn"].with_extremes(bad="0.8")
 
 
 def _annotate(ax, grid, ok) -> None:

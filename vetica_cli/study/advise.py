@@ -22,7 +22,7 @@ only a setting whose record is a proven periodic state counts.
 The cost: one simulation per (f1, set point, k2), recorded at the finest print step;
 the coarser print steps are that record subsampled (:func:`subsample_record`: the
 trajectory does not depend on the print step, so this is the record a run at the
-coarser step gives, to rounding), each extracted by every method.  The simulations
+coarser step gives, within the orbit solver's tolerance), each extracted by every method.  The simulations
 run on the study launcher (loky, ``jobs`` workers, one thread each).
 """
 
@@ -165,8 +165,8 @@ def subsample_record(df: pd.DataFrame, factor: int) -> pd.DataFrame:
     """The record a run at ``factor`` times the print step gives, from one at the print step:
     in each segment every ``factor``-th sample from the ``factor``-th on (a run samples its
     windows at ``t_start + k PS``, k >= 1).  The trajectory does not depend on the print
-    step (the kernel's step and recording are separate), so this equals a separate run to
-    rounding."""
+    step (the kernel's step and recording are separate), so this equals a separate run
+    within the orbit solver's tolerance (``numerics.tol_orbit``; tests/test_advise.py)."""
     if factor == 1:
         return df
     if "segment" not in df.columns:
