@@ -62,24 +62,39 @@ def extract(
     missing columns, non-increasing time, no contact, too few taps or missing
     probe parameters.
     """
+    kw = dict(k2=k2, f2=f2, q2=q2, z1=z1, f1=f1, cutoff_hz=cutoff_hz, taper=taper, a0=a0,
+              vdw_on_surface=vdw_on_surface, contact=contact)  # fmt: skip
+    return extract_many(df, meta, force, {method: options}, **kw)[method]
+
+
+def extract_many(df, meta: dict | None, force: str, methods: dict, *, contact=None, **record_kw) -> dict:
+    """Several methods on one record: ``methods = {key: options}``; the record (and a
+    reconstructed force) is built once, with the approach segment analysed when any method
+    needs it and the time step checked when any needs a uniform one.  ``record_kw`` as
+    :func:`~.record.build_record` takes them; ``contact`` as :func:`extract`.  Returns
+    ``{key: ExtractionResult}`` in the order given (each with its material units)."""
     if force not in FORCES:
         raise InputError(f"force {force!r} not allowed; choose one of: {', '.join(FORCES)}")
-    m = get(method)
-    opts = m.options(options)
+    ms = {key: get(key) for key in methods}
+    opts = {key: m.options(methods[key] or {}) for key, m in ms.items()}
     radius = ((meta or {}).get("params") or {}).get("probe", {}).get("tip_radius")
     cm = contact if isinstance(contact, ContactModel) else contact_model(contact, radius)
     radius_source = ("given" if isinstance(contact, ContactModel) or (contact or {}).get("tip_radius") is not None
                      else "metadata (probe.tip_radius)" if radius is not None else "thesis table 6")  # fmt: skip
-    record = build_record(df, meta, force, need_approach=m.needs_approach, uniform=m.key if m.uniform_sampling else None,
-                          k2=k2, f2=f2, q2=q2, z1=z1, f1=f1, cutoff_hz=cutoff_hz, taper=taper, a0=a0,
-                          vdw_on_surface=vdw_on_surface)  # fmt: skip
-    if record.model.key not in m.surface_models:
-        raise InputError(
-            f"method {m.key!r} cannot extract a {record.model.key!r} surface (it extracts: {', '.join(m.surface_models)})"
-        )
-    res = m.run(record, opts)
-    add_material(res, record, cm, radius_source)
-    return res
+    uniform = next((k for k, m in ms.items() if m.uniform_sampling), None)
+    record = build_record(df, meta, force, need_approach=any(m.needs_approach for m in ms.values()), uniform=uniform,
+                          **record_kw)  # fmt: skip
+    out = {}
+    for key, m in ms.items():
+        if record.model.key not in m.surface_models:
+            raise InputError(
+                f"method {m.key!r} cannot extract a {record.model.key!r} surface (it extracts: {', '.join(m.surface_models)})"
+            )
+    for key, m in ms.items():
+        res = m.run(record, opts[key])
+        add_material(res, record, cm, radius_source)
+        out[key] = res
+    return out
 
 
 def add_material(res: ExtractionResult, record: Record, cm: ContactModel, radius_source: str) -> None:
@@ -115,6 +130,7 @@ __all__ = [
     "contact_model",
     "extract",
     "extract_file",
+    "extract_many",
     "get",
     "register",
 ]

@@ -38,7 +38,7 @@ import pandas as pd
 
 from .. import surfaces
 from ..errors import ConfigError, InputError
-from ..extraction import METHODS, SOURCES, extract
+from ..extraction import METHODS, SOURCES, extract, extract_many
 from ..extraction.material import ContactModel, contact_model, stiffness
 from ..simulation.config import from_dict, load
 from ..simulation.simulate import simulate
@@ -226,12 +226,18 @@ def _extract_row(row: dict, run, factor: int, ps: float, methods, force: str) ->
     row["status"] = "ok" if run.steady_ok else "not_steady"
     errors = []
     t0 = time.perf_counter()
+    try:  # one record (one force reconstruction) for every method
+        results = extract_many(df, meta, force, {m: {} for m in methods})
+    except Exception:  # noqa: BLE001 - then method by method, to say which one failed
+        results = {}
     for m in methods:
-        try:
-            res = extract(df, meta, force=force, method=m)
-        except Exception as exc:  # noqa: BLE001
-            errors.append(f"{m}: {type(exc).__name__}: {exc}")
-            continue
+        res = results.get(m)
+        if res is None:
+            try:
+                res = extract(df, meta, force=force, method=m)
+            except Exception as exc:  # noqa: BLE001
+                errors.append(f"{m}: {type(exc).__name__}: {exc}")
+                continue
         errs = {q: res.estimates[q].error_pct for q in LIMITS}
         for q, v in errs.items():
             row[f"{m}.{q}_err_pct"] = math.nan if v is None else float(v)
