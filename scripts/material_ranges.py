@@ -60,7 +60,8 @@ def material_frame(df: pd.DataFrame) -> tuple[pd.DataFrame, str]:
         return df.iloc[:0], "no material columns and no observables to compute them"
     m = moduli(df["peak_force"], df["max_penetration"], np.nan, np.nan, df["tau_r_theory"], ContactModel())
     return df.assign(E_dmt=m["E_dmt"], viscosity_theory=m["viscosity"]), (
-        "computed from the observables peak_force, max_penetration (table without material columns)")
+        "computed from the observables peak_force, max_penetration (table without material columns)"
+    )
 
 
 def tables(args: list[str]) -> list[Path]:
@@ -98,7 +99,9 @@ def main(argv=None) -> None:
             acc = g[accepted(g)] if "tau_c_err_pct" in g.columns else g.iloc[:0]
             every_acc.append(acc.assign(method=m))
             label = f" ({m})" if m is not None else ""
-            print(f"  viscosity, accepted (tau_c error < {ACCEPT_ERR_PCT:g} %){label}: {span(acc['viscosity_theory'], 'Pa s')}")
+            print(
+                f"  viscosity, accepted (tau_c error < {ACCEPT_ERR_PCT:g} %){label}: {span(acc['viscosity_theory'], 'Pa s')}"
+            )
     if every:
         allr = pd.concat(every)
         acc = pd.concat(every_acc) if every_acc else allr.iloc[:0]

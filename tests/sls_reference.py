@@ -45,13 +45,19 @@ def tapping_record(k_inf=4.0, k0=128.0, cd=3e-5, a0=0.2e-9, hamaker=0.2e-18, rad
 
     def period(xd0):
         """Event times and the dashpot's closed form over one period from ``Xd(0) = xd0``."""
+
         # out of contact from the top: contact when z - a0 = k0 Xd / Kg
-        g = lambda t: z(t) - a0 - k0 * xd0 * math.exp(-t / tau_c) / kg  # noqa: E731
-        tc = brentq(g, 0.0, 0.5 * T, xtol=1e-16)
+        def gap(t):
+            return z(t) - a0 - k0 * xd0 * math.exp(-t / tau_c) / kg
+
+        tc = brentq(gap, 0.0, 0.5 * T, xtol=1e-16)
         xdc = xd0 * math.exp(-tc / tau_c)
         # in contact: tau_r Xd' = X - Xd, X = (c - a0) + amp cos(w t): particular + homogeneous
         wt = w * tau_r
-        part = lambda t: (c - a0) + amp * (np.cos(w * t) + wt * np.sin(w * t)) / (1 + wt * wt)  # noqa: E731
+
+        def part(t):
+            return (c - a0) + amp * (np.cos(w * t) + wt * np.sin(w * t)) / (1 + wt * wt)
+
         cc = xdc - part(tc)
 
         def xd_in(t):
@@ -77,7 +83,7 @@ def tapping_record(k_inf=4.0, k0=128.0, cd=3e-5, a0=0.2e-9, hamaker=0.2e-18, rad
     else:  # pragma: no cover
         raise RuntimeError("no periodic state")
     tc, ts, xd_in, xds = period(xd0)
-    n = int(round(periods * T / h))
+    n = round(periods * T / h)
     t = start * T + h * np.arange(n)
     u = np.mod(t, T)
     u = np.where(np.isclose(u, T, rtol=0, atol=1e-18), 0.0, u)

@@ -127,7 +127,7 @@ def test_paddle_signal_with_the_probe_constants_and_a_period_warning(runs):
     df, meta = runs[False]
     s = stripped(df, ("t", "z_tip", "z_paddle"))
     probe = meta["params"]["probe"]
-    kw = dict(k2=probe["k2"], f2=probe["f2"], q2=probe["q2"], a0=A0, vdw_on_surface=False)
+    kw = {"k2": probe["k2"], "f2": probe["f2"], "q2": probe["q2"], "a0": A0, "vdw_on_surface": False}
     res = extract(s, {}, **kw)
     assert res.force == "reconstructed" and not any("drive periods" in w for w in res.warnings)
     assert abs(err(res, "k0")) < 2

@@ -59,7 +59,7 @@ def test_prestress_from_the_record_matches_the_arms_stress(runs, vdw):
     Z1 against the simulator's k0 (X - Xd) at the contact sample: within 2 % (the formula
     leaves out the dashpot's creep during the first approach, k0 Xd1/Kg in Z1) plus the force
     the contact builds within the sample after the contact instant, Kg |dz| over one sample."""
-    df, meta, s = runs[vdw]
+    _, meta, s = runs[vdw]
     z1 = meta["observables"]["z1"]
     taps = find_taps(s["f_ts"])
     for ic in taps.contact:
@@ -75,11 +75,11 @@ def test_stage2_with_exact_stage1_inputs_recovers_kr(runs):
     (results/worked_example.md); with the pre-stress term from the record Kr is within 0.3 %
     (issue 10: -0.013 % with the simulator's own stress; the record's formula misses the
     first approach's creep, about 1 % of sigma0)."""
-    df, meta, s = runs[True]
+    _, meta, s = runs[True]
     z1 = meta["observables"]["z1"]
     taps = find_taps(s["f_ts"])
     for tf in tap_fits(s["t"], s["z_tip"], s["f_ts"], taps, 10):
-        kr, sigma0, rms = stage2_tap(tf, "adhesion", z1, TH["k_g"], TH["tau_c"], 0.4, 0.0)
+        kr, _, rms = stage2_tap(tf, "adhesion", z1, TH["k_g"], TH["tau_c"], 0.4, 0.0)
         assert kr == pytest.approx(TH["k_r"], rel=3e-3)
         assert rms < 1e-3 * np.max(tf.f)
 

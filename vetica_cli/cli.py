@@ -290,7 +290,8 @@ def advise(
     from .extraction.material import parse_contact
     from .plots.advise import write_advice_figure
     from .simulation.config import parse_set
-    from .study.advise import advice_json, advise as run_advice, contact_for, format_advice, material_from
+    from .study.advise import advice_json, contact_for, format_advice, material_from
+    from .study.advise import advise as run_advice
 
     overrides = parse_set(set_)
     cm = contact_for(overrides, parse_contact(contact))

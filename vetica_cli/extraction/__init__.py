@@ -62,8 +62,8 @@ def extract(
     missing columns, non-increasing time, no contact, too few taps or missing
     probe parameters.
     """
-    kw = dict(k2=k2, f2=f2, q2=q2, z1=z1, f1=f1, cutoff_hz=cutoff_hz, taper=taper, a0=a0,
-              vdw_on_surface=vdw_on_surface, contact=contact)  # fmt: skip
+    kw = {"k2": k2, "f2": f2, "q2": q2, "z1": z1, "f1": f1, "cutoff_hz": cutoff_hz, "taper": taper, "a0": a0,
+          "vdw_on_surface": vdw_on_surface, "contact": contact}  # fmt: skip
     return extract_many(df, meta, force, {method: options}, **kw)[method]
 
 
@@ -119,10 +119,10 @@ __all__ = [
     "FORCES",
     "METHODS",
     "SOURCES",
+    "ContactModel",
     "Estimate",
     "ExtractionMethod",
     "ExtractionResult",
-    "ContactModel",
     "Record",
     "Spread",
     "add_material",

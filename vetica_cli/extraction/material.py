@@ -78,7 +78,9 @@ CONTACT_UNITS = {
 }
 
 
-def contact_model(overrides: dict | None = None, tip_radius: float | None = None, where: str = "--contact") -> ContactModel:
+def contact_model(
+    overrides: dict | None = None, tip_radius: float | None = None, where: str = "--contact"
+) -> ContactModel:
     """A :class:`ContactModel` from the defaults (table 6; ``tip_radius`` replaces the
     default radius, e.g. the simulated probe's) and ``overrides`` ``{key: value}``;
     :class:`ConfigError` (one line) for an unknown key or a value out of range."""
@@ -88,7 +90,7 @@ def contact_model(overrides: dict | None = None, tip_radius: float | None = None
     for key, raw in (overrides or {}).items():
         if key not in CONTACT_KEYS:
             raise ConfigError(f"{where}: unknown key {key!r}; allowed: {', '.join(CONTACT_KEYS)}")
-        unit, pred, allowed = CONTACT_KEYS[key]
+        _, pred, allowed = CONTACT_KEYS[key]
         try:
             v = float(raw)
         except (TypeError, ValueError):
@@ -107,7 +109,9 @@ def parse_contact(items: list[str] | None) -> dict:
     for item in items or []:
         key, sep, value = item.partition("=")
         if not sep:
-            raise ConfigError(f"--contact {item!r} is not allowed; expected key=value with key in {', '.join(CONTACT_KEYS)}")
+            raise ConfigError(
+                f"--contact {item!r} is not allowed; expected key=value with key in {', '.join(CONTACT_KEYS)}"
+            )
         out[key.strip()] = value.strip()
     return out
 

@@ -66,7 +66,15 @@ from ..signals.taps import Taps, find_taps
 from .base import ExtractionMethod, register
 from .record import Record
 from .result import ExtractionResult, Spread, estimates
-from .vetica import MIN_CONTACT_SAMPLES, SineFit, Superposition, fit_sum_of_sines, sls_elements, stage1a_tau_c, stage1b_kg
+from .vetica import (
+    MIN_CONTACT_SAMPLES,
+    SineFit,
+    Superposition,
+    fit_sum_of_sines,
+    sls_elements,
+    stage1a_tau_c,
+    stage1b_kg,
+)
 
 PRESTRESS = ("auto", "adhesion", "creep", "fit")
 MAX_ITER = 60  # fixed-point iterations of stages 1b and 2
@@ -184,7 +192,9 @@ def _stages(fits, mode, z1, kg, tau_c, kr_guess, s_of_tap):
             if tf is None:
                 continue
             s0 = s0_i[j] if math.isfinite(s0_i[j]) else s_of_tap(tf, kg, kr)
-            kr_i[j], s0_i[j], rms_i[j] = stage2_tap(tf, mode, z1, kg, tau_c, kr_i[j] if math.isfinite(kr_i[j]) else kr, s0)
+            kr_i[j], s0_i[j], rms_i[j] = stage2_tap(
+                tf, mode, z1, kg, tau_c, kr_i[j] if math.isfinite(kr_i[j]) else kr, s0
+            )
         kr_new = _mean(kr_i)
         tau_r = tau_c * kr_new / kg
         for j, tf in enumerate(fits):
@@ -300,7 +310,11 @@ class VeticaPrestress(ExtractionMethod):
         ex = vetica_prestress(record.t, record.z, record.f, record.z1, kg_points=options["kg_points"],
                               kr_guess=options["kr_guess"], prestress=mode)  # fmt: skip
         units = {k: q.unit for k, q in self.quantities(record.model).items()}
-        timing = {"reconstruction": record.reconstruction_s, **ex.timing_s, "total": time.perf_counter() - record.t_start}
+        timing = {
+            "reconstruction": record.reconstruction_s,
+            **ex.timing_s,
+            "total": time.perf_counter() - record.t_start,
+        }
         spread = {k: Spread.of(v) for k, v in ex.per_tap.items()}
         info = {**record.info, "prestress": source}
         return ExtractionResult(method=self.key, force=record.force, taps=ex.taps,
@@ -312,9 +326,10 @@ class VeticaPrestress(ExtractionMethod):
         d = res.diagnostics or {}
         if "prestress_n" not in d:
             return [f"pre-stress: {res.info.get('prestress', '?')}"]
-        return [f"pre-stress: {res.info.get('prestress', '?')}; Maxwell arm at contact {d['prestress_n'] * 1e9:.4g} nN "
+        line = (f"pre-stress: {res.info.get('prestress', '?')}; Maxwell arm at contact {d['prestress_n'] * 1e9:.4g} nN "
                 f"(adhesion at the contact minimum {d['adhesion_n'] * 1e9:.4g} nN); Kg {d['kg_stage1b_thesis']:.5g} N/m "
-                f"by the thesis's stage 1b, {d['iterations']} iterations of stages 1b and 2"]  # fmt: skip
+                f"by the thesis's stage 1b, {d['iterations']} iterations of stages 1b and 2")  # fmt: skip
+        return [line]
 
     def timing_line(self, timing_s: dict) -> str:
         tm = timing_s

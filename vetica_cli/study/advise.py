@@ -121,7 +121,9 @@ def material_from(k_inf=None, k0=None, cd=None, e_glassy=None, e_rubbery=None, t
         eg, er, tr = (_positive(k, v) for k, v in mods.items())
         depth = _positive("--depth", depth)
         if not eg > er:
-            raise InputError(f"--e-glassy {eg:g} must exceed --e-rubbery {er:g} (a relaxing solid: E_glassy > E_rubbery)")
+            raise InputError(
+                f"--e-glassy {eg:g} must exceed --e-rubbery {er:g} (a relaxing solid: E_glassy > E_rubbery)"
+            )
         cm = cm or ContactModel()
         k_inf = stiffness(er, depth, cm)
         k0 = stiffness(eg, depth, cm) - k_inf
@@ -354,9 +356,11 @@ def format_advice(adv: Advice, figure=None, top: int = 10) -> str:
     t = adv.table
     lines = [
         f"material: {adv.material.given} (tau_c {th['tau_c']:.4g} s, tau_r {th['tau_r']:.4g} s)",
-        f"criteria: tau_c error < {ACCEPT_ERR_PCT:g} %, k0, k_inf, cd within {PARAM_LIMIT_PCT:g} %, for "
-        f"{' and '.join(adv.methods)} ({adv.force} force); score = smallest margin "
-        f"min(1 - |error|/limit) over the methods",
+        (
+            f"criteria: tau_c error < {ACCEPT_ERR_PCT:g} %, k0, k_inf, cd within {PARAM_LIMIT_PCT:g} %, for "
+            f"{' and '.join(adv.methods)} ({adv.force} force); score = smallest margin min(1 - |error|/limit) over "
+            "the methods"
+        ),
         f"{len(t)} settings ({adv.simulations} simulations, {RECORD_CYCLES} periods each; the coarser print steps "
         f"subsample the finest) in {adv.wall_s:.1f} s on {adv.jobs} worker(s): "
         + ", ".join(f"{m} recovers {int((t[f'{m}.margin'] > 0).sum())}" for m in adv.methods)
@@ -400,10 +404,17 @@ def advice_json(adv: Advice, figure=None) -> dict:
     t = adv.table
     return {
         "settings": adv.settings(),
-        "material": {"k_inf": adv.material.k_inf, "k0": adv.material.k0, "cd": adv.material.cd,
-                     "given": adv.material.given},  # fmt: skip
-        "criteria": {"tau_c_err_pct": ACCEPT_ERR_PCT, "parameter_err_pct": PARAM_LIMIT_PCT,
-                     "score": "min over methods of min(1 - |error|/limit)"},  # fmt: skip
+        "material": {
+            "k_inf": adv.material.k_inf,
+            "k0": adv.material.k0,
+            "cd": adv.material.cd,
+            "given": adv.material.given,
+        },  # fmt: skip
+        "criteria": {
+            "tau_c_err_pct": ACCEPT_ERR_PCT,
+            "parameter_err_pct": PARAM_LIMIT_PCT,
+            "score": "min over methods of min(1 - |error|/limit)",
+        },  # fmt: skip
         "methods": list(adv.methods),
         "force": adv.force,
         "knobs": {k: list(v) for k, v in adv.knobs.items()},

@@ -97,7 +97,9 @@ def column_units(study: Study) -> dict:
         src = "the theory values of" if col.endswith("_theory") else "the row's estimates of"
         needs = {"E_dmt": "", "E_glassy": f", tap_depth and {src} Kg", "E_rubbery": f", tap_depth and {src} Kr",
                  "viscosity": f", tap_depth and {src} tau_r"}[name]  # fmt: skip
-        units[col] = f"{unit}: {desc}; from tap_peak_force{needs or ' and tap_depth'} (contact model: metadata 'material')"
+        units[col] = (
+            f"{unit}: {desc}; from tap_peak_force{needs or ' and tap_depth'} (contact model: metadata 'material')"
+        )
     units["stop_reason"] = "steady | max_time (numerics.max_time reached before steady state)"
     units["sim_time"] = "s: simulated time to steady state plus the recorded periods (or numerics.max_time)"
     units["status"] = "ok | not_steady (stop_reason max_time) | failed (see error)"
@@ -161,7 +163,9 @@ def material_columns(table: pd.DataFrame, study: Study) -> pd.DataFrame:
             continue
         peak, depth = col("tap_peak_force")[rows], col("tap_depth")[rows]
         for suffix in ("", "_theory"):
-            m = moduli(peak, depth, col("k_g" + suffix)[rows], col("k_r" + suffix)[rows], col("tau_r" + suffix)[rows], cm)
+            m = moduli(
+                peak, depth, col("k_g" + suffix)[rows], col("k_r" + suffix)[rows], col("tau_r" + suffix)[rows], cm
+            )
             for name, values in m.items():
                 if name + suffix in out:
                     out[name + suffix][rows] = values
