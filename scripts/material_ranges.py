@@ -2,7 +2,7 @@
 and viscosity 700 Pa s .. 70 GPa s over its study, 700 Pa s .. 70 MPa s over the
 acceptance regime.
 
-    python scripts/material_ranges.py [FOLDER_OR_TABLES ...]     # default: results/
+    python scripts/material_ranges.py [FOLDER_OR_TABLES ...] [--all]     # default: results/
 
 For every study table (``*.parquet`` with ``status`` and ``force_source``) it prints the
 range of ``E_dmt`` (the DMT modulus from each point's peak force and penetration, thesis
@@ -11,6 +11,10 @@ time ``tau_r``, the thesis's "modulus times relaxation time") over the points wi
 status 'ok' (true-force rows, one per point and method), and the viscosity range over
 the acceptance regime (status 'ok' and tau_c error < 30 %, the one definition of
 :mod:`vetica_cli.study.acceptance`, per method), then the union over the tables.
+
+Only points inside the thesis's study ranges count (table 1: ``cd`` 1e-5 .. 1e3 kg/s,
+``k0:k_inf`` 1:8 .. 32:1); ``--all`` takes every point (e.g. ``method_low_cd``'s cd down to
+1e-7 kg/s).
 
 Tables written before the material columns existed (version 0.2 and earlier) have no
 ``E_dmt``: the script then uses the simulation's observables ``peak_force`` and
@@ -33,6 +37,19 @@ from vetica_cli.study.acceptance import ACCEPT_ERR_PCT, accepted
 
 ROOT = Path(__file__).resolve().parents[1]
 THESIS = {"E_dmt": (32e6, 9e9), "viscosity": (700.0, 70e9), "viscosity_accepted": (700.0, 70e6)}
+CD_RANGE = (1e-5, 1e3)  # [kg/s] thesis table 1
+RATIO_RANGE = (1 / 8, 32.0)  # k0:k_inf, thesis table 1
+
+
+def in_thesis_ranges(df: pd.DataFrame) -> pd.Series:
+    """Rows whose surface lies in the thesis's study ranges (theory columns of the table)."""
+    ok = pd.Series(True, index=df.index)
+    if "cd_theory" in df.columns:
+        ok &= df["cd_theory"].between(CD_RANGE[0] * (1 - 1e-9), CD_RANGE[1] * (1 + 1e-9))
+    if "k0_theory" in df.columns and "k_inf_theory" in df.columns:
+        r = df["k0_theory"] / df["k_inf_theory"]
+        ok &= r.between(RATIO_RANGE[0] * (1 - 1e-9), RATIO_RANGE[1] * (1 + 1e-9))
+    return ok
 
 
 def si(v: float, unit: str) -> str:
@@ -75,6 +92,7 @@ def tables(args: list[str]) -> list[Path]:
 def main(argv=None) -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("paths", nargs="*", help="study tables or folders (default: results/)")
+    ap.add_argument("--all", action="store_true", help="every point, not only those in the thesis's ranges")
     args = ap.parse_args(argv)
     every, every_acc = [], []
     print(f"thesis 4.6.2: E_dmt {si(THESIS['E_dmt'][0], 'Pa')} .. {si(THESIS['E_dmt'][1], 'Pa')}, viscosity "
@@ -89,6 +107,8 @@ def main(argv=None) -> None:
             print(f"{path.name}: {how}")
             continue
         rows = df[(df["status"] == "ok") & (df["force_source"] == "true")]
+        if not args.all:
+            rows = rows[in_thesis_ranges(rows)]
         every.append(rows)
         print(f"{path.name} ({how}):")
         print(f"  E_dmt      {span(rows['E_dmt'], 'Pa')}")
