@@ -99,10 +99,12 @@ def extract_many(df, meta: dict | None, force: str, methods: dict, *, contact=No
 
 def add_material(res: ExtractionResult, record: Record, cm: ContactModel, radius_source: str) -> None:
     """Fill ``res.material`` and ``res.contact`` (thesis 4.6.2, eqs. 90-92): the record's
-    peak force and penetration below Z1 (:func:`~.material.tap_contact`) with the extracted
-    (and, where known, the theory) ``Kg, Kr, tau_r``."""
-    peak, depth = tap_contact(record.z, record.f, record.z1)
+    peak force and penetration below the undeformed surface (:func:`~.material.tap_contact`;
+    the adhesion lift at Z1 taken off with the extracted Kg when the record says the surface
+    feels the pull) with the extracted (and, where known, the theory) ``Kg, Kr, tau_r``."""
     values = {k: res.value(k) for k in ("k_g", "k_r", "tau_r")}
+    kg = values["k_g"] if record.vdw_on_surface and values["k_g"] and values["k_g"] > 0 else None
+    peak, depth = tap_contact(record.z, record.f, record.z1, kg)
     values = {k: (v if v is not None else float("nan")) for k, v in values.items()}
     res.material = material_entries(peak, depth, values, record.truth, cm)
     res.contact = contact_metadata(cm, radius_source)

@@ -74,7 +74,8 @@ MATERIAL_UNITS = {
 }
 CONTACT_UNITS = {
     "peak_force": ("N", "peak repulsive force of a tap (median over the taps)"),
-    "penetration": ("m", "depth of the tip below Z1 at its lowest point in a tap (median over the taps)"),
+    "penetration": ("m", "depth of the tip's lowest point in a tap below the undeformed surface: below Z1, less "
+                    "the adhesion lift -Fc/Kg when the surface feels the pull (median over the taps)"),
 }
 
 
@@ -158,10 +159,14 @@ def moduli(peak_force, penetration, k_g, k_r, tau_r, cm: ContactModel) -> dict:
     return {"E_dmt": e_dmt, "E_glassy": e_g, "E_rubbery": e_r, "viscosity": eta if eta.ndim else float(eta)}
 
 
-def tap_contact(z: np.ndarray, f: np.ndarray, z1: float) -> tuple[float, float]:
-    """Peak force [N] and penetration [m] of a record: per complete tap the largest force
-    and the depth of the lowest tip position below ``Z1`` (the undeformed-surface
-    reference), medians over the taps; nan when the record has no complete tap."""
+def tap_contact(z: np.ndarray, f: np.ndarray, z1: float, kg: float | None = None) -> tuple[float, float]:
+    """Peak force [N] and penetration [m] of a record, medians over its complete taps: per
+    tap the largest force and the depth of the lowest tip position below the undeformed
+    surface.  The tip meets the surface at ``Z1``; when the surface feels the pull it was
+    lifted there by the adhesion against its glassy stiffness (SPEC 3), so for a given
+    ``kg`` [N/m] the lift ``-Fc/Kg`` (``Fc`` the force at the contact minima) is taken off
+    the depth below ``Z1``; ``kg`` None: no lift (the surface does not feel the pull, or it
+    is not known).  nan when the record has no complete tap."""
     try:
         taps = find_taps(f)
     except ValueError:
@@ -170,7 +175,8 @@ def tap_contact(z: np.ndarray, f: np.ndarray, z1: float) -> tuple[float, float]:
         return math.nan, math.nan
     peak = [float(np.max(f[c : s + 1])) for c, s in zip(taps.contact, taps.separation)]
     depth = [float(z1 - np.min(z[c : s + 1])) for c, s in zip(taps.contact, taps.separation)]
-    return float(np.median(peak)), float(np.median(depth))
+    lift = -float(np.median(f[taps.contact])) / kg if kg else 0.0
+    return float(np.median(peak)), float(np.median(depth)) - lift
 
 
 def _finite(v) -> float | None:
