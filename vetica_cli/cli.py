@@ -193,8 +193,8 @@ def extract(
         "of vetica-prestress); default: the metadata's.",
     ),
     contact: Optional[List[str]] = typer.Option(
-        None, "--contact", help="Contact constant of the material units, key=value (repeatable): tip_radius [m], nu_tip, "
-        "nu_sample, e_tip [Pa]; default thesis table 6 (R = the metadata's tip radius, else 10 nm).",
+        None, "--contact", help="Contact constant of the material units, key=value (repeatable): tip_radius (m), nu_tip, "
+        "nu_sample, e_tip (Pa); default thesis table 6 (R = the metadata's tip radius, else 10 nm).",
     ),
     prestress: Optional[str] = typer.Option(
         None, "--prestress", help="vetica-prestress: auto (adhesion if the surface feels the pull, else creep), "
@@ -261,7 +261,7 @@ def advise(
     tau_r: Optional[str] = typer.Option(None, "--tau-r", help="Relaxation time, s."),
     depth: str = typer.Option("2e-9", "--depth", help="Penetration at which moduli become springs, m (thesis eqs. 90-92)."),
     contact: Optional[List[str]] = typer.Option(
-        None, "--contact", help="Contact constant for the moduli, key=value: nu_tip, nu_sample, e_tip [Pa], tip_radius [m]."
+        None, "--contact", help="Contact constant for the moduli, key=value: nu_tip, nu_sample, e_tip (Pa), tip_radius (m)."
     ),
     f1: Optional[str] = typer.Option(None, "--f1", help="Drive frequencies, Hz, comma-separated (f2 = 15 f1); "
                                      "default 10e3,20e3,50e3,100e3."),  # fmt: skip
