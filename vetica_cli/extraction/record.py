@@ -18,7 +18,8 @@ metadata's ``z1`` observable; else thesis eq. 84 on the record (:func:`z1_estima
 feeling the pull (the thesis's assumption), or ``Z1 = a0 + |Fc|/Kg`` when it does
 (the surface jumps up by the adhesion over its glassy stiffness as contact starts),
 with ``a0`` and the pull from the keywords or the metadata -- never a silent
-default (an InputError says what to pass).  The choice is recorded in ``info['z1_source']`` and printed by the formatter.
+default (an InputError says what to pass).  The choice is recorded in
+``info['z1_source']`` and printed by the formatter.
 
 :func:`build_record` checks the columns, picks the segments, builds the force
 (true or reconstructed), finds ``Z1`` and the surface's theory values, and
@@ -192,7 +193,8 @@ def z1_estimate(z: np.ndarray, f: np.ndarray, a0: float, pull: bool, kg_points: 
     if len(taps.contact) == 0:
         raise InputError("Z1 unknown: no complete tap in the record to measure the adhesion and Kg; pass --z1")
     fa = -float(np.median(f[taps.contact]))
-    kg = float(np.nanmedian(contact_slopes(z, f, taps, kg_points))) if len(taps.contact) else math.nan
+    slopes = contact_slopes(z, f, taps, kg_points)
+    kg = float(np.nanmedian(slopes)) if np.any(np.isfinite(slopes)) else math.nan
     if not (fa > 0 and math.isfinite(kg) and kg > 0):
         raise InputError(
             f"Z1 unknown: the record shows no adhesion at contact ({-fa:.3g} N) or no positive initial contact "
@@ -218,10 +220,10 @@ def _z1_reference(approach, z1, meta, force_of: _ForceSource, need_approach: boo
     """Z1, the undeformed-surface reference (thesis eq. 84): ``z1`` if given, else the tip
     position at the first force minimum of the approach segment, else the metadata's
     observable, else :func:`z1_estimate` on the steady record ``steady = (z, f)`` when
-    ``a0`` and the pull are known.  Returns ``(z1, approach_record)`` with ``approach_record = (z_tip,
-    force, index of Z1)`` when the approach segment was analysed (always with
-    ``need_approach``, else only when Z1 comes from it); records the value and its source
-    in the info."""
+    ``a0`` and the pull are known.  Returns ``(z1, approach_record)`` with
+    ``approach_record = (z_tip, force, index of Z1)`` when the approach segment was
+    analysed (always with ``need_approach``, else only when Z1 comes from it); records the
+    value and its source in the info."""
     rec = None
     if approach is not None and (z1 is None or need_approach):
         ta = column(approach, "t", "the approach segment")
