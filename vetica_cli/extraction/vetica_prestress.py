@@ -213,8 +213,10 @@ def vetica_prestress(t, z, f, z1: float, kg_points: int = 10, kr_guess: float | 
                      prestress: str = "adhesion") -> PrestressResult:  # fmt: skip
     """Run VETICA with the pre-stress (module docstring) on a record of consecutive taps.
 
-    Raises InputError for fewer than two complete taps, no creep interval (stage 1a) or
-    no contact long enough for stages 1b and 2.
+    ``prestress``: ``adhesion``, ``creep`` or ``fit`` (the method resolves ``auto``).
+    Raises InputError for fewer than two complete taps or no contact long enough for
+    stages 1b and 2; no creep interval (stage 1a) or no positive initial slope gives nan
+    values with a warning, as in ``vetica``.
     """
     if prestress not in PRESTRESS[1:]:
         raise InputError(f"prestress {prestress!r} not allowed here; choose one of: {', '.join(PRESTRESS[1:])}")
