@@ -7,6 +7,7 @@ Reads the tables of four sweeps (run them first, ~15 min on 2 cores):
     vetica sweep configs/method_stiffness_ratio.yaml      # ratio x cd x noise x method, PS 0.5 ns
     vetica sweep configs/method_noise_reconstructed.yaml  # noisy reconstructed force, a few points
     vetica sweep configs/method_low_cd.yaml               # cd below the thesis range, 0.125 ns
+    vetica sweep configs/method_pull.yaml                 # cd x surface pull on/off x method (issue 10)
 
 and prints the Markdown tables of ``results/method_comparison.md``, writing the
 summary tables they are built from (``results/method_comparison_summary.parquet``, one row per setting, noise
@@ -50,6 +51,7 @@ NOISE = "numerics.position_noise"
 STUDIES = {  # table -> (setting column, label)
     "method_dashpot": ("numerics.print_step", "print step"),
     "method_stiffness_ratio": ("surface.stiffness_ratio", "k0:k_inf"),
+    "method_pull": ("surface.vdw_on_surface", "surface pull"),
 }
 
 
@@ -101,7 +103,7 @@ def summarize(df: pd.DataFrame, setting: str) -> pd.DataFrame:
         r["extract_s_median"] = float(g["wall_s"].median())
         rows.append(r)
     out = pd.DataFrame(rows)
-    rank = {"true": 0, "reconstructed": 1, "vetica": 0, "full": 1}
+    rank = {"true": 0, "reconstructed": 1, "vetica": 0, "vetica-prestress": 1, "full": 2}
     out["_f"], out["_m"] = out["force_source"].map(rank), out["method"].map(rank)
     return out.sort_values([setting, NOISE, "_f", "_m"]).drop(columns=["_f", "_m"]).reset_index(drop=True)
 
@@ -121,6 +123,8 @@ def _e(v) -> str:
 def _setting(setting: str, v) -> str:
     if setting == "numerics.print_step":
         return f"{v * 1e9:g} ns"
+    if setting == "surface.vdw_on_surface":
+        return "on" if v else "off"
     r = float(v)
     return f"1:{1 / r:g}" if r < 1 else f"{r:g}:1"
 

@@ -87,6 +87,55 @@ def main():
                 cells.append(f"{v:.5g} ({pct(v, th[key]):+.2f})")
         p("| " + " | ".join(cells) + " |")
     p("")
+    # --- VETICA with the pre-stress (issue 10 item 2) and on records as measured (item 1)
+    p("## VETICA with the Maxwell arm's pre-stress at contact (`--method vetica-prestress`), error %, signed\n")
+    p("The pre-stress comes from the adhesion at the contact minimum when the surface feels the pull, from the "
+      "unfinished creep alone when it does not (`prestress: auto`, from the metadata's `vdw_on_surface`).\n")
+    p("| quantity | theory | vdW on, true f | vdW on, reconstructed | vdW off, true f | vdW off, reconstructed |")
+    p("|---|---|---|---|---|---|")
+    pre = {(vdw, force): extract(runs[vdw][1], runs[vdw][2], force=force, method="vetica-prestress")
+           for vdw in (True, False) for force in ("true", "reconstructed")}  # fmt: skip
+    for key, label in ROWS:
+        cells = [label, f"{th[key]:.5g}"]
+        for vdw in (True, False):
+            for force in ("true", "reconstructed"):
+                v = pre[vdw, force].value(key)
+                cells.append(f"{v:.5g} ({pct(v, th[key]):+.2f})")
+        p("| " + " | ".join(cells) + " |")
+    p("")
+    p("## Records as an instrument gives them: t, z_tip, f_ts only (no approach segment, no metadata)\n")
+    p("Z1 by thesis eq. 84 from `--a0 0.2e-9` and `--vdw-on-surface`/`--no-vdw-on-surface` "
+      "(with the pull Z1 = a0 + Fa(a0)/Kg from the record's adhesion and initial slope).\n")
+    p("| quantity | theory | vdW on, vetica | vdW on, vetica-prestress | vdW off, vetica | vdW off, vetica-prestress |")
+    p("|---|---|---|---|---|---|")
+    bare = {}
+    for vdw in (True, False):
+        df = runs[vdw][1]
+        s_ = df[df.segment == "steady"][["t", "z_tip", "f_ts"]].reset_index(drop=True)
+        for m in ("vetica", "vetica-prestress"):
+            bare[vdw, m] = extract(s_, {}, force="true", method=m, a0=0.2e-9, vdw_on_surface=vdw)
+    for key, label in ROWS:
+        cells = [label, f"{th[key]:.5g}"]
+        for vdw in (True, False):
+            for m in ("vetica", "vetica-prestress"):
+                v = bare[vdw, m].value(key)
+                cells.append(f"{v:.5g} ({pct(v, th[key]):+.2f})")
+        p("| " + " | ".join(cells) + " |")
+    p("")
+    for vdw in (True, False):
+        p(f"- vdW {'on' if vdw else 'off'}: Z1 = {bare[vdw, 'vetica'].info['z1'] * 1e9:.4f} nm "
+          f"({bare[vdw, 'vetica'].info['z1_source']}); from the approach segment: {runs[vdw][2]['observables']['z1'] * 1e9:.4f} nm")
+    p("")
+    p("Material units (thesis 4.6.2, eqs. 90-92, table 6; true force, Z1 from the approach):\n")
+    for vdw in (True, False):
+        for m, r in (("vetica", res[vdw, "true"]), ("vetica-prestress", pre[vdw, "true"])):
+            mat = r.material
+            p(f"- vdW {'on' if vdw else 'off'}, {m}: E_dmt {mat['E_dmt']['value']:.4g} Pa (peak force "
+              f"{mat['peak_force']['value'] * 1e9:.4g} nN at {mat['penetration']['value'] * 1e9:.4g} nm), E_glassy "
+              f"{mat['E_glassy']['value']:.4g} Pa ({mat['E_glassy']['error_pct']:+.2f} %), E_rubbery "
+              f"{mat['E_rubbery']['value']:.4g} Pa ({mat['E_rubbery']['error_pct']:+.2f} %), viscosity "
+              f"{mat['viscosity']['value']:.4g} Pa s ({mat['viscosity']['error_pct']:+.2f} %)")
+    p("")
     p("Spread over taps (standard deviation / mean, %; τc over creep intervals):\n")
     p("| quantity | vdW on, true | vdW on, rec. | vdW off, true | vdW off, rec. |")
     p("|---|---|---|---|---|")

@@ -130,14 +130,14 @@ def test_vetica_on_a_stripped_record_with_z1_is_unchanged(pull_on):
 
 def test_method_options_are_checked_before_any_work(pull_on):
     """One-line input errors for a bad option, before the record is read (VETICA takes none of
-    the full method's constants)."""
+    the full method's model constants; a0 is a record option for every method: Z1 = a0, eq. 84)."""
     df = stripped(pull_on).iloc[:10]
     for kw, msg in (({"arms": 0}, "arms 0 not allowed"), ({"hamaker": "x"}, "hamaker 'x' not allowed"),
                     ({"vdw_on_surface": "yes"}, "vdw_on_surface 'yes' not allowed")):  # fmt: skip
         with pytest.raises(InputError, match=msg):
             extract(df, {}, force="true", method="full", **kw)
-    with pytest.raises(InputError, match="method 'vetica' takes no option 'a0'"):
-        extract(df, {}, force="true", method="vetica", a0=0.2e-9)
+    with pytest.raises(InputError, match="method 'vetica' takes no option 'hamaker'"):
+        extract(df, {}, force="true", method="vetica", hamaker=2e-19)
 
 
 @pytest.mark.slow

@@ -19,7 +19,7 @@ from typer.testing import CliRunner
 from vetica_cli import surfaces
 from vetica_cli.cli import app
 from vetica_cli.errors import ConfigError
-from vetica_cli.extraction import SOURCES, Estimate, ExtractionResult
+from vetica_cli.extraction import METHODS, SOURCES, Estimate, ExtractionResult
 from vetica_cli.io import read_table
 from vetica_cli.simulation.config import load
 from vetica_cli.simulation.instrument import noise_free
@@ -86,13 +86,16 @@ def test_method_in_the_base_or_by_set_and_the_saved_config_reruns():
     assert st2.points[0].method == "full" and st2.points[0].key == st.points[0].key
 
 
+ALLOWED = ", ".join(METHODS)  # the registered methods, in registration order
+
+
 @pytest.mark.parametrize(
     "raw, overrides, fragment",
     [
         ({"sweep": {"extract.method": ["vetica", "fit"]}}, None,
-         "sweep.extract.method: 'fit' is not allowed; expected one of: vetica, full"),
-        ({"sweep": {"extract.method": {"logspace": [0, 1, 2]}}}, None, "expected one of: vetica, full"),
-        ({"extract": {"method": "VETICA"}, "sweep": {"surface.cd": [1e-5]}}, None, "expected one of: vetica, full"),
+         f"sweep.extract.method: 'fit' is not allowed; expected one of: {ALLOWED}"),
+        ({"sweep": {"extract.method": {"logspace": [0, 1, 2]}}}, None, f"expected one of: {ALLOWED}"),
+        ({"extract": {"method": "VETICA"}, "sweep": {"surface.cd": [1e-5]}}, None, f"expected one of: {ALLOWED}"),
         ({"extract": {"forces": "true"}, "sweep": {"surface.cd": [1e-5]}}, None,
          "unknown key 'extract.forces'; allowed: extract.method, extract.force"),
         ({"extract": "full", "sweep": {"surface.cd": [1e-5]}}, None, "must be a mapping"),
@@ -115,7 +118,7 @@ def test_bad_method_on_the_command_line_exits_2_and_writes_nothing(tmp_path):
     r = runner.invoke(app, ["sweep", str(cfg), "-o", str(tmp_path / "out" / "t.parquet"), "-q"])
     assert r.exit_code == 2
     assert r.stderr.strip().splitlines() == [
-        "error: sweep.extract.method: 'fast' is not allowed; expected one of: vetica, full"]  # fmt: skip
+        f"error: sweep.extract.method: 'fast' is not allowed; expected one of: {ALLOWED}"]  # fmt: skip
     assert not (tmp_path / "out").exists()
 
 

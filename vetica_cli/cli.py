@@ -299,37 +299,143 @@ def extract(
         callback=checked("a radius > 0 m", lambda v: v > 0),
     ),
     a0: Optional[float] = typer.Option(
-        None, "--a0", help="--method full: intermolecular distance a0, m (default: metadata, else 0.2 nm assumed).",
-        callback=checked("a distance > 0 m", lambda v: v > 0),
+        None, "--a0", help="Intermolecular distance a0, m (default: the metadata's): Z1 = a0 (thesis eq. 84) for a "
+        "record without approach segment, z_tip measured from the undeformed surface; --method full fits with it "
+        "(else 0.2 nm assumed).", callback=checked("a distance > 0 m", lambda v: v > 0),
     ),
-    vdw_on_surface: str = typer.Option(
-        "auto", "--vdw-on-surface", help="--method full: does the attraction pull the surface too? true | false | "
-        "auto (the metadata's, else both fitted and the smaller residual kept)."
-    ),  # fmt: skip
-):
+    vdw_on_surface: Optional[bool] = typer.Option(
+        None, "--vdw-on-surface/--no-vdw-on-surface",
+        help="Whether the surface feels the tip's van der Waals pull (Z1 = a0 + Fa(a0)/Kg when it does; the pre-stress "
+        "of vetica-prestress); default: the metadata's; --method full fits both and keeps the better when unknown.",
+    ),
+    contact: Optional[List[str]] = typer.Option(
+        None, "--contact", help="Contact constant of the material units, key=value (repeatable): tip_radius (m), nu_tip, "
+        "nu_sample, e_tip (Pa); default thesis table 6 (R = the metadata's tip radius, else 10 nm).",
+    ),
+    prestress: Optional[str] = typer.Option(
+        None, "--prestress", help="vetica-prestress: auto (adhesion if the surface feels the pull, else creep), "
+        "adhesion, creep or fit.",
+    ),
+):  # fmt: skip
     """Extract k0, k_inf, cd (and tau_c, Kg, Kr, tau_r) from a run with VETICA
     or another registered method (--method; full fits the SLS or Wiechert surface
-    model to every sample: k_inf, k_1, cd_1, k_2, cd_2, ... for a Wiechert record).
+    model to every sample: k_inf, k_1, cd_1, k_2, cd_2, ... for a Wiechert record),
+    and the material units: DMT, glassy and rubbery moduli [Pa] and viscosity [Pa s]
+    (thesis 4.6.2, eqs. 90-92).
 
     Prints value, theory and error % (theory known only when the file's
     metadata holds the surface parameters), the spread over taps (or the fit's
     uncertainty), what was fitted and what assumed, the force-reconstruction error
-    against f_ts when both are present, and the extraction time.
+    against f_ts when both are present, and the extraction time.  A CSV or Parquet
+    with only t, z_tip and f_ts (or z_paddle with --k2 --f2 --q2) is read as
+    measured: Z1 from --z1, else from --a0 (thesis eq. 84) with
+    --vdw-on-surface/--no-vdw-on-surface.
     """
     import json
 
     from .errors import InputError
     from .extraction import extract_file
     from .extraction.format import format_table, to_json
+    from .extraction.material import parse_contact
 
-    pull = {"auto": None, "true": True, "false": False}
-    if vdw_on_surface not in pull:
-        raise InputError(f"--vdw-on-surface {vdw_on_surface!r} not allowed; choose one of: auto, true, false")
-    given = {"arms": arms, "hamaker": hamaker, "tip_radius": tip_radius, "a0": a0, "vdw_on_surface": pull[vdw_on_surface]}
-    options = {k: v for k, v in given.items() if v is not None}
-    res = extract_file(run, force=force, method=method, kg_points=kg_points,
-                       k2=k2, f2=f2, q2=q2, z1=z1, f1=f1, cutoff_hz=cutoff, **options)  # fmt: skip
+    given = {"arms": arms, "hamaker": hamaker, "tip_radius": tip_radius}
+    opts = {k: v for k, v in given.items() if v is not None}
+    if prestress is not None:
+        opts["prestress"] = prestress
+    res = extract_file(run, force=force, method=method, kg_points=kg_points, k2=k2, f2=f2, q2=q2, z1=z1, f1=f1,
+                       cutoff_hz=cutoff, a0=a0, vdw_on_surface=vdw_on_surface, contact=parse_contact(contact),
+                       **opts)  # fmt: skip
     typer.echo(json.dumps(to_json(res), allow_nan=False) if json_out else format_table(res, run))
+
+
+def _number(option: str, raw: Optional[str]) -> Optional[float]:
+    """A number option read as text, so that bad input is one line (InputError)."""
+    from .errors import InputError
+
+    if raw is None:
+        return None
+    try:
+        return float(raw)
+    except ValueError:
+        raise InputError(f"{option} {raw!r} is not allowed; expected a number") from None
+
+
+def _numbers(option: str, raw: Optional[str]) -> Optional[list]:
+    """A comma-separated list of numbers, e.g. --f1 10e3,50e3."""
+    from .errors import InputError
+
+    if raw is None:
+        return None
+    values = [_number(option, x.strip()) for x in raw.split(",") if x.strip()]
+    if not values:
+        raise InputError(f"{option} {raw!r} is not allowed; expected comma-separated numbers")
+    return values
+
+
+@app.command()
+@user_errors
+def advise(
+    k_inf: Optional[str] = typer.Option(None, "--k-inf", help="Equilibrium spring k_inf of the SLS, N/m."),
+    k0: Optional[str] = typer.Option(None, "--k0", help="Maxwell-arm spring k0, N/m."),
+    cd: Optional[str] = typer.Option(None, "--cd", help="Dashpot cd, kg/s."),
+    e_glassy: Optional[str] = typer.Option(None, "--e-glassy", help="Glassy sample modulus, Pa (instead of the springs)."),
+    e_rubbery: Optional[str] = typer.Option(None, "--e-rubbery", help="Rubbery sample modulus, Pa."),
+    tau_r: Optional[str] = typer.Option(None, "--tau-r", help="Relaxation time, s."),
+    depth: str = typer.Option("2e-9", "--depth", help="Penetration at which moduli become springs, m (thesis eqs. 90-92)."),
+    contact: Optional[List[str]] = typer.Option(
+        None, "--contact", help="Contact constant for the moduli, key=value: nu_tip, nu_sample, e_tip (Pa), tip_radius (m)."
+    ),
+    f1: Optional[str] = typer.Option(None, "--f1", help="Drive frequencies, Hz, comma-separated (f2 = 15 f1); "
+                                     "default 10e3,20e3,50e3,100e3."),  # fmt: skip
+    setpoint: Optional[str] = typer.Option(None, "--setpoint", help="Set points A_sp/A0; default 0.4,0.6,0.8."),
+    print_step: Optional[str] = typer.Option(None, "--print-step", help="Print steps, s; default 0.5e-9,2e-9,8e-9."),
+    k2: Optional[str] = typer.Option(None, "--k2", help="Paddle stiffnesses, N/m; default 200,700."),
+    methods: str = typer.Option("vetica-prestress,full", "--methods", help="Methods that must all recover the material."),
+    force: str = typer.Option("reconstructed", "--force", help="Force analysed: reconstructed (as measured) or true."),
+    set_: Optional[List[str]] = typer.Option(None, "--set", help="Probe/operation/numerics key of the base, e.g. "
+                                             "--set probe.k1=5 (not a knob, not the material)."),  # fmt: skip
+    jobs: int = typer.Option(2, "--jobs", "-j", help="Parallel workers (processes), one core each."),
+    output: Path = typer.Option(Path("advise.png"), "-o", "--output", help="PNG of the map to write."),
+    table: Optional[Path] = typer.Option(None, "--table", help="Also write every setting's row as Parquet."),
+    json_out: bool = typer.Option(False, "--json", help="Print one JSON object: {\"settings\": [...], ...}."),
+    quiet: bool = typer.Option(False, "--quiet", "-q", help="No progress bar."),
+):
+    """Which settings make the extraction work for a material: a small study over the
+    drive frequency (f2 = 15 f1), set point, print step and paddle stiffness within the
+    thesis's ranges, each setting simulated to its periodic state and extracted by every
+    method of --methods; prints the settings under which all of them recover the material
+    (tau_c error < 30 %, k0, k_inf, cd within 5 %), ranked by margin, and draws the map.
+    The keys of --json's settings can be passed to vetica simulate --set.
+    """
+    import json
+
+    from .extraction.material import parse_contact
+    from .plots.advise import write_advice_figure
+    from .simulation.config import parse_set
+    from .study.advise import advice_json, contact_for, format_advice, material_from
+    from .study.advise import advise as run_advice
+
+    overrides = parse_set(set_)
+    cm = contact_for(overrides, parse_contact(contact))
+    material = material_from(_number("--k-inf", k_inf), _number("--k0", k0), _number("--cd", cd),
+                             _number("--e-glassy", e_glassy), _number("--e-rubbery", e_rubbery),
+                             _number("--tau-r", tau_r), _number("--depth", depth), cm)  # fmt: skip
+    knobs = {"probe.f1": _numbers("--f1", f1), "operation.setpoint": _numbers("--setpoint", setpoint),
+             "numerics.print_step": _numbers("--print-step", print_step), "probe.k2": _numbers("--k2", k2)}  # fmt: skip
+    from .errors import InputError
+
+    if output.suffix.lower() != ".png":
+        raise InputError(f"-o {str(output)!r}: the map is written as PNG; expected a .png path")
+    if table is not None and table.suffix.lower() != ".parquet":
+        raise InputError(f"--table {str(table)!r}: the table is written as Parquet; expected a .parquet path")
+    adv = run_advice(material, overrides, knobs, [m.strip() for m in methods.split(",") if m.strip()], force, jobs,
+                     progress=not (quiet or json_out))  # fmt: skip
+    figure = write_advice_figure(adv, output)
+    if table is not None:
+        from .io import write_table
+
+        write_table(adv.table, table, advice_json(adv, figure))
+    typer.echo(json.dumps(advice_json(adv, figure), allow_nan=False) if json_out else format_advice(adv, figure))
 
 
 def main():  # pragma: no cover - console script entry

@@ -58,8 +58,9 @@ class ExtractionMethod(ABC):
     def run(self, record: Record, options: dict) -> ExtractionResult:
         """Extract the surface from one prepared record (options as :meth:`options` returns them)."""
 
-    def summary_lines(self, res: ExtractionResult) -> list[str]:
-        """Lines the text table adds for this method (e.g. what was fitted and what assumed)."""
+    def detail_lines(self, res: ExtractionResult) -> list[str]:
+        """Lines the text table adds about what the method did, e.g. what was fitted and what
+        assumed (default: none)."""
         return []
 
     def timing_line(self, timing_s: dict) -> str:

@@ -49,8 +49,9 @@ def format_table(res: ExtractionResult, source=None) -> str:
             f"{label + ' [' + e.unit + ']':<14}{_num(e.value):>13}{_num(e.theory):>13}"
             f"{_num(e.error_pct, '.2f'):>10}   {extra}"
         )
+    lines += _material_lines(res)
+    lines += method.detail_lines(res)
     lines += _reconstruction_lines(info)
-    lines += method.summary_lines(res)
     for k in res.fitted:
         e = res.estimates[k]
         if e.reason and e.identifiable is False:
@@ -60,6 +61,41 @@ def format_table(res: ExtractionResult, source=None) -> str:
     for w in res.warnings:
         lines.append(f"warning: {w}")
     return "\n".join(lines)
+
+
+def _si(v, unit: str) -> str:
+    """``v`` with an SI prefix: 1.23 GPa, 700 Pa s."""
+    if v is None:
+        return "-"
+    for scale, prefix in ((1e12, "T"), (1e9, "G"), (1e6, "M"), (1e3, "k"), (1.0, ""), (1e-3, "m"), (1e-6, "µ"),
+                          (1e-9, "n"), (1e-12, "p")):  # fmt: skip
+        if abs(v) >= scale:
+            return f"{v / scale:.4g} {prefix}{unit}"
+    return f"{v:.4g} {unit}"
+
+
+def _material_lines(res: ExtractionResult) -> list[str]:
+    """Material units (thesis 4.6.2): the moduli and viscosity, then the contact behind them."""
+    m, c = res.material, res.contact
+    if not m:
+        return []
+    lines = [f"{'material':<14}{'value':>13}{'theory':>13}{'error %':>10}"]
+    for name in ("E_dmt", "E_glassy", "E_rubbery", "viscosity"):
+        e = m.get(name)
+        if e is None:
+            continue
+        unit = e["unit"].replace(" ", "·")
+        lines.append(f"{name + ' [' + unit + ']':<14}{_num(e['value'], '.4g'):>13}{_num(e.get('theory'), '.4g'):>13}"
+                     f"{_num(e.get('error_pct'), '.2f'):>10}   {_si(e['value'], unit)}")  # fmt: skip
+    if c:
+        r = c["tip_radius"]["value"]
+        lines.append(
+            f"material from the peak force {_si(m['peak_force']['value'], 'N')} at {_si(m['penetration']['value'], 'm')} "
+            f"below Z1 (medians over taps); DMT contact (thesis eqs. 90-92): R {r * 1e9:.4g} nm "
+            f"({c.get('tip_radius_source', '?')}), nu tip {c['nu_tip']['value']:g}, nu sample {c['nu_sample']['value']:g}, "
+            f"E tip {c['e_tip']['value'] / 1e9:.4g} GPa; viscosity = E_dmt tau_r"
+        )
+    return lines
 
 
 def _reconstruction_lines(info: dict) -> list[str]:
@@ -81,8 +117,11 @@ def _reconstruction_lines(info: dict) -> list[str]:
 def to_json(res: ExtractionResult) -> dict:
     """The JSON object of ``vetica extract --json``: ``{quantity: {value, theory, error_pct,
     spread[, sigma][, identifiable, reason]}, ..., force, taps, method[, uncertainty,
-    identifiable, identifiable_reason], info}`` (the keys of version 0.1 plus ``sigma``,
-    ``identifiable`` and ``reason`` per quantity where the method reports them)."""
+    identifiable, identifiable_reason], material, contact_model, info}`` (the keys of version
+    0.1 plus ``sigma``, ``identifiable`` and ``reason`` per quantity where the method reports
+    them, and the material units: ``material = {E_dmt, E_glassy, E_rubbery, viscosity,
+    peak_force, penetration: {value, unit, description[, theory, error_pct]}}`` with the
+    contact model behind them in ``contact_model``, thesis 4.6.2)."""
     out: dict = {}
     for name, e in res.estimates.items():
         entry = {
@@ -102,6 +141,9 @@ def to_json(res: ExtractionResult) -> dict:
     if res.fitted:
         out["identifiable"] = {k: bool(res.estimates[k].identifiable) for k in res.fitted}
         out["identifiable_reason"] = {k: res.estimates[k].reason for k in res.fitted}
+    if res.material is not None:
+        out["material"] = res.material
+        out["contact_model"] = res.contact
     info = {**res.info, "timing_s": res.timing_s}
     if res.diagnostics is not None:
         info["diagnostics"] = res.diagnostics

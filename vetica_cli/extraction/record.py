@@ -7,6 +7,20 @@ the window around the first contact, 'steady' = the taps to analyse), and the
 ``vetica`` metadata dict written by ``vetica simulate`` ({} for measured
 data: then the probe's ``k2, f2, q2`` and ``Z1`` come as keyword arguments).
 
+A record as an instrument gives it -- ``t``, ``z_tip`` and ``f_ts`` (or
+``z_paddle`` with the paddle's constants), any whole number of drive periods,
+starting anywhere in a tap, no segment column, no metadata -- is analysed as it
+is: every row is the steady record, taps cut by its ends are dropped, and
+``Z1`` (the undeformed-surface reference of thesis eq. 84) comes from, in this
+order: the ``z1`` keyword; the first force minimum of an 'approach' segment; the
+metadata's ``z1`` observable; else thesis eq. 84 on the record (:func:`z1_estimate`):
+``Z1 = a0`` with ``z_tip`` measured from the undeformed surface and the surface not
+feeling the pull (the thesis's assumption), or ``Z1 = a0 + |Fc|/Kg`` when it does
+(the surface jumps up by the adhesion over its glassy stiffness as contact starts),
+with ``a0`` and the pull from the keywords or the metadata -- never a silent
+default (an InputError says what to pass).  The choice is recorded in
+``info['z1_source']`` and printed by the formatter.
+
 :func:`build_record` checks the columns, picks the segments, builds the force
 (true or reconstructed), finds ``Z1`` and the surface's theory values, and
 raises :class:`~vetica_cli.errors.InputError` (one line) for whatever is missing.
@@ -24,7 +38,7 @@ import pandas as pd
 from .. import surfaces
 from ..errors import ConfigError, InputError
 from ..signals.spectral import reconstruct_force, reconstruction_error
-from ..signals.taps import first_contact_minimum
+from ..signals.taps import contact_slopes, find_taps, first_contact_minimum
 
 SOURCES = ("true", "reconstructed")  # force sources: the f_ts column, or rebuilt from the paddle signal
 FORCES = ("auto", *SOURCES)  # auto = reconstructed when z_paddle is present
@@ -43,8 +57,10 @@ class Record:
     model: surfaces.SurfaceModel  # the surface the metadata describes (default: the SLS)
     truth: dict | None  # theory values of the model's quantities, when the metadata holds its parameters
     params: dict = field(default_factory=dict)  # resolved parameters of the metadata ({} for measured data)
-    info: dict = field(default_factory=dict)  # cutoff_hz, reconstruction_error, cutoff_harmonic, z1, z1_source
-    meta_warnings: list = field(default_factory=list)  # warnings the simulation recorded
+    info: dict = field(default_factory=dict)  # cutoff_hz, reconstruction_error, cutoff_harmonic, z1, z1_source, periods
+    meta_warnings: list = field(default_factory=list)  # warnings the simulation recorded, then the record's own
+    a0: float | None = None  # [m] intermolecular distance: the keyword, else the metadata, else unknown
+    vdw_on_surface: bool | None = None  # does the surface feel the pull: the keyword, else the metadata, else unknown
     t_start: float = 0.0  # perf_counter when the record was started
     t_force: float = 0.0  # perf_counter when the force was ready
 
@@ -162,12 +178,57 @@ def _steady_force(steady, force_of: _ForceSource, f1: float | None) -> np.ndarra
     return f
 
 
-def _z1_reference(approach, z1, meta, force_of: _ForceSource, need_approach: bool, need_z1: bool = True):
+def z1_estimate(z: np.ndarray, f: np.ndarray, a0: float, pull: bool, kg_points: int = 10) -> tuple[float, str]:
+    """Z1 from a steady record alone, with ``z_tip`` measured from the undeformed surface
+    (thesis eq. 84) [m], and the text saying how.
+
+    Without the surface pull the tip meets the undeformed surface at ``Z1 = a0``
+    (eq. 84, the thesis's assumption).  When the surface feels the pull it is lifted
+    by the adhesion ``Fa(a0)`` as contact starts, against its glassy (instantaneous)
+    stiffness: ``Z1 = a0 + Fa(a0)/Kg``, with ``Fa(a0) = -Fc`` the force at the contact
+    minima of the record and ``Kg`` their initial contact slope (stage 1b, eq. 86,
+    ``kg_points`` samples), medians over the taps.  The creep of the surface during a
+    slow first approach (which a recorded approach includes) is not in this estimate.
+    """
+    if not pull:
+        return float(a0), f"thesis eq. 84: Z1 = a0 = {a0 * 1e9:.4g} nm (surface not pulled)"
+    taps = find_taps(f)
+    if len(taps.contact) == 0:
+        raise InputError("Z1 unknown: no complete tap in the record to measure the adhesion and Kg; pass --z1")
+    fa = -float(np.median(f[taps.contact]))
+    slopes = contact_slopes(z, f, taps, kg_points)
+    kg = float(np.nanmedian(slopes)) if np.any(np.isfinite(slopes)) else math.nan
+    if not (fa > 0 and math.isfinite(kg) and kg > 0):
+        raise InputError(
+            f"Z1 unknown: the record shows no adhesion at contact ({-fa:.3g} N) or no positive initial contact "
+            f"slope ({kg:.3g} N/m) for Z1 = a0 + Fa(a0)/Kg; pass --z1"
+        )
+    z1 = a0 + fa / kg
+    return z1, (f"thesis eq. 84 with the surface pull: Z1 = a0 + Fa(a0)/Kg = {a0 * 1e9:.4g} nm + "
+                f"{fa * 1e9:.4g} nN / {kg:.4g} N/m")  # fmt: skip
+
+
+def _known(value, meta_value, name: str, info: dict):
+    """A constant from the keyword, else the metadata, else None; its source in ``info``."""
+    if value is not None:
+        info[f"{name}_source"] = "given"
+        return value
+    if meta_value is not None:
+        info[f"{name}_source"] = "metadata"
+        return meta_value
+    return None
+
+
+def _z1_reference(approach, z1, meta, force_of: _ForceSource, need_approach: bool, steady, a0, pull,
+                  need_z1: bool = True):  # fmt: skip
     """Z1, the undeformed-surface reference (thesis eq. 84): ``z1`` if given, else the tip
     position at the first force minimum of the approach segment, else the metadata's
-    observable.  Returns ``(z1, approach_record)`` with ``approach_record = (z_tip, force,
-    index of Z1)`` when the approach segment was analysed (always with ``need_approach``,
-    else only when Z1 comes from it); records the value and its source in the info."""
+    observable, else :func:`z1_estimate` on the steady record ``steady = (z, f)`` when
+    ``a0`` and the pull are known.  Returns ``(z1, approach_record)`` with
+    ``approach_record = (z_tip, force, index of Z1)`` when the approach segment was
+    analysed (always with ``need_approach``, else only when Z1 comes from it); without
+    ``need_z1`` a record with no way to Z1 gets None.  Records the value and its source in
+    the info."""
     rec = None
     if approach is not None and (z1 is None or need_approach):
         ta = column(approach, "t", "the approach segment")
@@ -181,13 +242,33 @@ def _z1_reference(approach, z1, meta, force_of: _ForceSource, need_approach: boo
         value, source = float(rec[0][rec[2]]), "approach segment"
     elif (meta.get("observables") or {}).get("z1") is not None:
         value, source = float(meta["observables"]["z1"]), "metadata"
+    elif a0 is not None and pull is not None:
+        value, source = z1_estimate(steady[0], steady[1], a0, bool(pull))
     elif not need_z1:  # the method works without it (e.g. the whole-cycle fit fits the surface height)
         value, source = None, "unknown: no approach segment, no metadata"
+    elif a0 is not None:
+        raise InputError(
+            "Z1 unknown: the table has no 'approach' segment and no metadata, and Z1 = a0 (thesis eq. 84) needs to know "
+            "whether the surface feels the tip's pull: pass --vdw-on-surface or --no-vdw-on-surface, or --z1"
+        )
     else:
-        raise InputError("Z1 unknown: the table has no 'approach' segment and no metadata; pass --z1")
+        raise InputError(
+            "Z1 unknown: the table has no 'approach' segment and no metadata; pass --z1 (tip position at the first "
+            "approach force minimum), or --a0 when z_tip is measured from the undeformed surface (thesis eq. 84)"
+        )
     force_of.info["z1"] = value
     force_of.info["z1_source"] = source
     return value, rec
+
+
+def drive_periods(f: np.ndarray) -> float | None:
+    """Drive periods the record spans [periods]: its length over the median tap spacing
+    (one tap per period in tapping mode); None when the force shows fewer than two taps."""
+    try:
+        taps = find_taps(f)
+    except InputError:
+        return None
+    return len(f) / taps.spacing if taps.spacing > 0 else None
 
 
 def surface_of(params: dict) -> tuple[surfaces.SurfaceModel, dict | None]:
@@ -218,6 +299,8 @@ def build_record(
     f1: float | None = None,
     cutoff_hz: float | None = None,
     taper: float = 0.0,
+    a0: float | None = None,
+    vdw_on_surface: bool | None = None,
 ) -> Record:
     """Check a run table and prepare its steady record (module docstring).
 
@@ -226,7 +309,8 @@ def build_record(
     low-pass ``cutoff_hz``, default the Nyquist frequency, with a raised-cosine
     ``taper``); 'auto' = reconstructed when ``z_paddle`` is present.  ``Z1`` comes
     from ``z1`` if given, else from the first force minimum of the 'approach'
-    segment (with the chosen force), else from the metadata; ``need_approach``
+    segment (with the chosen force), else from the metadata, else thesis eq. 84 from ``a0``
+    and ``vdw_on_surface`` (the keywords, else the metadata's); ``need_approach``
     analyses the approach segment even when ``z1`` is given; without ``need_z1`` a record
     with no way to Z1 gets ``z1 = None`` instead of an error.  ``uniform``: the name
     of a method that needs a constant time step (checked before the force is
@@ -254,8 +338,24 @@ def build_record(
     force_of = _ForceSource(force, params.get("probe") or {}, info, k2, f2, q2, cutoff_hz, taper)
     f = _steady_force(steady, force_of, f1)
     t_force = time.perf_counter()
-    z1_value, approach_rec = _z1_reference(approach, z1, meta, force_of, need_approach, need_z1)
+    surface = params.get("surface") or {}
+    a0 = _known(a0, surface.get("a0"), "a0", info)
+    pull = _known(vdw_on_surface, surface.get("vdw_on_surface"), "vdw_on_surface", info)
+    if a0 is not None and not (math.isfinite(a0) and a0 > 0):
+        raise InputError(f"a0 {a0!r} not allowed; expected a distance > 0 m")
+    z1_value, approach_rec = _z1_reference(approach, z1, meta, force_of, need_approach, (z, f), a0, pull, need_z1)
+    if z1_value is not None and not math.isfinite(z1_value):
+        raise InputError(f"z1 {z1_value!r} not allowed; expected a finite tip position in m")
+    warnings = list(meta.get("warnings") or [])
+    periods = drive_periods(f)
+    if periods is not None:
+        info["periods"] = periods
+        if force == "reconstructed" and abs(periods - round(periods)) > 0.05:
+            warnings.append(
+                f"the record spans {periods:.2f} drive periods: the spectral inversion assumes a whole number "
+                "(the window's ends leak into the reconstructed force)"
+            )
     model, truth = surface_of(params)
     return Record(t=t, z=z, f=f, force=force, z1=z1_value, approach=approach_rec, model=model, truth=truth,
-                  params=params, info=info, meta_warnings=list(meta.get("warnings") or []),
-                  t_start=t_start, t_force=t_force)  # fmt: skip
+                  params=params, info=info, meta_warnings=warnings, t_start=t_start, t_force=t_force,
+                  a0=None if a0 is None else float(a0), vdw_on_surface=None if pull is None else bool(pull))  # fmt: skip

@@ -83,6 +83,8 @@ class ExtractionResult:
     diagnostics: dict | None = None  # per-method fit quality numbers
     warnings: list = field(default_factory=list)
     timing_s: dict = field(default_factory=dict)  # wall seconds per stage and 'total'
+    material: dict | None = None  # material units (extraction.material): name -> {value, unit, ...}
+    contact: dict | None = None  # the contact model and constants behind ``material``
 
     def value(self, name: str) -> float | None:
         e = self.estimates.get(name)

@@ -52,7 +52,7 @@ import numpy as np
 from scipy.optimize import brentq, least_squares, minimize_scalar
 
 from ..errors import InputError
-from ..signals.taps import Taps, find_taps
+from ..signals.taps import Taps, contact_slopes, find_taps
 from .base import ExtractionMethod, register
 from .record import Record
 from .result import ExtractionResult, Spread, estimates
@@ -88,16 +88,9 @@ def stage1a_tau_c(t: np.ndarray, z: np.ndarray, taps: Taps, z1: float) -> np.nda
 
 def stage1b_kg(z: np.ndarray, f: np.ndarray, taps: Taps, points: int = 10) -> np.ndarray:
     """Glassy stiffness of each tap: ``-dF/dz_tip`` fitted over ``points``
-    samples after the contact minimum (thesis 4.3.2, eq. 86) [N/m]."""
-    out = []
-    for ic, isep in zip(taps.contact, taps.separation):
-        a, b = ic + 1, ic + 1 + points
-        if b > isep:
-            out.append(math.nan)
-            continue
-        slope = np.polyfit(z[a:b], f[a:b], 1)[0]
-        out.append(-slope)
-    return np.array(out)
+    samples after the contact minimum (thesis 4.3.2, eq. 86) [N/m]
+    (:func:`vetica_cli.signals.taps.contact_slopes`)."""
+    return contact_slopes(z, f, taps, points)
 
 
 # ----------------------------------------------------------------------------- stage 2

@@ -117,3 +117,18 @@ def first_contact_minimum(f: np.ndarray) -> int:
     start = int(np.argmax(deep))
     stop = start + (int(np.argmin(deep[start:])) if not deep[start:].all() else len(deep) - start)
     return start + int(np.argmin(before[start:stop]))
+
+
+def contact_slopes(z: np.ndarray, f: np.ndarray, taps: Taps, points: int = 10) -> np.ndarray:
+    """Initial contact slope of each tap, ``-dF/dz_tip`` [N/m]: a straight-line fit of the
+    force against the tip position over the ``points`` samples after the contact minimum
+    (thesis 4.3.2, eq. 86: VETICA's stage 1b, the glassy stiffness Kg).  nan for a tap whose
+    contact is shorter than ``points`` samples."""
+    out = []
+    for ic, isep in zip(taps.contact, taps.separation):
+        a, b = ic + 1, ic + 1 + points
+        if b > isep:
+            out.append(np.nan)
+            continue
+        out.append(-np.polyfit(z[a:b], f[a:b], 1)[0])
+    return np.array(out, dtype=float)

@@ -41,6 +41,12 @@ simulated; they may be swept or set in an ``extract:`` section of the base:
   ``reconstructed`` (one row).  E.g. with detector noise the reconstruction at
   the Nyquist cut-off is hopeless and costly; zip it with the noise key.
 
+The optional ``material:`` section sets the contact model of the table's material
+columns (thesis 4.6.2, table 6; :mod:`vetica_cli.extraction.material`): ``tip_radius``
+(default: each point's ``probe.tip_radius``), ``nu_tip``, ``nu_sample``, ``e_tip``.
+It is applied when the table is assembled, so changing it recomputes no point
+(``--set material.nu_sample=0.45`` works too).
+
 Every problem raises :class:`ConfigError` with one line before any job starts:
 unknown key, bad range, empty grid, an invalid point (with the point named),
 duplicate points.
@@ -59,6 +65,7 @@ from typing import Any
 from .. import __version__
 from ..errors import ConfigError
 from ..extraction import DEFAULT_METHOD, METHODS, SOURCES
+from ..extraction.material import CONTACT_KEYS, contact_model
 from ..simulation.config import (
     DERIVED,
     SECTIONS,
@@ -79,6 +86,7 @@ EXTRACT_KEYS = {
     "extract.force": (("both", *SOURCES), "both"),
 }
 EXTRACT_SECTION = "extract"
+MATERIAL_SECTION = "material"  # contact model of the material columns (applied at assembly)
 RANGE_FORMS = ("logspace", "linspace")
 
 
@@ -133,6 +141,7 @@ class Study:
     base: dict  # base sections as given (after overrides), derived keys included
     sweep: dict  # the sweep block as given
     extract: dict = None  # the base 'extract:' section as given (after overrides), e.g. {"method": "full"}
+    material: dict = None  # the 'material:' section as given (after overrides), e.g. {"nu_sample": 0.45}
 
     def resolved(self) -> dict:
         """A re-runnable study config: every base key resolved, sweep block as given."""
@@ -153,6 +162,8 @@ class Study:
         out.update(base)
         if self.extract:
             out[EXTRACT_SECTION] = dict(self.extract)
+        if self.material:
+            out[MATERIAL_SECTION] = dict(self.material)
         out["sweep"] = self.sweep
         return out
 
@@ -353,6 +364,7 @@ class Grid:
     base_derived: dict  # derived dotted key -> value set in the base
     sweep: Any  # the sweep block as given
     extract: dict  # the base 'extract:' section (after overrides)
+    material: dict = None  # the 'material:' section (after overrides)
 
     @property
     def n_points(self) -> int:
@@ -408,7 +420,7 @@ class Grid:
     def study(self, on_progress=None) -> Study:
         """The :class:`Study` with every point resolved (:meth:`points`)."""
         return Study(name=self.name, description=self.description, keys=self.keys, points=self.points(on_progress),
-                     base=self.base, sweep=self.sweep, extract=self.extract)  # fmt: skip
+                     base=self.base, sweep=self.sweep, extract=self.extract, material=self.material)  # fmt: skip
 
 
 def grid(raw: dict, name: str = "study", overrides: dict | None = None) -> Grid:
@@ -416,21 +428,27 @@ def grid(raw: dict, name: str = "study", overrides: dict | None = None) -> Grid:
     extract section and the overrides checked; no point resolved yet."""
     if not isinstance(raw, dict):
         raise ConfigError(f"a study config must be a mapping, got {type(raw).__name__}")
-    allowed_top = set(SECTIONS) | {EXTRACT_SECTION, "sweep", *META_KEYS}
+    allowed_top = set(SECTIONS) | {EXTRACT_SECTION, MATERIAL_SECTION, "sweep", *META_KEYS}
     for k in raw:
         if k not in allowed_top:
-            allowed = ", ".join([*SECTIONS, EXTRACT_SECTION, "sweep", *META_KEYS])
+            allowed = ", ".join([*SECTIONS, EXTRACT_SECTION, MATERIAL_SECTION, "sweep", *META_KEYS])
             raise ConfigError(f"unknown top-level key {k!r}; allowed: {allowed}")
     name = str(raw.get("name") or name)
     description = str(raw.get("description") or "")
     sweep = raw.get("sweep")
     base = {k: (dict(v) if isinstance(v, dict) else v) for k, v in raw.items() if k in SECTIONS}
     extract = _extract_section(raw.get(EXTRACT_SECTION))
+    material = _material_section(raw.get(MATERIAL_SECTION))
     keys, factors = _factors(sweep)
-    _apply_overrides(base, extract, keys, overrides or {})
+    overrides = dict(overrides or {})
+    for key in [k for k in overrides if k.startswith(MATERIAL_SECTION + ".")]:
+        material[key.split(".", 1)[1]] = overrides.pop(key)
+    material = _material_section(material, "--set material")
+    _apply_overrides(base, extract, keys, overrides)
     base_clean, base_derived = _split_derived(base)
     return Grid(name=name, description=description, keys=tuple(keys), factors=tuple(factors), base=base,
-                base_clean=base_clean, base_derived=base_derived, sweep=sweep, extract=extract)  # fmt: skip
+                base_clean=base_clean, base_derived=base_derived, sweep=sweep, extract=extract,
+                material=material)  # fmt: skip
 
 
 def expand(raw: dict, name: str = "study", overrides: dict | None = None) -> Study:
@@ -511,6 +529,17 @@ def _extract_section(body: Any) -> dict:
 def load_grid(path: str | Path, overrides: dict | None = None) -> Grid:
     """Read a study YAML as a :class:`Grid` (no point resolved); the name defaults to the file stem."""
     return grid(read_yaml(path), name=Path(path).stem, overrides=overrides)
+
+
+def _material_section(body: Any, where: str = MATERIAL_SECTION) -> dict:
+    """The ``material:`` section, checked (keys of the contact model, values in range):
+    ``{key: float}``; ConfigError (one line) otherwise."""
+    if body is None:
+        return {}
+    if not isinstance(body, dict):
+        raise ConfigError(f"section {MATERIAL_SECTION!r} must be a mapping of {', '.join(CONTACT_KEYS)}, got {body!r}")
+    cm = contact_model(body, where=where)
+    return {k: getattr(cm, k) for k in body}
 
 
 def load_study(path: str | Path, overrides: dict | None = None) -> Study:

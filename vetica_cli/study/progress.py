@@ -6,7 +6,8 @@ from __future__ import annotations
 class Progress:
     """Rich progress bar: points done, failures, time left (stderr)."""
 
-    def __init__(self, total: int, done: int, failed: int, enabled: bool = True, console=None):
+    def __init__(self, total: int, done: int, failed: int, enabled: bool = True, console=None, label: str = "sweep",
+                 unit: str = "points"):  # fmt: skip
         self.enabled = enabled and total > 0
         self.total, self.done0, self.failed = total, done, failed
         self.progress = None
@@ -22,16 +23,16 @@ class Progress:
             )
 
             self.progress = Progress(
-                TextColumn("[bold]sweep"),
+                TextColumn(f"[bold]{label}"),
                 BarColumn(),
                 MofNCompleteColumn(),
-                TextColumn("points, {task.fields[failed]} failed"),
+                TextColumn(unit + ", {task.fields[failed]} failed"),
                 TimeElapsedColumn(),
                 TextColumn("left"),
                 TimeRemainingColumn(),
                 console=console or Console(stderr=True),
             )
-            self.task = self.progress.add_task("sweep", total=total, completed=done, failed=failed)
+            self.task = self.progress.add_task(label, total=total, completed=done, failed=failed)
 
     def __enter__(self):
         if self.progress is not None:

@@ -5,15 +5,21 @@ observables), and the assembly of the persisted points into one table.
 One row per (point, force source): ``method``, ``force_source``, each quantity the
 surface model reports with ``_theory`` and ``_err_pct``, the relative 1-sigma of
 its parameters (``_sigma_pct``), ``unidentified``, ``taps``, the run observables,
-``stop_reason``, ``sim_time``, ``status``, ``error``, ``wall_s``.
+the record's peak force and penetration below Z1 (``tap_peak_force``,
+``tap_depth``), the material units computed from them when the table is assembled
+(:func:`material_columns`: ``E_dmt``, ``E_glassy``, ``E_rubbery``, ``viscosity``, the
+last three also as ``_theory``; thesis 4.6.2, eqs. 90-92, with the study's contact
+model), ``stop_reason``, ``sim_time``, ``status``, ``error``, ``wall_s``.
 """
 
 from __future__ import annotations
 
+import numpy as np
 import pandas as pd
 
 from .. import surfaces
 from ..extraction import METHODS, SOURCES
+from ..extraction.material import CONTACT_UNITS, MATERIAL_UNITS, contact_metadata, contact_model, moduli
 from ..simulation.observables import OBSERVABLE_UNITS
 from .grid import EXTRACT_KEYS, Study
 
@@ -22,6 +28,11 @@ from .grid import EXTRACT_KEYS, Study
 # is not proven periodic (values, if any, are not trustworthy); failed = the simulation or extraction raised
 STATUSES = ("ok", "no_estimate", "not_steady", "failed")
 OBSERVABLES = tuple(OBSERVABLE_UNITS)
+# column -> entry of the extraction's material object: the record's contact, the material columns' inputs
+MATERIAL_INPUTS = {"tap_peak_force": "peak_force", "tap_depth": "penetration"}
+# material columns computed when the table is assembled (the moduli from Kg, Kr also from their theory values)
+MATERIAL_COLUMNS = ("E_dmt", "E_glassy", "E_glassy_theory", "E_rubbery", "E_rubbery_theory", "viscosity",
+                    "viscosity_theory")  # fmt: skip
 
 
 def point_sources(force: str = "both") -> tuple:
@@ -56,7 +67,8 @@ def result_columns(models=None) -> list[str]:
     for name in quantities:
         cols += [name, f"{name}_theory", f"{name}_err_pct"]
     cols += [f"{name}_sigma_pct" for name in sigmas]
-    cols += ["unidentified", "taps", *OBSERVABLES, "stop_reason", "sim_time", "status", "error", "wall_s"]
+    cols += ["unidentified", "taps", *OBSERVABLES, *MATERIAL_INPUTS, "stop_reason", "sim_time", "status", "error",
+             "wall_s"]  # fmt: skip
     return cols
 
 
@@ -84,6 +96,18 @@ def column_units(study: Study) -> dict:
     units["taps"] = "complete taps in the record"
     for name in OBSERVABLES:
         units[name] = OBSERVABLE_UNITS.get(name, "")
+    for col, entry in MATERIAL_INPUTS.items():
+        unit, desc = CONTACT_UNITS[entry]
+        units[col] = f"{unit}: the record's {desc}, as the row's extraction saw it"
+    for col in MATERIAL_COLUMNS:
+        name = col.removesuffix("_theory")
+        unit, desc = MATERIAL_UNITS[name]
+        src = "the theory values of" if col.endswith("_theory") else "the row's estimates of"
+        needs = {"E_dmt": "", "E_glassy": f", tap_depth and {src} Kg", "E_rubbery": f", tap_depth and {src} Kr",
+                 "viscosity": f", tap_depth and {src} tau_r"}[name]  # fmt: skip
+        units[col] = (
+            f"{unit}: {desc}; from tap_peak_force{needs or ' and tap_depth'} (contact model: metadata 'material')"
+        )
     units["stop_reason"] = (
         "steady | steady (transient fallback) | max_time | max_time (orbit solver failed): steady = the recorded "
         "window is proven periodic"
@@ -126,4 +150,53 @@ def assemble(study: Study, done: dict) -> pd.DataFrame:
     table["method"] = table["method"].astype(str)
     table["stop_reason"] = table["stop_reason"].fillna("").astype(str)
     table["taps"] = table["taps"].astype("int64")
-    return table
+    return material_columns(table, study)
+
+
+def point_contact(study: Study) -> dict:
+    """Point key -> the contact model of its material columns: the study's ``material:``
+    section over thesis table 6, the tip radius defaulting to the point's probe."""
+    over = study.material or {}
+    return {p.key: contact_model(over, p.config.probe.tip_radius, where="material") for p in study.points}
+
+
+def material_columns(table: pd.DataFrame, study: Study) -> pd.DataFrame:
+    """The table with :data:`MATERIAL_COLUMNS` inserted after ``tap_depth`` (thesis 4.6.2,
+    eqs. 90-92; :func:`vetica_cli.extraction.material.moduli`): from the record's peak force
+    and penetration and the row's ``k_g, k_r, tau_r`` (estimates and theory values)."""
+    cms = point_contact(study)
+    out = {c: np.full(len(table), np.nan) for c in MATERIAL_COLUMNS}
+
+    def col(name):
+        return table[name].to_numpy(float) if name in table.columns else np.full(len(table), np.nan)
+
+    keys = table["point"].to_numpy()
+    for cm in set(cms.values()):
+        rows = np.isin(keys, [k for k, v in cms.items() if v == cm])
+        if not rows.any():
+            continue
+        peak, depth = col("tap_peak_force")[rows], col("tap_depth")[rows]
+        for suffix in ("", "_theory"):
+            m = moduli(
+                peak, depth, col("k_g" + suffix)[rows], col("k_r" + suffix)[rows], col("tau_r" + suffix)[rows], cm
+            )
+            for name, values in m.items():
+                if name + suffix in out:
+                    out[name + suffix][rows] = values
+    at = table.columns.get_loc("tap_depth") + 1 if "tap_depth" in table.columns else len(table.columns)
+    left, right = table.iloc[:, :at], table.iloc[:, at:]
+    return pd.concat([left, pd.DataFrame(out, index=table.index), right], axis=1)
+
+
+def material_metadata(study: Study) -> dict:
+    """The contact model of the material columns, for the table's metadata: thesis table 6
+    with the study's ``material:`` section over it (the tip radius: the points' probe
+    unless the section sets it)."""
+    over = study.material or {}
+    radii = sorted({p.config.probe.tip_radius for p in study.points})
+    cm = contact_model(over, radii[0], where="material")
+    source = "study material section" if "tip_radius" in over else "probe.tip_radius of each point"
+    meta = contact_metadata(cm, source)
+    if len(radii) > 1 and "tip_radius" not in over:
+        meta["tip_radius"] = {"value": radii, "unit": "m"}
+    return meta

@@ -55,7 +55,7 @@ from .launch import Launcher, LokyLauncher, check_launcher_options, make_launche
 from .lock import lock_path, output_lock
 from .plan import plan
 from .progress import Progress
-from .schema import STATUSES, assemble, column_units
+from .schema import STATUSES, assemble, column_units, material_metadata
 from .store import code_fingerprint, parts_dir, remove_parts, rows_frame, scan_parts, write_part
 from .task import PointTask
 
@@ -249,6 +249,7 @@ def _write_table(study, output, done) -> SweepResult:
         "config": study.resolved(),
         "swept_keys": list(study.keys),
         "units": column_units(study),
+        "material": material_metadata(study),
         "version": __version__,
         "code": code_fingerprint(),
         "points": len(study.points),

@@ -19,7 +19,7 @@ from ..simulation.config import Config, from_dict
 from ..simulation.instrument import noise_free
 from ..simulation.simulate import Run, simulate
 from .plan import point_run
-from .schema import OBSERVABLES, point_sources, sigma_names
+from .schema import MATERIAL_INPUTS, OBSERVABLES, point_sources, sigma_names
 
 Item = tuple  # (point key, resolved config dict, extract.method, extract.force)
 Rows = list  # of dicts keyed by schema.result_columns()
@@ -59,6 +59,8 @@ def nan_row(cfg: Config, source: str, method: str = DEFAULT_METHOD) -> dict:
     row["taps"] = -1
     for name in OBSERVABLES:
         row[name] = math.nan
+    for name in MATERIAL_INPUTS:
+        row[name] = math.nan
     row.update(stop_reason="", sim_time=math.nan, status="failed", error="", wall_s=0.0)
     return row
 
@@ -78,6 +80,8 @@ def fill_row(row: dict, res: ExtractionResult, fitted: tuple[str, ...]) -> None:
         row[f"{name}_sigma_pct"] = 100.0 * sigma if math.isfinite(sigma) else math.nan
     row["unidentified"] = ",".join(k for k in fitted if k in res.estimates and res.estimates[k].identifiable is False)
     row["taps"] = int(res.taps if res.taps is not None else -1)
+    for name, entry in MATERIAL_INPUTS.items():  # the record's contact: the material columns' inputs
+        row[name] = _float(((res.material or {}).get(entry) or {}).get("value"))
 
 
 def missing_estimates(row: dict, res: ExtractionResult) -> list[str]:

@@ -418,7 +418,7 @@ class FullFit(ExtractionMethod):
                                 model=surface.key, fitted=tuple(ident), info=info,
                                 warnings=warnings + record.meta_warnings)  # fmt: skip
 
-    def summary_lines(self, res: ExtractionResult) -> list[str]:
+    def detail_lines(self, res: ExtractionResult) -> list[str]:
         """What was fitted and what known or assumed (the constants of the attraction, the
         surface pull, the surface height): the record's metadata, an option or the thesis."""
         c = res.info.get("constants") or {}

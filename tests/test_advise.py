@@ -1,0 +1,159 @@
+"""`vetica advise` (issue 10 item 4): material input, the knob grid, the print-step
+subsampling, the margin and ranking, the JSON settings as config keys, and one-line
+errors with exit status 2.
+
+References: the conversion of thesis eqs. 90-92 (moduli -> springs -> moduli round trip,
+rtol 1e-12), a separate simulation at the coarser print step (the subsampled record
+must equal it within the orbit solver's tolerance, numerics.tol_orbit = 1e-13 m: both
+runs solve the same periodic orbit to it), the margin's definition (module
+docstring of vetica_cli/study/advise.py), and the config schema (every settings key
+must be accepted by `vetica simulate --set`).
+"""
+
+import json
+import math
+
+import numpy as np
+import pytest
+from typer.testing import CliRunner
+
+from vetica_cli.cli import app
+from vetica_cli.errors import ConfigError, InputError
+from vetica_cli.extraction.material import ContactModel, moduli
+from vetica_cli.simulation.config import load
+from vetica_cli.simulation.simulate import simulate
+from vetica_cli.study.advise import (
+    KNOBS,
+    SETTING_KEYS,
+    advice_json,
+    advise,
+    format_advice,
+    knob_values,
+    margin,
+    material_from,
+    subsample_record,
+)
+
+runner = CliRunner()
+
+
+def test_material_from_springs_and_from_moduli():
+    m = material_from(4, 64, 3e-3)
+    assert (m.k_inf, m.k0, m.cd) == (4.0, 64.0, 3e-3)
+    cm = ContactModel()
+    mm = material_from(e_glassy=5e9, e_rubbery=2e8, tau_r=1e-5, depth=2e-9, cm=cm)
+    back = moduli(1.0, 2e-9, mm.k0 + mm.k_inf, mm.k_inf, mm.cd / mm.k0, cm)
+    assert back["E_glassy"] == pytest.approx(5e9, rel=1e-12)
+    assert back["E_rubbery"] == pytest.approx(2e8, rel=1e-12)
+    assert mm.cd / mm.k0 == pytest.approx(1e-5, rel=1e-12)  # tau_r = cd / k0
+
+
+@pytest.mark.parametrize(
+    "kw, fragment",
+    [({"k_inf": 4, "k0": 64}, "missing --cd; give the material as --k-inf --k0 --cd"),
+     ({"k_inf": 4, "k0": -1, "cd": 1}, "--k0 -1 is not allowed; expected a finite number > 0"),
+     ({"k_inf": 4, "k0": 64, "cd": math.nan}, "--cd nan is not allowed"),
+     ({"k_inf": 4, "e_glassy": 1e9}, "mix two ways"),
+     ({"e_glassy": 1e8, "e_rubbery": 1e9, "tau_r": 1}, "--e-glassy 1e+08 must exceed --e-rubbery"),
+     ({}, "no material given")],
+)  # fmt: skip
+def test_bad_material_is_a_one_line_error(kw, fragment):
+    with pytest.raises(InputError) as exc:
+        material_from(**kw)
+    assert fragment in str(exc.value) and "\n" not in str(exc.value)
+
+
+def test_margin_is_the_smallest_headroom_against_the_limits():
+    """min(1 - |tau_c|/30, 1 - |p|/5): 15 % on tau_c leaves 0.5; 4 % on cd leaves 0.2."""
+    assert margin({"tau_c": 15.0, "k0": 1.0, "k_inf": -2.0, "cd": 4.0}) == pytest.approx(0.2)
+    assert margin({"tau_c": -15.0, "k0": 0.0, "k_inf": 0.0, "cd": 0.0}) == pytest.approx(0.5)
+    assert margin({"tau_c": 1.0, "k0": 6.0, "k_inf": 0.0, "cd": 0.0}) == pytest.approx(-0.2)
+    assert math.isnan(margin({"tau_c": 1.0, "k0": None, "k_inf": 0.0, "cd": 0.0}))
+
+
+def test_knobs_default_within_the_thesis_ranges_and_are_checked():
+    vals = knob_values(None)
+    for key, knob in KNOBS.items():
+        assert all(knob.lo <= v <= knob.hi for v in vals[key]), key
+    with pytest.raises(ConfigError, match="probe.f1: 200000 is not allowed; expected values within"):
+        knob_values({"probe.f1": [50e3, 200e3]})
+    with pytest.raises(ConfigError, match="whole multiples of the finest"):
+        knob_values({"numerics.print_step": [0.5e-9, 0.75e-9]})
+    assert knob_values({"operation.setpoint": [0.7, 0.4, 0.7]})["operation.setpoint"] == (0.4, 0.7)
+
+
+def test_subsampled_record_equals_a_run_at_the_coarser_print_step():
+    base = {"numerics.record_cycles": 2}
+    fine = simulate(load(None, {**base, "numerics.print_step": 0.5e-9})).frame()
+    coarse = simulate(load(None, {**base, "numerics.print_step": 2e-9})).frame()
+    sub = subsample_record(fine, 4)
+    assert len(sub) == len(coarse)
+    assert list(sub["segment"]) == list(coarse["segment"])
+    assert np.allclose(sub["t"], coarse["t"], rtol=1e-12, atol=0)
+    tol = 1e-13  # [m] numerics.tol_orbit
+    for c in ("z_tip", "z_paddle", "x_surface", "x_dashpot"):
+        assert np.max(np.abs(sub[c].to_numpy() - coarse[c].to_numpy())) < tol, c
+    # the force: the surface's stiffness times that (Kg = 132 N/m)
+    assert np.max(np.abs(sub["f_ts"].to_numpy() - coarse["f_ts"].to_numpy())) < 132.0 * tol
+
+
+@pytest.fixture(scope="module")
+def small_advice():
+    """The worked example's material on a 1 x 1 x 2 x 1 grid (50 kHz, set point 0.7, print
+    steps 0.5 and 1 ns, k2 700 N/m), true force, one worker."""
+    knobs = {"probe.f1": [50e3], "operation.setpoint": [0.7], "numerics.print_step": [0.5e-9, 1e-9],
+             "probe.k2": [700.0]}  # fmt: skip
+    return advise(material_from(4, 128, 3e-5), {}, knobs, ("vetica-prestress", "full"), "true", jobs=1)
+
+
+def test_advice_rows_scores_and_settings(small_advice):
+    adv = small_advice
+    t = adv.table
+    assert len(t) == 2 and adv.simulations == 1
+    assert list(t["numerics.print_step"]) == [0.5e-9, 1e-9]
+    assert (t["probe.f2"] == 15 * t["probe.f1"]).all()  # thesis 4.5.1
+    for _, r in t.iterrows():
+        assert r["status"] == "ok"
+        assert r["score"] == pytest.approx(min(r["vetica-prestress.margin"], r["full.margin"]))
+        errs = {q: r[f"full.{q}_err_pct"] for q in ("tau_c", "k0", "k_inf", "cd")}
+        assert r["full.margin"] == pytest.approx(margin(errs))
+    settings = adv.settings()
+    assert settings and [s["score"] for s in settings] == sorted((s["score"] for s in settings), reverse=True)
+    assert all(s["score"] > 0 for s in settings)
+    for s in settings:
+        assert set(s) == {*SETTING_KEYS, "score"}
+        cfg = load(None, {k: v for k, v in s.items() if k != "score"})  # every key is a config key
+        assert cfg.probe.f1 == s["probe.f1"] and cfg.numerics.print_step == s["numerics.print_step"]
+    text = format_advice(adv)
+    assert "settings that recover the material, best first" in text
+    js = advice_json(adv)
+    assert js["settings"] == settings and js["evaluated"] == 2
+
+
+def test_cli_bad_material_exits_2_with_one_line_and_writes_nothing(tmp_path):
+    png = tmp_path / "a.png"
+    for args in (["--k-inf", "4", "--k0", "sixty"], ["--k-inf", "4", "--k0", "64"],
+                 ["--k-inf", "4", "--k0", "64", "--cd", "0"], ["--e-glassy", "1e9", "--cd", "1"]):  # fmt: skip
+        r = runner.invoke(app, ["advise", *args, "-o", str(png)])
+        assert r.exit_code == 2, r.output
+        assert len(r.output.strip().splitlines()) == 1 and r.output.startswith("error: "), r.output
+    r = runner.invoke(app, ["advise", "--k-inf", "4", "--k0", "64", "--cd", "3e-3", "--set", "probe.f1=3e4",
+                            "-o", str(png)])  # fmt: skip
+    assert r.exit_code == 2 and "knob" in r.output
+    assert not png.exists()
+
+
+def test_cli_json_settings_go_straight_back_to_simulate(tmp_path):
+    png = tmp_path / "map.png"
+    r = runner.invoke(app, ["advise", "--k-inf", "4", "--k0", "128", "--cd", "3e-5", "--f1", "50e3",
+                            "--setpoint", "0.7", "--print-step", "1e-9", "--k2", "700", "--force", "true",
+                            "--jobs", "1", "-o", str(png), "--json"])  # fmt: skip
+    assert r.exit_code == 0, r.output
+    out = json.loads(r.output)
+    assert png.is_file() and out["figure"] == str(png)
+    assert out["settings"], out
+    best = out["settings"][0]
+    sets = [f"--set={k}={v}" for k, v in best.items() if k != "score"]
+    r2 = runner.invoke(app, ["simulate", *sets, "--set", "numerics.record_cycles=2", "-o", str(tmp_path / "r.parquet"),
+                             "-q"])  # fmt: skip
+    assert r2.exit_code == 0, r2.output

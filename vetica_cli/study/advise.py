@@ -1,0 +1,425 @@
+"""``vetica advise``: the settings under which the extraction recovers a given material
+(issue 10 item 4).  The thesis's stated purpose is advice to experimentalists: which
+set point, frequency and print step make the method work for *their* material (thesis
+4.5-4.6, 5.2).
+
+Given a material -- the SLS springs and dashpot, or glassy and rubbery moduli and a
+relaxation time (converted at a stated penetration, :func:`material_from`) -- and
+optionally the probe (``--set probe.k1=...``), a small study runs over the
+experimentalist's knobs within the thesis's ranges (:data:`KNOBS`: drive frequency
+``f1`` with ``f2 = 15 f1``, amplitude set point, print step, paddle stiffness ``k2``)
+with the periodic-orbit solver, extracts every record with each method asked for, and
+ranks the settings by their margin:
+
+    margin of a method = min(1 - |tau_c error|/30 %, 1 - |p error|/5 % for p in k0, k_inf, cd)
+    score of a setting = the smallest margin over the methods
+
+so a setting *recovers the material* (score > 0) when every method keeps the
+retardation time within the acceptance regime's 30 % (thesis fig. 52,
+:data:`vetica_cli.study.acceptance.ACCEPT_ERR_PCT`) and each element within 5 %, and
+only a setting whose record is a proven periodic state counts.
+
+The cost: one simulation per (f1, set point, k2), recorded at the finest print step;
+the coarser print steps are that record subsampled (:func:`subsample_record`: the
+trajectory does not depend on the print step, so this is the record a run at the
+coarser step gives, within the orbit solver's tolerance), each extracted by every method.  The simulations
+run on the study launcher (loky, ``jobs`` workers, one thread each).
+"""
+
+from __future__ import annotations
+
+import copy
+import math
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+import pandas as pd
+
+from .. import surfaces
+from ..errors import ConfigError, InputError
+from ..extraction import METHODS, SOURCES, extract, extract_many
+from ..extraction.material import ContactModel, contact_model, stiffness
+from ..simulation.config import from_dict, load
+from ..simulation.simulate import simulate
+from .acceptance import ACCEPT_ERR_PCT
+from .launch import make_launcher
+from .progress import Progress
+
+F2_RATIO = 15.0  # f2 = 15 f1 (thesis 4.5.1)
+RECORD_CYCLES = 4  # drive periods recorded per setting (VETICA needs two complete taps in a row)
+PARAM_LIMIT_PCT = 5.0  # [%] each of k0, k_inf, cd within this
+LIMITS = {"tau_c": ACCEPT_ERR_PCT, "k0": PARAM_LIMIT_PCT, "k_inf": PARAM_LIMIT_PCT, "cd": PARAM_LIMIT_PCT}
+DEFAULT_METHODS = ("vetica-prestress", "full")
+DEFAULT_DEPTH = 2e-9  # [m] penetration at which moduli are turned into springs (the worked example's ~2.4 nm)
+MATERIAL_KEYS = ("surface.model", "surface.k_inf", "surface.k0", "surface.cd")
+
+
+@dataclass(frozen=True)
+class Knob:
+    """One of the experimentalist's settings: its default values and the thesis's range."""
+
+    default: tuple
+    lo: float
+    hi: float
+    unit: str
+    label: str
+
+
+KNOBS = {
+    "probe.f1": Knob((10e3, 20e3, 50e3, 100e3), 10e3, 100e3, "Hz",
+                     "drive frequency f1, with f2 = 15 f1 (thesis table 1, 4.5.1, figs. 51-52)"),
+    "operation.setpoint": Knob((0.4, 0.6, 0.8), 0.25, 0.8, "", "amplitude set point A_sp/A0 (thesis table 1, fig. 54)"),
+    "numerics.print_step": Knob((0.5e-9, 2e-9, 8e-9), 0.125e-9, 8e-9, "s", "print step (thesis table 1, figs. 59-61)"),
+    "probe.k2": Knob((200.0, 700.0), 70.0, 1200.0, "N/m", "paddle stiffness k2 (thesis table 1: 70-700; fig. 30: 200-1200)"),
+}  # fmt: skip
+SETTING_KEYS = ("probe.f1", "probe.f2", "operation.setpoint", "numerics.print_step", "probe.k2")
+
+
+@dataclass(frozen=True)
+class Material:
+    """The SLS the advice is for, and how it was given."""
+
+    k_inf: float  # [N/m]
+    k0: float  # [N/m]
+    cd: float  # [kg/s]
+    given: str  # one line: the input and, for moduli, the conversion
+
+    def overrides(self) -> dict:
+        return {"surface.k_inf": self.k_inf, "surface.k0": self.k0, "surface.cd": self.cd}
+
+    def theory(self) -> dict:
+        return surfaces.get("sls").theory({"k_inf": self.k_inf, "k0": self.k0, "cd": self.cd})
+
+
+def _positive(name: str, v) -> float:
+    if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v) or v <= 0:
+        raise InputError(f"{name} {v!r} is not allowed; expected a finite number > 0")
+    return float(v)
+
+
+def material_from(k_inf=None, k0=None, cd=None, e_glassy=None, e_rubbery=None, tau_r=None,
+                  depth: float = DEFAULT_DEPTH, cm: ContactModel | None = None) -> Material:  # fmt: skip
+    """The material from ``k_inf, k0, cd`` [N/m, N/m, kg/s], or from the glassy and rubbery
+    sample moduli and the relaxation time [Pa, Pa, s]: each modulus acts as the spring
+    ``K = 4/3 E* sqrt(R delta)`` at the penetration ``depth`` (thesis eqs. 90-92 with
+    the contact ``cm``, :func:`vetica_cli.extraction.material.stiffness`), so ``k_inf =
+    K(E_rubbery)``, ``k0 = K(E_glassy) - k_inf``, ``cd = tau_r k0``.  InputError (one
+    line) for a missing, mixed or out-of-range input."""
+    springs = {"--k-inf": k_inf, "--k0": k0, "--cd": cd}
+    mods = {"--e-glassy": e_glassy, "--e-rubbery": e_rubbery, "--tau-r": tau_r}
+    how = "give the material as --k-inf --k0 --cd [N/m, N/m, kg/s] or as --e-glassy --e-rubbery --tau-r [Pa, Pa, s]"
+    s_given = [k for k, v in springs.items() if v is not None]
+    m_given = [k for k, v in mods.items() if v is not None]
+    if s_given and m_given:
+        raise InputError(f"{' '.join(s_given)} and {' '.join(m_given)} mix two ways of giving the material; {how}")
+    if len(s_given) == 3:
+        vals = {k: _positive(k, v) for k, v in springs.items()}
+        return Material(vals["--k-inf"], vals["--k0"], vals["--cd"],
+                        f"k_inf {vals['--k-inf']:g} N/m, k0 {vals['--k0']:g} N/m, cd {vals['--cd']:g} kg/s")  # fmt: skip
+    if len(m_given) == 3:
+        eg, er, tr = (_positive(k, v) for k, v in mods.items())
+        depth = _positive("--depth", depth)
+        if not eg > er:
+            raise InputError(
+                f"--e-glassy {eg:g} must exceed --e-rubbery {er:g} (a relaxing solid: E_glassy > E_rubbery)"
+            )
+        cm = cm or ContactModel()
+        k_inf = stiffness(er, depth, cm)
+        k0 = stiffness(eg, depth, cm) - k_inf
+        return Material(k_inf, k0, tr * k0,
+                        f"E_glassy {eg:g} Pa, E_rubbery {er:g} Pa, tau_r {tr:g} s as springs at {depth * 1e9:g} nm "
+                        f"(thesis eqs. 90-92, R {cm.tip_radius * 1e9:g} nm): k_inf {k_inf:.4g} N/m, k0 {k0:.4g} N/m, "
+                        f"cd {tr * k0:.4g} kg/s")  # fmt: skip
+    missing = [k for k in (springs if s_given else mods if m_given else {}) if k not in s_given + m_given]
+    raise InputError((f"missing {' '.join(missing)}; " if missing else "no material given; ") + how)
+
+
+def knob_values(given: dict | None) -> dict:
+    """Values of every knob: the given lists (each value inside the thesis's range) or the
+    defaults; ConfigError (one line) otherwise."""
+    out = {}
+    for key, knob in KNOBS.items():
+        vals = (given or {}).get(key) or knob.default
+        clean = []
+        for v in vals:
+            if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
+                raise ConfigError(f"{key}: {v!r} is not allowed; expected a number")
+            if not knob.lo * (1 - 1e-9) <= v <= knob.hi * (1 + 1e-9):
+                raise ConfigError(
+                    f"{key}: {v:g} is not allowed; expected values within the thesis's range {knob.lo:g} .. {knob.hi:g} "
+                    f"{knob.unit}".rstrip()
+                )
+            clean.append(float(v))
+        out[key] = tuple(sorted(set(clean)))
+    ps = out["numerics.print_step"]
+    for p in ps[1:]:
+        r = p / ps[0]
+        if abs(r - round(r)) > 1e-6 * r:
+            raise ConfigError(
+                f"numerics.print_step: {p:g} is not allowed; expected whole multiples of the finest, {ps[0]:g} s "
+                "(the coarser records are the finest one subsampled)"
+            )
+    return out
+
+
+def subsample_record(df: pd.DataFrame, factor: int) -> pd.DataFrame:
+    """The record a run at ``factor`` times the print step gives, from one at the print step:
+    in each segment every ``factor``-th sample from the ``factor``-th on (a run samples its
+    windows at ``t_start + k PS``, k >= 1).  The trajectory does not depend on the print
+    step (the kernel's step and recording are separate), so this equals a separate run
+    within the orbit solver's tolerance (``numerics.tol_orbit``; tests/test_advise.py)."""
+    if factor == 1:
+        return df
+    if "segment" not in df.columns:
+        return df.iloc[factor - 1 :: factor].reset_index(drop=True)
+    seg = df["segment"].to_numpy()
+    parts = []
+    for name in pd.unique(seg):
+        part = df[seg == name]
+        parts.append(part.iloc[factor - 1 :: factor])
+    return pd.concat(parts, ignore_index=True)
+
+
+def margin(errors: dict) -> float:
+    """``min(1 - |error|/limit)`` over :data:`LIMITS` (positive = recovered); nan when an
+    error is unknown."""
+    vals = [errors.get(k) for k in LIMITS]
+    if any(v is None or not math.isfinite(v) for v in vals):
+        return math.nan
+    return min(1.0 - abs(v) / lim for v, lim in zip(vals, LIMITS.values()))
+
+
+def advise_task(item: dict) -> list[dict]:
+    """Simulate one (f1, set point, k2) at the finest print step and extract it at every
+    print step with every method: one row per print step (module level: joblib pickles
+    it).  Never raises: errors become rows with status 'failed'."""
+    cfg_d, steps, methods, force = item["config"], item["print_steps"], item["methods"], item["force"]
+    base_row = {k: cfg_d[k.split(".")[0]][k.split(".")[1]] for k in SETTING_KEYS if k != "numerics.print_step"}
+    t0 = time.perf_counter()
+    try:
+        run = simulate(from_dict(cfg_d))
+        err = ""
+    except Exception as exc:  # noqa: BLE001 - a failed setting becomes rows
+        run, err = None, f"simulate: {type(exc).__name__}: {exc}"
+    sim_wall = time.perf_counter() - t0
+    rows = []
+    for ps in steps:
+        row = {**base_row, "numerics.print_step": ps, "status": "failed", "stop_reason": "", "error": err,
+               "sim_wall_s": sim_wall / len(steps), "extract_wall_s": 0.0}  # fmt: skip
+        for m in methods:
+            for q in LIMITS:
+                row[f"{m}.{q}_err_pct"] = math.nan
+            row[f"{m}.margin"] = math.nan
+        if run is not None:
+            _extract_row(row, run, round(ps / steps[0]), ps, methods, force)
+        margins = [row[f"{m}.margin"] for m in methods]
+        row["score"] = min(margins) if row["status"] == "ok" and all(math.isfinite(v) for v in margins) else math.nan
+        row["recovered"] = bool(row["score"] > 0) if math.isfinite(row["score"]) else False
+        rows.append(row)
+    return rows
+
+
+def _extract_row(row: dict, run, factor: int, ps: float, methods, force: str) -> None:
+    df = subsample_record(run.frame(), factor)
+    meta = copy.deepcopy(run.metadata())
+    meta["params"]["numerics"]["print_step"] = ps
+    row["stop_reason"] = run.stop_reason
+    row["status"] = "ok" if run.steady_ok else "not_steady"
+    errors = []
+    t0 = time.perf_counter()
+    try:  # one record (one force reconstruction) for every method
+        results = extract_many(df, meta, force, {m: {} for m in methods})
+    except Exception:  # noqa: BLE001 - then method by method, to say which one failed
+        results = {}
+    for m in methods:
+        res = results.get(m)
+        if res is None:
+            try:
+                res = extract(df, meta, force=force, method=m)
+            except Exception as exc:  # noqa: BLE001
+                errors.append(f"{m}: {type(exc).__name__}: {exc}")
+                continue
+        errs = {q: res.estimates[q].error_pct for q in LIMITS}
+        for q, v in errs.items():
+            row[f"{m}.{q}_err_pct"] = math.nan if v is None else float(v)
+        row[f"{m}.margin"] = margin(errs)
+    row["extract_wall_s"] = time.perf_counter() - t0
+    row["error"] = "; ".join(" ".join(e.split())[:300] for e in errors)
+
+
+@dataclass
+class Advice:
+    """What ``vetica advise`` found."""
+
+    material: Material
+    methods: tuple
+    force: str
+    knobs: dict  # key -> values tried
+    table: pd.DataFrame  # one row per setting (SETTING_KEYS, per-method errors and margins, score, status)
+    base: dict  # the resolved base config (probe, operation, numerics) the settings change
+    wall_s: float = 0.0
+    jobs: int = 2
+    simulations: int = 0
+    notes: list = field(default_factory=list)
+
+    def settings(self) -> list[dict]:
+        """The settings that recover the material, best first: ``{dotted key: value, ..., "score"}``
+        (every key but ``score`` is a config key ``vetica simulate --set`` takes)."""
+        ok = self.table[self.table["recovered"]].sort_values("score", ascending=False, kind="mergesort")
+        return [{**{k: _plain(r[k]) for k in SETTING_KEYS}, "score": float(r["score"])} for _, r in ok.iterrows()]
+
+
+def _plain(v):
+    return float(v) if isinstance(v, (float, np.floating, int, np.integer)) else v
+
+
+def base_config(material: Material, overrides: dict | None = None) -> dict:
+    """The resolved config the knobs vary: defaults, the material, then ``overrides``
+    (``--set``; not a knob or a material key), with ``record_cycles`` = :data:`RECORD_CYCLES`
+    unless given.  ConfigError (one line) for a bad key or value."""
+    overrides = dict(overrides or {})
+    for key in overrides:
+        if key in KNOBS or key == "probe.f2":
+            raise ConfigError(f"--set {key}: the key is a knob of the advice; give its values with the knob's option")
+        if key in MATERIAL_KEYS:
+            raise ConfigError(f"--set {key}: the material is given by --k-inf --k0 --cd (or the moduli)")
+    overrides.setdefault("numerics.record_cycles", RECORD_CYCLES)
+    return load(None, {**material.overrides(), **overrides}).to_dict()
+
+
+def advise(material: Material, overrides: dict | None = None, knobs: dict | None = None,
+           methods=DEFAULT_METHODS, force: str = "reconstructed", jobs: int = 2, progress: bool = False) -> Advice:  # fmt: skip
+    """Run the advice study (module docstring) and rank its settings.
+
+    ``overrides``: ``--set`` keys of the probe, operation, numerics or surface attraction;
+    ``knobs``: ``{knob key: values}`` replacing :data:`KNOBS` defaults; ``methods``:
+    registered extraction methods that must all recover the material; ``force``: the
+    force source extracted ('reconstructed' is what an instrument has).  Every setting is
+    checked as a config before any work starts (ConfigError/InputError, one line)."""
+    methods = tuple(methods)
+    if not methods:
+        raise InputError("--methods: expected at least one method")
+    for m in methods:
+        if m not in METHODS:
+            raise InputError(f"--methods: {m!r} is not a method; choose from: {', '.join(METHODS)}")
+    if force not in SOURCES:
+        raise InputError(f"--force {force!r} not allowed; choose one of: {', '.join(SOURCES)}")
+    values = knob_values(knobs)
+    base = base_config(material, overrides)
+    items = []
+    for f1 in sorted(values["probe.f1"]):  # slow (low f1) settings first: the workers finish together
+        for sp in values["operation.setpoint"]:
+            for k2 in values["probe.k2"]:
+                d = copy.deepcopy(base)
+                d["probe"].update(f1=f1, f2=F2_RATIO * f1, k2=k2)
+                d["operation"]["setpoint"] = sp
+                for ps in values["numerics.print_step"]:  # every setting a valid config before work starts
+                    d["numerics"]["print_step"] = ps
+                    try:
+                        from_dict(d)
+                    except ConfigError as exc:
+                        raise ConfigError(f"setting f1 {f1:g} Hz, set point {sp:g}, print step {ps:g} s, k2 {k2:g} N/m: "
+                                          f"{exc}") from None  # fmt: skip
+                d["numerics"]["print_step"] = values["numerics.print_step"][0]
+                items.append({"config": d, "print_steps": values["numerics.print_step"], "methods": methods,
+                              "force": force})  # fmt: skip
+    t0 = time.perf_counter()
+    rows: list = [None] * len(items)
+    bar = Progress(len(items), 0, 0, enabled=progress, label="advise", unit="simulations")
+    failed = 0
+
+    def on_result(i, res):
+        nonlocal failed
+        rows[i] = res
+        failed += sum(r["status"] == "failed" for r in res)
+        bar.advance(1, failed)
+
+    with make_launcher("loky", jobs) as launcher, bar:
+        launcher.launch(advise_task, items, on_result)
+    table = pd.DataFrame([r for rs in rows for r in rs])
+    return Advice(material=material, methods=methods, force=force, knobs=values, table=table,
+                  base={k: v for k, v in base.items() if k != "surface"}, wall_s=time.perf_counter() - t0, jobs=jobs,
+                  simulations=len(items))  # fmt: skip
+
+
+def contact_for(overrides: dict | None, contact: dict | None) -> ContactModel:
+    """The contact model of a moduli input: table 6 with the probe's tip radius (``--set
+    probe.tip_radius``) and ``--contact`` overrides."""
+    radius = (overrides or {}).get("probe.tip_radius")
+    return contact_model(contact, None if radius is None else float(radius))
+
+
+def format_advice(adv: Advice, figure=None, top: int = 10) -> str:
+    """The text report: the material, the criteria, what ran, and the ranked settings."""
+    th = adv.material.theory()
+    t = adv.table
+    lines = [
+        f"material: {adv.material.given} (tau_c {th['tau_c']:.4g} s, tau_r {th['tau_r']:.4g} s)",
+        (
+            f"criteria: tau_c error < {ACCEPT_ERR_PCT:g} %, k0, k_inf, cd within {PARAM_LIMIT_PCT:g} %, for "
+            f"{' and '.join(adv.methods)} ({adv.force} force); score = smallest margin min(1 - |error|/limit) over "
+            "the methods"
+        ),
+        f"{len(t)} settings ({adv.simulations} simulations, {RECORD_CYCLES} periods each; the coarser print steps "
+        f"subsample the finest) in {adv.wall_s:.1f} s on {adv.jobs} worker(s): "
+        + ", ".join(f"{m} recovers {int((t[f'{m}.margin'] > 0).sum())}" for m in adv.methods)
+        + f"; all of them: {int(t['recovered'].sum())}",
+    ]
+    n_bad = int((t["status"] != "ok").sum())
+    if n_bad:
+        lines.append(f"{n_bad} settings not counted (no proven periodic state or failed; see the table's status)")
+    settings = adv.settings()
+    head = f"{'rank':>4} {'score':>6} {'f1 [kHz]':>9} {'set point':>9} {'PS [ns]':>8} {'k2 [N/m]':>9}   "
+    head += "   ".join(f"{m}: tau_c/k0/k_inf/cd error %" for m in adv.methods)
+    if settings:
+        lines += ["settings that recover the material, best first:", head]
+        ranked = t[t["recovered"]].sort_values("score", ascending=False, kind="mergesort")
+        lines += [_setting_line(i + 1, r, adv.methods) for i, (_, r) in enumerate(ranked.head(top).iterrows())]
+        if len(settings) > top:
+            lines.append(f"... {len(settings) - top} more (--json lists every one)")
+    else:
+        lines.append("no setting recovers the material; the closest:")
+        lines.append(head)
+        close = t.assign(_s=t["score"].fillna(-np.inf)).sort_values("_s", ascending=False, kind="mergesort")
+        lines += [_setting_line(i + 1, r, adv.methods) for i, (_, r) in enumerate(close.head(3).iterrows())]
+    if figure is not None:
+        lines.append(f"wrote {figure}")
+    return "\n".join(lines)
+
+
+def _setting_line(rank: int, r, methods) -> str:
+    errs = "   ".join(
+        "/".join("-" if not math.isfinite(r[f"{m}.{q}_err_pct"]) else f"{r[f'{m}.{q}_err_pct']:+.2g}" for q in LIMITS)
+        for m in methods
+    )
+    score = "-" if not math.isfinite(r["score"]) else f"{r['score']:.3f}"
+    return (f"{rank:>4} {score:>6} {r['probe.f1'] / 1e3:>9g} {r['operation.setpoint']:>9g} "
+            f"{r['numerics.print_step'] * 1e9:>8g} {r['probe.k2']:>9g}   {errs}")  # fmt: skip
+
+
+def advice_json(adv: Advice, figure=None) -> dict:
+    """``{"settings": [{dotted key: value, ..., "score"}, ...] (best first), "material",
+    "criteria", "methods", "force", "evaluated", "recovered_by", "figure", "wall_s"}``."""
+    t = adv.table
+    return {
+        "settings": adv.settings(),
+        "material": {
+            "k_inf": adv.material.k_inf,
+            "k0": adv.material.k0,
+            "cd": adv.material.cd,
+            "given": adv.material.given,
+        },  # fmt: skip
+        "criteria": {
+            "tau_c_err_pct": ACCEPT_ERR_PCT,
+            "parameter_err_pct": PARAM_LIMIT_PCT,
+            "score": "min over methods of min(1 - |error|/limit)",
+        },  # fmt: skip
+        "methods": list(adv.methods),
+        "force": adv.force,
+        "knobs": {k: list(v) for k, v in adv.knobs.items()},
+        "evaluated": len(t),
+        "recovered_by": {m: int((t[f"{m}.margin"] > 0).sum()) for m in adv.methods},
+        "figure": None if figure is None else str(figure),
+        "wall_s": adv.wall_s,
+    }
