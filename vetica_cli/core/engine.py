@@ -66,6 +66,13 @@ def _lm_step(jac, f, mu):
     return step / big if big > 1.0 else step
 
 
+def record_buffer(n_samples: int, n_arms: int) -> np.ndarray:
+    """A zeroed sample buffer ``(n_samples, 7 + n_arms)`` in column-major order: each recorded
+    column is contiguous, so tables and observables take columns without a copy (and every
+    buffer the kernel sees has the one layout it is compiled for)."""
+    return np.zeros((n_samples, 7 + n_arms), order="F")
+
+
 @dataclass
 class KernelSetup:
     """SI inputs of one run (probe, surface arrays, operation, numerics)."""
@@ -118,7 +125,7 @@ class Kernel:
         self.nt = setup.steps_per_period
         self.period_s = setup.steps_per_period * setup.dt
         self.periods = 0  # period evaluations (kernel calls of one period)
-        self._nobuf = np.zeros((1, 7 + self.n_arms))
+        self._nobuf = record_buffer(2, self.n_arms)
 
     def advance(self, s, n_steps=None, zb_step=0.0, buf=None, rec=None, energy=False):
         """Advance ``s`` in place; returns the output vector (``T.O_*``)."""
@@ -220,7 +227,7 @@ def approach(kern: Kernel, s, ctrl: Controller, n_ring: int, max_periods: int, s
     per_samples = kern.nt / stride
     back = int(math.ceil(0.5 * n_ring / per_samples)) + 1
     snaps: deque = deque(maxlen=back + 1)
-    ring = np.zeros((max(n_ring, 2), 7 + kern.n_arms))
+    ring = record_buffer(max(n_ring, 2), kern.n_arms)
     rec = T.new_recorder(stride=stride, origin=0, ring=True, active=False)
     history = []
     k = 0
@@ -594,7 +601,7 @@ def record_periods(kern: Kernel, s, cycles: int):
     (``cycles + 1`` rows)."""
     st = kern.setup
     n_samples = int(round(cycles * kern.nt / st.stride))
-    buf = np.zeros((n_samples, 7 + kern.n_arms))
+    buf = record_buffer(n_samples, kern.n_arms)
     rec = T.new_recorder(stride=st.stride, origin=int(s[T.S_IDX]), ring=False, active=True)
     total = T.new_outputs(kern.n_arms)
     states = [s.copy()]

@@ -40,6 +40,7 @@ import math
 import numpy as np
 from numba import njit
 
+from .expm import expm_small
 from .sls import contact_update, noncontact_update, released_position, sls_coefficients, vdw_force
 
 DIRECTIONS = ("xd0", "s0", "ln_k_inf", "ln_k0", "ln_cd", "ln_hr6")
@@ -313,47 +314,6 @@ def arm_directions(n_arms: int) -> tuple[str, ...]:
     """Names of the N-arm kernel's directions (module section comment)."""
     arms = [f"ln_{f}_{i}" for i in range(1, n_arms + 1) for f in ("k", "cd")]
     return (*(f"xd0_{i}" for i in range(1, n_arms + 1)), "s0", "ln_k_inf", *arms, "ln_hr6")
-
-
-@njit(cache=True)
-def expm_small(a):
-    """``exp(a)`` of a small square matrix (real or complex) by scaling and squaring of its
-    Taylor series: scaled to a 1-norm <= 1/2, summed to 18 terms (truncation below
-    1e-21 relative), squared back.  Only arithmetic -- analytic in the entries, so a
-    complex step through it gives exact derivatives -- and no BLAS call for a 4x4."""
-    n = a.shape[0]
-    norm = 0.0
-    for j in range(n):
-        col = 0.0
-        for i in range(n):
-            col += abs(a[i, j])
-        norm = max(norm, col)
-    s = 0
-    while norm > 0.5:
-        norm *= 0.5
-        s += 1
-    b = a * (0.5**s)
-    out = np.eye(n, dtype=a.dtype)
-    term = np.eye(n, dtype=a.dtype)
-    tmp = np.empty_like(out)
-    for k in range(1, 19):
-        for i in range(n):
-            for j in range(n):
-                acc = term[i, 0] * b[0, j]
-                for m in range(1, n):
-                    acc += term[i, m] * b[m, j]
-                tmp[i, j] = acc / k
-        term[:, :] = tmp
-        out += term
-    for _ in range(s):
-        for i in range(n):
-            for j in range(n):
-                acc = out[i, 0] * out[0, j]
-                for m in range(1, n):
-                    acc += out[i, m] * out[m, j]
-                tmp[i, j] = acc
-        out[:, :] = tmp
-    return out
 
 
 def arm_table(k_inf, k, cd, hr6, a0, vdw_on_surface, h):

@@ -31,14 +31,17 @@ from __future__ import annotations
 import math
 import time
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
 
 import numpy as np
-import pandas as pd
 
 from .. import surfaces
 from ..errors import ConfigError, InputError
 from ..signals.spectral import reconstruct_force, reconstruction_error
 from ..signals.taps import contact_slopes, find_taps, first_contact_minimum
+
+if TYPE_CHECKING:
+    import pandas as pd
 
 SOURCES = ("true", "reconstructed")  # force sources: the f_ts column, or rebuilt from the paddle signal
 FORCES = ("auto", *SOURCES)  # auto = reconstructed when z_paddle is present

@@ -49,7 +49,6 @@ from dataclasses import dataclass, field
 from typing import Any, ClassVar
 
 import numpy as np
-from scipy.optimize import brentq, least_squares, minimize_scalar
 
 from ..errors import InputError
 from ..signals.taps import Taps, contact_slopes, find_taps
@@ -137,6 +136,8 @@ def fit_sum_of_sines(u: np.ndarray, z: np.ndarray, terms: int = 3, max_points: i
     linear fit at those frequencies) are tried and the lowest residual kept.
     ``rms`` is over all samples.
     """
+    from scipy.optimize import least_squares  # lazy: the CLI starts without scipy.optimize
+
     u = np.asarray(u, dtype=float)
     z = np.asarray(z, dtype=float)
     span = float(u[-1] - u[0]) or 1.0
@@ -294,6 +295,8 @@ def stage2_kr(
     (:data:`KR_SCAN` values, plus ``kr_guess``) brackets it, Brent's method solves it to
     :data:`KR_RTOL`.  A minimum on a bound returns the bound.
     """
+    from scipy.optimize import minimize_scalar
+
     step = max(1, len(u) // max_points)
     sup = Superposition(np.asarray(u)[::step], fit)
     f = np.asarray(f)[::step]
@@ -332,6 +335,8 @@ def stage2_kr(
 def _root(slope, a: float, b: float, gi_left: float | None = None, gi_right: float | None = None) -> float | None:
     """The root of ``slope`` in ``[a, b]`` by Brent's method when it goes from negative to
     positive there; None otherwise."""
+    from scipy.optimize import brentq
+
     ga = slope(a) if gi_left is None else gi_left
     gb = slope(b) if gi_right is None else gi_right
     if ga == 0.0:

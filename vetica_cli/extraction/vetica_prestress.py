@@ -59,7 +59,6 @@ from dataclasses import dataclass
 from typing import Any, ClassVar
 
 import numpy as np
-from scipy.optimize import least_squares
 
 from ..errors import InputError
 from ..signals.taps import Taps, find_taps
@@ -138,6 +137,8 @@ def model_force(tf_u, sup: Superposition, fc, sigma0, kg, kr, tau_r) -> np.ndarr
 def stage2_tap(tf: TapFit, mode: str, z1: float, kg: float, tau_c: float, kr0: float, s0: float):
     """``(Kr, sigma0, residual RMS [N])`` of one tap at fixed ``Kg`` and ``tau_c``: bounded least
     squares of (1) over the contact (``sigma0`` a parameter for ``fit``)."""
+    from scipy.optimize import least_squares  # lazy: the CLI starts without scipy.optimize
+
     scale = float(np.max(np.abs(tf.f))) or 1.0
     lo, hi = 1e-12 * kg, kg * (1.0 - 1e-9)
     kr0 = min(max(kr0, 10 * lo), 0.999 * hi)

@@ -63,7 +63,7 @@ def compute_observables(run, cfg, d) -> None:
     info = run.info
     cycles = cfg.numerics.record_cycles
     q = col["z_tip"] - col["z_base"]
-    amp, phase = harmonic(col["t"], q, d.omega1)
+    amp, phase = info["amplitude_h1"], info["phase_h1_deg"]
     a = run.approach
     z1, _, _ = first_force_minimum(a[:, 0], a[:, 1], a[:, 5]) if len(a) else (math.nan, math.nan, -1)
     contact_time = info["contact_steps"] * d.dt / cycles

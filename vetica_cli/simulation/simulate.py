@@ -42,16 +42,19 @@ from __future__ import annotations
 import math
 import time
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
 
 import numpy as np
-import pandas as pd
 
 from .. import __version__
 from ..core import engine, tapping
-from ..io import check_output_file, write_run
+from ..io import check_output_file, segments_table, write_run
 from .config import Config, load
 from .instrument import apply_instrument
 from .observables import compute_observables
+
+if TYPE_CHECKING:
+    import pandas as pd
 
 SEGMENTS = ("approach", "steady")
 
@@ -179,13 +182,20 @@ class Run:
         """The recorded window is proven periodic (``stop_reason`` starts with ``steady``)."""
         return self.stop_reason.startswith("steady")
 
-    def frame(self) -> pd.DataFrame:
+    def frame(self) -> "pd.DataFrame":
         """Both segments as one tidy table (:func:`columns` + a categorical ``segment``)."""
-        data = np.concatenate([self.approach, self.steady])
-        out = pd.DataFrame(data, columns=columns(self.n_arms))
-        codes = np.repeat(np.array([0, 1], dtype=np.int8), [len(self.approach), len(self.steady)])
-        out["segment"] = pd.Categorical.from_codes(codes, categories=list(SEGMENTS))
-        return out
+        import pandas as pd
+
+        parts = (self.approach, self.steady)
+        data = {name: np.concatenate([p[:, j] for p in parts]) for j, name in enumerate(columns(self.n_arms))}
+        codes = np.repeat(np.arange(len(parts), dtype=np.int8), [len(p) for p in parts])
+        data["segment"] = pd.Categorical.from_codes(codes, categories=list(SEGMENTS))
+        return pd.DataFrame(data, copy=False)
+
+    def arrow(self):
+        """Both segments as one Arrow table (the columns of :meth:`frame`), one chunk per
+        segment; the recorded columns are contiguous, so no sample is copied."""
+        return segments_table(columns(self.n_arms), [self.approach, self.steady], list(SEGMENTS))
 
     def metadata(self) -> dict:
         return {
@@ -253,6 +263,10 @@ def run_info(rr: engine.RunResult, st: engine.KernelSetup, d: Derived) -> dict:
         "z_contact_last": o[T.O_ZCONT_LAST],
         "z_separation_last": o[T.O_ZSEP_LAST],
         "zb_final": float(w.states[-1][T.S_ZB]),
+        # first harmonic of z_tip - Zb over the recorded window (the kernel's projection:
+        # exact on far steps, trapezoidal on fine steps)
+        "amplitude_h1": engine.amplitude(o, (len(w.states) - 1) * d.period),
+        "phase_h1_deg": engine.phase_deg(o),
         "fine_steps": o[T.O_FINE],
         "far_steps": o[T.O_FAR],
         "steady": {

@@ -7,7 +7,6 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from scipy.optimize import least_squares
 
 from .model import SurfaceFit
 
@@ -143,6 +142,8 @@ def fit_surface(
 
 def solve(vec: FitVector, x0, max_nfev=60, xtol=1e-10, scanned=()) -> dict:
     """Least squares from ``x0`` on the fit vector ``vec`` (:func:`fit_surface`)."""
+    from scipy.optimize import least_squares  # lazy: the CLI starts without scipy.optimize
+
     model = vec.model
     sol = least_squares(
         lambda x: vec.evaluate(x)[0], x0, jac=lambda x: vec.evaluate(x)[1], bounds=(vec.lo, vec.hi), method="trf",
