@@ -198,7 +198,7 @@ def _free_dissipation(o, k_arm, kinf, x0, x1, xd0, xd1, work):
 
 
 @njit(cache=True, fastmath={"contract"}, error_model="numpy")
-def _fine(s, n_end, zb_step, p, a, emi, buf, r, o, energy, far_ok):
+def fine_steps(s, n_end, zb_step, p, a, emi, buf, r, o, energy, far_ok):
     """Fine Verlet steps from the state ``s`` until step index ``n_end``, or until
     the tip is out of contact beyond the exit distance (when ``far_ok``, at a
     recording sample point).  Updates ``s``, the recorder and the outputs."""
@@ -402,6 +402,198 @@ def _fine(s, n_end, zb_step, p, a, emi, buf, r, o, energy, far_ok):
     _ = kinf
 
 
+@njit(cache=True, fastmath={"contract"}, error_model="numpy")
+def fine_steps_one_arm(s, n_end, zb_step, p, a, emi, buf, r, o, energy, far_ok):
+    """:func:`fine_steps` for one Maxwell arm (the SLS), on scalars: the same operations in
+    the same order, so the same numbers bit for bit (tested), but the arm's dashpot lives
+    in registers instead of length-1 arrays -- 28 % less time per fine step (measured on
+    the worked example's steady orbit, all-fine Verlet: 7.35 against 10.3 ns, medians of
+    7).  The SLS fast path issue 11 asks for: the general N-arm loop alone is slower."""
+    hdt = 0.5 * p[P_DT]
+    dt = p[P_DT]
+    czz, czv, czf, czd = p[P_CZZ], p[P_CZV], p[P_CZF], p[P_CZD]
+    cvz, cvv, cvf, cvd0, cvd1 = p[P_CVZ], p[P_CVV], p[P_CVF], p[P_CVD0], p[P_CVD1]
+    pzz, pzv, pzf = p[P_PZZ], p[P_PZV], p[P_PZF]
+    pvz, pvv, pvf = p[P_PVZ], p[P_PVV], p[P_PVF]
+    ef, rcz, rcv, rc0, rc1 = p[P_EF], p[P_RCZ], p[P_RCV], p[P_RC0], p[P_RC1]
+    rpz, rpv, rho = p[P_RPZ], p[P_RPV], p[P_RHO]
+    bv1, bv2 = p[P_BV1], p[P_BV2]
+    cr, sr = p[P_COSDT], p[P_SINDT]
+    hr6, ihr6, a0 = p[P_HR6], p[P_IHR6], p[P_A0]
+    beta, kappa, kc = p[P_BETA], p[P_KAPPA], p[P_KC]
+    fa0, sep_thr, fa_sep, fa_c = p[P_FA0], p[P_SEPTHR], p[P_FASEP], p[P_FAC]
+    invkg = p[P_INVKG]
+    f0, c1, c2 = p[P_F0], p[P_C1], p[P_C2]
+    kinf = p[P_KINF]
+    d_exit = p[P_DSW_EXIT]
+    nt = int(p[P_NT])
+    omega = p[P_OMEGA]
+    vdw = p[P_VDW] > 0.0
+
+    # dashpot positions as base + increments accumulated in this call: a slow dashpot moves by
+    # ~1e-22 m per step, far below one ulp of its position, and rounding every update into the
+    # position itself would bias its drift over a period (the orbit's mean-stretch residual)
+    xd0 = s[S_XD]
+    dxd = 0.0
+    xd = xd0
+    xd_prev = xd
+    k_arm = a[A_K, 0]
+    alpha = a[A_ALPHA, 0]
+    ker = a[A_KER, 0]
+    omer = a[A_OMER, 0]
+    lin = a[A_LIN, 0]
+    g = a[A_G, 0]
+    e00 = emi[0, 0]
+    karr = a[A_K]
+    xdv = np.empty(1)
+    xdpv = np.empty(1)
+
+    n = int(s[S_IDX])
+    zc, vc, zp, vp, zb = s[S_ZC], s[S_VC], s[S_ZP], s[S_VP], s[S_ZB]
+    contact = s[S_CONTACT] > 0.5
+    th = omega * (n % nt) * dt
+    cw, sw = math.cos(th), math.sin(th)
+    z_tip = zb + zc + zp
+    xdv[0] = xd
+    if contact:
+        x = z_tip - a0
+        fts = -contact_force(x, xdv, p, a) - fa_c
+        fa = fa0
+    else:
+        x, fa = surface_position(z_tip, xdv, p, a, False)
+        fts = -fa
+    vcp = vc - bv1 * fts
+    vpp = vp - bv2 * fts
+    u1 = (czz * zc + czv * vcp + czd * cw) + (pzz * zp + pzv * vpp)
+    xbase = x + beta * fts
+    x_last = x  # surface position after the previous step (the dashpot's linear target starts there)
+    ztip_old = z_tip
+    q_old = z_tip - zb
+    hc, hs = o[O_HC], o[O_HS]
+    stride = r[R_STRIDE]
+    origin = r[R_ORIGIN]
+    to_grid = stride - (n - origin) % stride  # steps to the next recording-grid point (1..stride)
+    qmax, qmin = o[O_QMAX], o[O_QMIN]
+    fmax, fmin = o[O_FMAX], o[O_FMIN]
+    steps = 0
+    while n < n_end:
+        fts_old = fts
+        vcp_old = vcp
+        vpp_old = vpp
+        cw_old = cw
+        sw_old = sw
+        cw, sw = cw * cr - sw * sr, sw * cr + cw * sr
+        zb += zb_step
+        u2 = ((rcz * zc + rcv * vcp) + (rpz * zp + rpv * vpp)) + (rc0 * cw_old + rc1 * cw) + rho * fts
+        zc, vcp = (
+            (czz * zc + czv * vcp) + (czd * cw_old + czf * fts),
+            (cvz * zc + cvv * vcp) + ((cvd0 * cw_old + cvd1 * cw) + cvf * fts),
+        )
+        zp, vpp = (pzz * zp + pzv * vpp) + pzf * fts, (pvz * zp + pvv * vpp) + pvf * fts
+        base = zb + u1
+        u1 = u2
+        n += 1
+        steps += 1
+        xd_prev = xd
+        free_step = False
+        fa_old = fa
+        if not contact:
+            d = (base - xbase) + kappa * fts
+            if d > a0:
+                free_step = True
+                # X_(n+1) = alpha . Xd_n + beta Fa_(n+1)  (force-free part before the update)
+                xbase = alpha * xd
+                fa = vdw_force(d, fa, hr6, ihr6)
+                dxd += g * fa + e00 * xd
+                xd = xd0 + dxd
+                fts = -fa
+            else:
+                contact = True
+                z_tip = base + ef * fts_old
+                o[O_NCONT] += 1.0
+                o[O_ZCONT_LAST] = z_tip
+                if math.isnan(o[O_ZCONT]):
+                    o[O_ZCONT] = z_tip
+                if r[R_FC] == 0:
+                    r[R_FC] = 1
+                    o[O_T_FC] = n * dt
+                    o[O_Z_FC] = z_tip
+        if contact:
+            x = (base - a0) + ef * fts
+            f_sls = kc * x - (ker * xd + k_arm * lin * x_last)
+            dxd += omer * (x - xd) - lin * (x - x_last)
+            xd = xd0 + dxd
+            if f_sls > sep_thr:
+                contact = False
+                o[O_ZSEP_LAST] = base + ef * fts_old  # tip position at the separation
+                x = (k_arm * xd + fa_sep) * invkg
+                fts = -fa0
+                fa = fa0
+                o[O_NSEP] += 1.0
+            else:
+                fts = -f_sls - fa_c
+            xbase = x + beta * fts
+            o[O_CSTEPS] += 1.0
+        z_tip = base + ef * fts_old
+        q = z_tip - zb
+        # first harmonic of q (lock-in): trapezoid of q exp(-i w t)
+        hc += hdt * (q_old * cw_old + q * cw)
+        hs -= hdt * (q_old * sw_old + q * sw)
+        q_old = q
+        if q > qmax:
+            qmax = q
+        if q < qmin:
+            qmin = q
+        if fts > fmax:
+            fmax = fts
+        if fts < fmin:
+            fmin = fts
+        if energy:
+            x_now = xbase - beta * fts
+            vc_old = vcp_old + bv1 * fts_old
+            vp_old = vpp_old + bv2 * fts_old
+            vc_new = vcp + bv1 * fts
+            vp_new = vpp + bv2 * fts
+            o[O_WDRIVE] += hdt * f0 * (cw_old * vc_old + cw * vc_new)
+            o[O_D1] += hdt * c1 * (vc_old * vc_old + vc_new * vc_new)
+            o[O_D2] += hdt * c2 * (vp_old * vp_old + vp_new * vp_new)
+            o[O_WTS] -= 0.5 * (fts_old + fts) * (z_tip - ztip_old)
+            ztip_old = z_tip
+            if free_step:
+                work = 0.5 * (fa_old + fa) * (x_now - x_last) if vdw else 0.0
+                xdv[0] = xd
+                xdpv[0] = xd_prev
+                _free_dissipation(o, karr, kinf, x_last, x_now, xdpv, xdv, work)
+            else:  # in contact: midpoint rule with the dashpot's linear target
+                dd = k_arm * (0.5 * (x_now + x_last) - 0.5 * (xd + xd_prev)) * (xd - xd_prev)
+                o[O_DDASH] += dd
+                o[O_XM + 1] += dd
+            o[O_XM] += (x_now - xd) * dt
+        x_last = xbase - beta * fts
+        to_grid -= 1
+        on_grid = to_grid <= 0
+        if on_grid:
+            to_grid = stride
+        if r[R_ACTIVE] and on_grid:
+            xdv[0] = xd
+            _store(buf, r, n * dt, z_tip, zc, zp, zb, fts, xbase - beta * fts, xdv)
+        if far_ok and not contact and on_grid:
+            if z_tip - (xbase - beta * fts) > d_exit:
+                break
+    o[O_QMAX], o[O_QMIN], o[O_FMAX], o[O_FMIN] = qmax, qmin, fmax, fmin
+    o[O_HC], o[O_HS] = hc, hs
+    o[O_FINE] += steps
+    s[S_ZC] = zc
+    s[S_VC] = vcp + bv1 * fts
+    s[S_ZP] = zp
+    s[S_VP] = vpp + bv2 * fts
+    s[S_ZB] = zb
+    s[S_IDX] = n
+    s[S_CONTACT] = 1.0 if contact else 0.0
+    s[S_XD] = xd0 + dxd
+    _ = kinf
+
+
 @njit(cache=True, inline="always")
 def _osc(z0, v0, lam, wd, w02, s):
     """Exact free damped oscillator ``z'' = -w0^2 z + 2 lam z'`` from ``(z0, v0)``:
@@ -556,7 +748,7 @@ def _far(s, n_end, zb_step, p, a, lad, lemi, lg, buf, r, o, energy, rec_mode):
     vdw = p[P_VDW] > 0.0
     nt = int(p[P_NT])
     k_arm = a[A_K]
-    xd0 = s[S_XD:].copy()  # base + accumulated increments, as in _fine
+    xd0 = s[S_XD:].copy()  # base + accumulated increments, as in fine_steps
     dxd = np.zeros(n_arms)
     xd = xd0.copy()
     xd_new = np.empty(n_arms)
@@ -734,7 +926,10 @@ def advance(s, n_steps, zb_step, p, a, emi, lad, lemi, lg, lad_rec, lemi_rec, lg
             if moved and recording and r[R_ACTIVE] == 0:
                 continue  # the recorder closed inside: re-plan on the free ladder
         far_ok = hybrid and (lad_rec.shape[0] > 0 or r[R_ACTIVE] == 0)
-        _fine(s, n_end, zb_step, p, a, emi, buf, r, o, energy, far_ok)
+        if len(s) == S_XD + 1:
+            fine_steps_one_arm(s, n_end, zb_step, p, a, emi, buf, r, o, energy, far_ok)
+        else:
+            fine_steps(s, n_end, zb_step, p, a, emi, buf, r, o, energy, far_ok)
 
 
 def new_outputs(n_arms: int) -> np.ndarray:
