@@ -623,7 +623,7 @@ def _accumulate(total, o) -> None:
         total[i] = min(total[i], o[i])
     if math.isnan(total[T.O_ZCONT]):
         total[T.O_ZCONT] = o[T.O_ZCONT]
-    for i in (T.O_ZCONT_LAST, T.O_ZSEP_LAST):
+    for i in (T.O_ZCONT_LAST, T.O_ZSEP_LAST, T.O_TCONT_LAST, T.O_TSEP_LAST):
         if not math.isnan(o[i]):
             total[i] = o[i]
     total[T.O_MAXCPP] = max(total[T.O_MAXCPP], o[T.O_NCONT])

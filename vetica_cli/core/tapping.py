@@ -75,8 +75,8 @@ NR = 8
 (
     O_QMAX, O_QMIN, O_ZCONT, O_NCONT, O_NSEP, O_CSTEPS, O_FMAX, O_FMIN,
     O_WDRIVE, O_D1, O_D2, O_WTS, O_DDASH, O_FINE, O_FAR, O_REJECT,
-    O_T_FC, O_Z_FC, O_ZCONT_LAST, O_MAXCPP, O_HC, O_HS, O_ZSEP_LAST, O_XM,
-) = range(24)  # fmt: skip
+    O_T_FC, O_Z_FC, O_ZCONT_LAST, O_MAXCPP, O_HC, O_HS, O_ZSEP_LAST, O_TCONT_LAST, O_TSEP_LAST, O_XM,
+) = range(26)  # fmt: skip
 NO_BASE = O_XM
 
 NEWTON_TOL = 1e-4  # |guess error| above which vdw_force divides exactly
@@ -313,6 +313,7 @@ def fine_steps(s, n_end, zb_step, p, a, emi, buf, r, o, energy, far_ok):
                 z_tip = base + ef * fts_old
                 o[O_NCONT] += 1.0
                 o[O_ZCONT_LAST] = z_tip
+                o[O_TCONT_LAST] = n * dt
                 if math.isnan(o[O_ZCONT]):
                     o[O_ZCONT] = z_tip
                 if r[R_FC] == 0:
@@ -331,6 +332,7 @@ def fine_steps(s, n_end, zb_step, p, a, emi, buf, r, o, energy, far_ok):
             if f_sls > sep_thr:
                 contact = False
                 o[O_ZSEP_LAST] = base + ef * fts_old  # tip position at the separation
+                o[O_TSEP_LAST] = n * dt
                 xs = 0.0
                 for i in range(n_arms):
                     xs += k_arm[i] * xd[i]
@@ -512,6 +514,7 @@ def fine_steps_one_arm(s, n_end, zb_step, p, a, emi, buf, r, o, energy, far_ok):
                 z_tip = base + ef * fts_old
                 o[O_NCONT] += 1.0
                 o[O_ZCONT_LAST] = z_tip
+                o[O_TCONT_LAST] = n * dt
                 if math.isnan(o[O_ZCONT]):
                     o[O_ZCONT] = z_tip
                 if r[R_FC] == 0:
@@ -526,6 +529,7 @@ def fine_steps_one_arm(s, n_end, zb_step, p, a, emi, buf, r, o, energy, far_ok):
             if f_sls > sep_thr:
                 contact = False
                 o[O_ZSEP_LAST] = base + ef * fts_old  # tip position at the separation
+                o[O_TSEP_LAST] = n * dt
                 x = (k_arm * xd + fa_sep) * invkg
                 fts = -fa0
                 fa = fa0
@@ -938,6 +942,7 @@ def new_outputs(n_arms: int) -> np.ndarray:
     o[O_QMAX], o[O_QMIN] = -np.inf, np.inf
     o[O_FMAX], o[O_FMIN] = -np.inf, np.inf
     o[O_ZCONT] = o[O_T_FC] = o[O_Z_FC] = o[O_ZCONT_LAST] = o[O_ZSEP_LAST] = np.nan
+    o[O_TCONT_LAST] = o[O_TSEP_LAST] = np.nan
     return o
 
 

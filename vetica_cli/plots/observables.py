@@ -1,9 +1,11 @@
 """Study figures of the run observables: against cd (thesis figs. 41, 49, 57), twin-axis
-means against a setting (figs. 48, 51, 54, 56), against any key (fig. 30).
+means against a setting (figs. 48, 51, 54, 56), against any key (fig. 30), the surface
+position as the record places it against the print step (figs. 59-60).
 """
 
 from __future__ import annotations
 
+import matplotlib.colors
 import numpy as np
 import pandas as pd
 from matplotlib.figure import Figure
@@ -12,6 +14,7 @@ from .data import SweepData, groups_of, set_title, status_note, statuses
 from .style import (
     CD,
     OBSERVABLES,
+    PS,
     RATIO,
     add_note,
     axis_label,
@@ -204,4 +207,51 @@ def fig_observable_vs(sw: SweepData, key: str, obs: str, thesis: str) -> Figure 
         outside_legend(ax, h)
     add_note(fig, status_note(pts, sw.swept))
     set_title(fig, sw, f"{name} against {axis_meta(key)[0]} (cf. thesis fig. {thesis})")
+    return fig
+
+
+def fig_surface_position_vs_ps(sw: SweepData, thesis: str) -> Figure | None:
+    """Where the record puts the surface against where it was, by print step (thesis figs.
+    59-60): top, each point's contact (A, approach) and separation (B, retract) as measured
+    (force minimum at the print step) relative to the true event (black star at the origin),
+    time against position, coloured by the print step; bottom, the absolute position
+    deviation against the print step with its running mean over five print steps (the
+    deviation oscillates as the sampling grid slides past the event)."""
+    pts = sw.points()
+    pts = pts[pts["status"].astype(str) != "failed"]
+    cols = ("contact_pos_dev", "separation_pos_dev", "contact_time_dev", "separation_time_dev")
+    if not all(c in pts.columns for c in cols) or not np.isfinite(pts[list(cols)].to_numpy(float)).any():
+        return None
+    ps = disp(PS, pts[PS])
+    fig = new_figure(12, 8.5)
+    axes = fig.subplots(2, 2)
+    norm = matplotlib.colors.LogNorm(vmin=float(np.min(ps)), vmax=float(np.max(ps)))
+    for j, (edge, label) in enumerate((("contact", "A) approach: contact"), ("separation", "B) retract: separation"))):
+        pos = pts[f"{edge}_pos_dev"].to_numpy(float) * 1e12
+        lag = pts[f"{edge}_time_dev"].to_numpy(float) * 1e9
+        ax = axes[0, j]
+        sc = ax.scatter(lag, pos, c=ps, cmap="viridis", norm=norm, s=28, edgecolor="0.2", lw=0.4, label="measured")
+        ax.plot([0], [0], marker="*", color="k", ms=16, ls="none", label="true surface (time, position)")
+        ax.set_xlabel(axis_label("time: measured - true", "ns"))
+        ax.set_ylabel(axis_label("position: measured - true", "pm"))
+        ax.set_title(label, fontsize=10)
+        ax.grid(alpha=0.3)
+        ax.legend(fontsize=8, loc="best")
+        fig.colorbar(sc, ax=ax, label=axis_label("print step PS", "ns"))
+        ax = axes[1, j]
+        order = np.argsort(ps, kind="stable")
+        x, y = ps[order], np.abs(pos[order])
+        ax.plot(x, y, "o", color="tab:blue", ms=5, label="|measured - true|")
+        if len(x) >= 5:
+            frame = pd.DataFrame({"x": x, "y": y}).groupby("x")["y"].mean()
+            run = frame.rolling(5, center=True, min_periods=3).mean()
+            ax.plot(run.index, run.to_numpy(), "-", color="k", lw=1.8, label="running mean (5 print steps)")
+        ax.set_xlabel(axis_label("print step PS", "ns"))
+        ax.set_ylabel(axis_label(f"|{edge} position deviation|", "pm"))
+        ax.grid(alpha=0.3)
+        ax.legend(fontsize=8, loc="upper left")
+    add_note(fig, status_note(sw.points(), sw.swept, "true event: the integration step at which the tip met or "
+                              "left the surface; measured: the force minimum of each recorded tap (mean over taps)",
+                              marked=False))  # fmt: skip
+    set_title(fig, sw, f"Surface position as the record places it, against the print step (cf. thesis figs. {thesis})")
     return fig

@@ -12,7 +12,13 @@ from .acceptance import fig_acceptance_vs
 from .data import AXIS_PRIORITY, SweepData, base_config, swept_keys
 from .errors import fig_errors_vs, fig_errors_vs_cd, fig_values_vs_cd
 from .maps import fig_depth_error_map, fig_ediss_map
-from .observables import fig_contact_times_vs, fig_force_penetration_vs, fig_observable_vs, fig_observable_vs_cd
+from .observables import (
+    fig_contact_times_vs,
+    fig_force_penetration_vs,
+    fig_observable_vs,
+    fig_observable_vs_cd,
+    fig_surface_position_vs_ps,
+)
 from .style import CD, F1, K2, PS, RATIO, SETPOINT
 
 
@@ -27,7 +33,7 @@ def select_sweep_figures(swept: list[str]) -> list[tuple[str, str, tuple]]:
     cd x f1 / cd x print step -> acceptance regime (52 / 61);
     ratio -> peak force and penetration (48), errors within the regime (47);
     set point -> peak force and penetration (56), contact times (54), errors (55);
-    f1 -> contact times (51); k2 -> E_diss (30);
+    f1 -> contact times (51); print step -> surface position deviation (59-60); k2 -> E_diss (30);
     any other swept key -> errors against it (no thesis figure).
     """
     s = set(swept)
@@ -58,6 +64,8 @@ def select_sweep_figures(swept: list[str]) -> list[tuple[str, str, tuple]]:
         out.append(("fig55_errors_vs_setpoint", "errors_vs", (SETPOINT, "55")))
     if F1 in s:
         out.append(("fig51_contact_times_vs_f1", "contact_times_vs", (F1, "51")))
+    if PS in s:
+        out.append(("fig59-60_surface_position_vs_print_step", "surface_position_vs_ps", ("59-60",)))
     if K2 in s:
         out.append(("fig30_ediss_vs_k2", "observable_vs", (K2, "e_diss_ev", "30")))
     for k in others:
@@ -108,4 +116,5 @@ BUILDERS = {
     "contact_times_vs": fig_contact_times_vs,
     "errors_vs": fig_errors_vs,
     "observable_vs": fig_observable_vs,
+    "surface_position_vs_ps": fig_surface_position_vs_ps,
 }

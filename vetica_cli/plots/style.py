@@ -60,6 +60,10 @@ OBSERVABLES = {
     "noncontact_time": ("non-contact time", "µs per cycle", 1e6),
     "paddle_amplitude": ("paddle amplitude", "nm", 1e9),
     "ss_zero_depth": ("steady-state zero reference depth", "nm", 1e9),
+    "contact_pos_dev": ("contact position: measured - true", "pm", 1e12),
+    "separation_pos_dev": ("separation position: measured - true", "pm", 1e12),
+    "contact_time_dev": ("contact time: measured - true", "ns", 1e9),
+    "separation_time_dev": ("separation time: measured - true", "ns", 1e9),
 }
 
 

@@ -13,7 +13,7 @@ import numpy as np
 from ..constants import EV
 from ..core import tapping
 from ..errors import InputError
-from ..signals.taps import first_contact_minimum
+from ..signals.taps import find_taps, first_contact_minimum
 
 OBSERVABLE_UNITS = {
     "e_diss_ev": "eV per drive cycle: -(closed integral of f_ts dz_tip), energy the sample takes",
@@ -27,6 +27,14 @@ OBSERVABLE_UNITS = {
     "phase_deg": "deg: lag of the first harmonic of z_tip - z_base behind the drive force (90 = free resonance)",
     "virial_ev": "eV: mean of f_ts (z_tip - z_base) over the window",
     "z1": "m: tip position at the first force minimum of the approach (undeformed-surface reference)",
+    "contact_pos_dev": (
+        "m: tip position at the contact force minimum of each recorded tap (the sample VETICA takes, at the print "
+        "step) minus the true contact position (the integration step at which the tip met the surface), mean "
+        "over the taps (thesis figs. 59-60)"
+    ),
+    "separation_pos_dev": "m: the same at separation (force minimum after the peak minus the true separation)",
+    "contact_time_dev": "s: time of each tap's contact force minimum minus the true contact time, mean over the taps",
+    "separation_time_dev": "s: the same at separation",
 }
 
 
@@ -56,6 +64,28 @@ def harmonic(t: np.ndarray, y: np.ndarray, omega: float) -> tuple[float, float]:
     return float(np.hypot(c, s)), float(np.degrees(np.arctan2(s, c)))
 
 
+def tap_deviations(t, z_tip, f_ts, info: dict, period: float) -> dict:
+    """Where the record places each tap's contact and separation (its force minima, sampled
+    at the print step: what VETICA and an instrument see) against where they happened (the
+    kernel's last contact and separation events, to the integration step), thesis figs.
+    59-60.  The orbit repeats every period, so each tap is compared with the true event of
+    its own period: time differences are taken modulo the period.  Means over the
+    record's complete taps; nan without two taps or a true event."""
+    out = dict.fromkeys(("contact_pos_dev", "separation_pos_dev", "contact_time_dev", "separation_time_dev"), math.nan)
+    try:
+        taps = find_taps(f_ts)
+    except InputError:
+        return out
+    for edge, idx in (("contact", taps.contact), ("separation", taps.separation)):
+        z_true, t_true = info[f"z_{edge}_last"], info[f"t_{edge}_last"]
+        if not len(idx) or not (math.isfinite(z_true) and math.isfinite(t_true)):
+            continue
+        lag = np.remainder(t[idx] - t_true + 0.5 * period, period) - 0.5 * period
+        out[f"{edge}_pos_dev"] = float(np.mean(z_tip[idx] - z_true))
+        out[f"{edge}_time_dev"] = float(np.mean(lag))
+    return out
+
+
 def compute_observables(run, cfg, d) -> None:
     """Fill ``run.observables``, ``run.energy`` and ``run.warnings``."""
     s = run.steady
@@ -79,6 +109,7 @@ def compute_observables(run, cfg, d) -> None:
         "phase_deg": phase,
         "virial_ev": float(np.mean(col["f_ts"] * q)) / EV,
         "z1": z1,
+        **tap_deviations(col["t"], col["z_tip"], col["f_ts"], info, d.period),
     }
     run.observables = {k: (None if isinstance(v, float) and math.isnan(v) else float(v)) for k, v in obs.items()}
     run.energy = {

@@ -262,6 +262,8 @@ def run_info(rr: engine.RunResult, st: engine.KernelSetup, d: Derived) -> dict:
         "max_contacts_per_period": o[T.O_MAXCPP],
         "z_contact_last": o[T.O_ZCONT_LAST],
         "z_separation_last": o[T.O_ZSEP_LAST],
+        "t_contact_last": o[T.O_TCONT_LAST],
+        "t_separation_last": o[T.O_TSEP_LAST],
         "zb_final": float(w.states[-1][T.S_ZB]),
         # first harmonic of z_tip - Zb over the recorded window (the kernel's projection:
         # exact on far steps, trapezoidal on fine steps)
