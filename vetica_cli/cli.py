@@ -165,8 +165,10 @@ def sweep(
     output: Optional[Path] = typer.Option(
         None, "-o", "--output", help="Parquet table to write (default: sweeps/<config name>.parquet)."
     ),
-    jobs: int = typer.Option(
-        2, "--jobs", "-j", help="Parallel workers (processes), one core each; more than the cores warns.",
+    jobs: Optional[int] = typer.Option(
+        None, "--jobs", "-j", show_default=False,
+        help="Parallel workers (processes), one core each; more than the cores warns.  Default: 2, or none "
+        "(this process) for a study estimated under 8 core-seconds, where starting workers costs more than it saves.",
         callback=checked("an integer >= 1", lambda v: v >= 1),
     ),  # fmt: skip
     backend: str = typer.Option("loky", help="loky (local processes) or dask (a Dask cluster via joblib)."),

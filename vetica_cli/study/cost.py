@@ -14,6 +14,7 @@ from ..extraction import METHODS, get
 from ..simulation.config import Numerics, Probe
 from ..simulation.instrument import INSTRUMENT_KEYS
 from .grid import EXTRACT_KEYS, Grid
+from .plan import plan
 from .schema import point_sources
 from .store import parts_dir
 
@@ -151,6 +152,16 @@ def grid_cost(g: Grid) -> Cost:
     rest = math.prod(len(f) for f, u in zip(ext_factors, used) if not u)
     extract_s = rest * _sum_over([f for f, u in zip(ext_factors, used) if u], extract)
     return Cost(points=g.n_points, simulations=simulations, kernel_s=kernel_s, extract_s=extract_s)
+
+
+def study_core_seconds(study) -> float:
+    """Estimated core-seconds of a resolved study (kernel per simulation, extraction per point)."""
+    total = 0.0
+    for task in plan(study):
+        total += kernel_seconds(task.points[0].config)
+        for p in task.points:
+            total += get(p.method).seconds_per_point * len(point_sources(p.force)) / 2
+    return total
 
 
 def duration(seconds: float) -> str:

@@ -49,9 +49,16 @@ from .. import __version__
 from ..errors import InputError
 from ..io import check_output_file, write_table, write_text
 from .acceptance import ACCEPT_ERR_PCT, acceptance_regime, format_acceptance
-from .cost import Cost, dry_run_text, duration, grid_cost
+from .cost import Cost, dry_run_text, duration, grid_cost, study_core_seconds
 from .grid import Study, load_grid
-from .launch import Launcher, LokyLauncher, check_launcher_options, make_launcher, remove_orphaned_shm
+from .launch import (
+    Launcher,
+    LokyLauncher,
+    SerialLauncher,
+    check_launcher_options,
+    make_launcher,
+    remove_orphaned_shm,
+)
 from .lock import lock_path, output_lock
 from .plan import plan
 from .progress import Progress
@@ -62,6 +69,10 @@ from .task import PointTask
 
 DEFAULT_FOLDER = Path("sweeps")  # where `vetica sweep CONFIG` writes without -o (git-ignored)
 CONFIRM_POINTS = 5000  # a study with more points needs --yes
+# Below this estimate of core-seconds a sweep runs in its own process: each worker costs ~1.5
+# CPU-seconds to start (imports, numba's target and cache), and measured on the project machine
+# a 4-point sweep took 3.0 s in one process against 5.3 s with two workers
+SERIAL_BELOW_S = 8.0
 CONFIRM_WALL_S = 2 * 3600.0  # [s] ... as does one estimated to take longer on the given workers
 
 
@@ -154,6 +165,7 @@ def run_sweep(
     launcher: Launcher | None = None,
     keep_parts: bool = False,
     log=None,
+    auto_serial: bool = False,
 ) -> SweepResult:
     """Run every missing point of ``study``, then assemble and write the table.
 
@@ -163,7 +175,8 @@ def run_sweep(
     not closed here).  The output is locked while the sweep runs (:mod:`.lock`;
     InputError when another sweep holds it).  ``keep_parts`` keeps ``<output>.parts/``
     after success; ``log(line)`` receives notes as they arise (they are also in the
-    result's ``notes``).  Ctrl-C (or :class:`Terminated`) raises :class:`SweepInterrupted`.
+    result's ``notes``); ``auto_serial``: run a study estimated under
+    :data:`SERIAL_BELOW_S` core-seconds in this process instead of starting workers.  Ctrl-C (or :class:`Terminated`) raises :class:`SweepInterrupted`.
     """
     t_start = time.perf_counter()
     output = check_sweep_output(output)
@@ -176,6 +189,13 @@ def run_sweep(
 
     own = launcher is None
     launcher = make_launcher(backend, jobs, scheduler) if own else launcher
+    if own and auto_serial and isinstance(launcher, LokyLauncher):
+        est = study_core_seconds(study)
+        if est < SERIAL_BELOW_S:
+            launcher.close()
+            launcher = SerialLauncher()
+            note(f"ran in this process: the {len(study.points)} points are estimated at {est:.1f} core-seconds, "
+                 f"less than starting {jobs} workers costs")  # fmt: skip
     if own and isinstance(launcher, LokyLauncher):
         stale = remove_orphaned_shm()
         if stale:
@@ -304,7 +324,7 @@ def sweep_command(
     output: str | Path | None = None,
     overrides: dict | None = None,
     dry_run: bool = False,
-    jobs: int = 2,
+    jobs: int | None = None,
     yes: bool = False,
     log=None,
     **run_kw,
@@ -313,7 +333,10 @@ def sweep_command(
     its size, then print its points and cost (``dry_run``) or run it (:func:`run_sweep`
     keywords in ``run_kw``).  Returns the text to print; the table goes to ``output``
     (default :func:`default_output`).  ``log(line)``: notes and warnings as they arise.
+    ``jobs`` None: 2 workers, or none for a study estimated under :data:`SERIAL_BELOW_S`.
     Raises :class:`SweepInterrupted` on Ctrl-C, SIGTERM or SIGHUP."""
+    auto = jobs is None
+    jobs = 2 if auto else jobs
     g = load_grid(config, overrides)
     out = check_sweep_output(Path(output) if output is not None else default_output(config))
     check_launcher_options(run_kw.get("backend", "loky"), jobs, run_kw.get("scheduler"))
@@ -329,5 +352,5 @@ def sweep_command(
         log(f"checking the {cost.points} points of {g.name} ...")
     study = g.study()
     with signals_as_interrupt():
-        res = run_sweep(study, out, jobs=jobs, log=log, **run_kw)
+        res = run_sweep(study, out, jobs=jobs, log=log, auto_serial=auto, **run_kw)
     return summary(res, study)
