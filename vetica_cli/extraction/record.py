@@ -87,8 +87,15 @@ def segment(df: pd.DataFrame, name: str) -> pd.DataFrame | None:
     if "segment" not in df.columns:
         return None
     seg = df["segment"]
-    sel = df[(seg == name).to_numpy()] if not hasattr(seg, "cat") or name in seg.cat.categories else df.iloc[:0]
-    return sel if len(sel) else None
+    if hasattr(seg, "cat") and name not in seg.cat.categories:
+        return None
+    mask = (seg == name).to_numpy()
+    rows = np.flatnonzero(mask)
+    if not len(rows):
+        return None
+    if rows[-1] - rows[0] + 1 == len(rows):  # one contiguous block (a run table): a view, no copy
+        return df.iloc[rows[0] : rows[-1] + 1]
+    return df[mask]
 
 
 def column(df: pd.DataFrame, name: str, where: str) -> np.ndarray:
