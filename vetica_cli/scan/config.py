@@ -218,7 +218,7 @@ def parse_sample(raw: Any) -> Sample:
     """The ``sample:`` section: background surface and height, features over it."""
     raw = _mapping("sample", raw)
     _unknown("sample", raw, ("background", "features"))
-    if "background" not in raw:
+    if raw.get("background") is None:
         raise ConfigError("sample.background: missing; expected a surface section plus its height, e.g. {height: 0.0, k0: 64.0}")
     bg = dict(_mapping("sample.background", raw["background"]))
     height = _num("sample.background.height", bg.pop("height", 0.0))

@@ -160,7 +160,8 @@ def _run_lines(items, output, launcher, task, resume, progress, console, nx):
         it = todo[i]
         df = pd.DataFrame(res.rows)
         write_table(df, part_path(pdir, it.key), {"line": it.key, "code": fp, "iy": it.iy, "steady": it.steady,
-                                                  "pixel_time": it.pixel_time, "wall_s": res.wall_s})  # fmt: skip
+                                                  "pixel_time": None if math.isnan(it.pixel_time) else it.pixel_time,
+                                                  "wall_s": res.wall_s})  # fmt: skip
         done[it.key] = df
         computed.append(it.key)
         failed += failed_pixels(df)
@@ -232,8 +233,9 @@ def dry_run_text(cfg: ScanConfig, output: Path, jobs: int) -> str:
         per_pixel = periods * SECONDS_PER_PERIOD + SECONDS_PER_RECORD * len(cfg.scan.methods)
         total += per_pixel * r.nx * r.ny
         lines.append(f"  pass {p.label()}: {r.ny} lines, ~{per_pixel:.2f} s a pixel")
-    lines.append(f"~{total / jobs / 60:.1f} min on {jobs} worker(s) (VETICA at PS 1 ns and 4 recorded periods; "
-                 f"the whole-cycle fit costs about as much again); would write {output}")  # fmt: skip
+    lines.append(f"~{total / jobs / 60:.1f} min on {jobs} worker(s) (measured costs at PS 1 ns and 4 recorded periods: "
+                 f"{SECONDS_PER_PERIOD * 1e3:g} ms a drive period, {SECONDS_PER_RECORD:g} s a record per method); "
+                 f"would write {output}")  # fmt: skip
     return "\n".join(lines)
 
 

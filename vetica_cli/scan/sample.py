@@ -74,6 +74,14 @@ class Feature:
         return d
 
 
+def feature_from_dict(d: dict) -> Feature:
+    """A :class:`Feature` from its :meth:`Feature.to_dict` (a table's metadata)."""
+    kw = {k: tuple(d[k]) for k in ("center", "corner", "size") if k in d}
+    if "radius" in d:
+        kw["radius"] = float(d["radius"])
+    return Feature(d["shape"], float(d["height"]), dict(d.get("surface") or {}), **kw)
+
+
 @dataclass(frozen=True)
 class Sample:
     """Background surface and height, and the features painted over it in order."""
