@@ -44,8 +44,10 @@ swapped under a tip in contact.
 
 **A line** starts with its own approach (:func:`vetica_cli.core.engine.approach`, the
 warm start of :func:`vetica_cli.simulation.simulate.initial_state` on the line's
-first material) and a lead-in of one pixel time on the first pixel (a real scan
-arrives at a line's first pixel already tapping), then taps its pixels in order.
+first material) and the periodic orbit on its first pixel (a real scan arrives at a
+line's first pixel already tapping and tracking, after the retrace; where the orbit
+solver fails, a lead-in of one pixel time), then taps its pixels in order, the first
+one again from an undeformed surface.
 
 **Topography** (measured): ``B - Zb_ref``, the absolute base height held during the
 pixel's recorded periods minus ``Zb_ref``, the base height of the background's own
@@ -170,13 +172,19 @@ class LineDriver:
             self.ctrl.update(engine.amplitude(o, kern.period_s), True)
 
     def start(self, m: int, h: float, lead_periods: int) -> dict:
-        """The line's own approach on its first pixel (material ``m``, height ``h``), a lead-in of
-        ``lead_periods`` periods, then to the top of the swing.  Returns the approach's bookkeeping."""
+        """The line's own approach on its first pixel (material ``m``, height ``h``), then its
+        periodic orbit there (as if the retrace had brought the tip back over it; else a lead-in
+        of ``lead_periods`` periods), then to the top of the swing.  Returns the bookkeeping."""
         kern = self.kernel(m)
         sp = self.spec
         self.s = engine.new_state(sp.zc0, sp.vc0, 0.0, 0.0, sp.zb0, kern.n_arms)
         self.ctrl = engine.Controller(kern.setup.a_sp, sp.kp, sp.ki, kern.nt, kern.setup.dt, sp.approach_rate, True)
         ap = engine.approach(kern, self.s, self.ctrl, sp.n_ring, sp.max_periods)
+        res = engine.solve_steady(kern, self.s, self.ctrl, 0.5 * sp.tol, sp.orbit_max_periods, False, True)
+        if res.converged:
+            self.s = res.state.copy()
+            self.ctrl.e_prev, self.ctrl.zb_step = 0.0, 0.0  # on the orbit the amplitude is the set point
+            lead_periods = 1  # one period for the phase of the swing
         last = ap.last
         for _ in range(lead_periods):
             last = kern.advance(self.s, zb_step=self.ctrl.zb_step)
@@ -187,7 +195,8 @@ class LineDriver:
         if steps:
             kern.advance(self.s, n_steps=steps, zb_step=self.ctrl.zb_step)
         self.base = float(self.s[T.S_ZB]) + h
-        return {"approach_periods": ap.periods, "t_first_contact": ap.t_first_contact, "phase_steps": steps}
+        return {"approach_periods": ap.periods, "t_first_contact": ap.t_first_contact, "phase_steps": steps,
+                "lead_in_orbit": res.converged}  # fmt: skip
 
     def transient(self, m: int, h: float, n_periods: int) -> PixelRecord:
         """A pixel tapped for ``n_periods`` drive periods, its last ``record_cycles`` recorded."""
