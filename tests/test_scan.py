@@ -56,8 +56,13 @@ def line_config(nx=6, pixel_time=0.5e-3, steady="transient", methods=("vetica",)
     feat.update(feature or {})
     return {
         "numerics": {**NUMERICS, **(numerics or {})},
-        "scan": {"pixels": [nx, ny], "size": [nx * pitch, ny * pitch], "pixel_time": pixel_time, "steady": steady,
-                 "methods": list(methods)},  # fmt: skip
+        "scan": {
+            "pixels": [nx, ny],
+            "size": [nx * pitch, ny * pitch],
+            "pixel_time": pixel_time,
+            "steady": steady,
+            "methods": list(methods),
+        },
         "sample": {"background": {**MATRIX, **(background or {})}, "features": [feat]},
     }
 
@@ -93,7 +98,8 @@ def numeric_equal(a: pd.DataFrame, b: pd.DataFrame) -> None:
 
 def test_the_issue_schema_is_accepted_as_written():
     """The contract of issue 12, verbatim: both features, keys not given are the background's."""
-    raw = yaml.safe_load(textwrap.dedent("""
+    raw = yaml.safe_load(
+        textwrap.dedent("""
         scan:
           pixels: [64, 64]
           size: [2.0e-6, 2.0e-6]
@@ -117,7 +123,8 @@ def test_the_issue_schema_is_accepted_as_written():
               size: [5.0e-7, 2.0e-6]
               height: 0.0
               surface: {k0: 128.0}
-    """))
+    """)
+    )
     cfg = build(raw)
     assert cfg.scan.raster == Raster(64, 64, 2e-6, 2e-6)
     assert [p.label() for p in cfg.scan.passes()] == ["transient 2 ms"]

@@ -179,8 +179,9 @@ def plot(
     force, and force against distance and velocity (fig. 62).  A sweep table
     gives the chapter-4 figures that its swept keys call for (errors and
     acceptance regime against cd, f1, print step; E_diss maps; peak force,
-    penetration, contact times, zero-reference depth).  Files are named
-    <table stem>_<figure>.png.
+    penetration, contact times, zero-reference depth).  A scan table (vetica scan)
+    gives images of topography, phase, E_diss and each extracted property beside its
+    truth and error, and a line profile.  Files are named <table stem>_<figure>.png.
     """
     from .plots import plot as _plot
 

@@ -309,7 +309,9 @@ def scan_figures(df: pd.DataFrame, meta: dict) -> tuple[list, list]:
         groups = list(rows.groupby(["method", "force_source"], sort=False))
         for (method, source), g in groups:
             tag = method if len(set(rows["force_source"])) == 1 else f"{method}_{source}"
-            figs.append((f"{slug}{tag}", fig_properties(geo, g, f"{name}: {Pass(*p).label()}, {method}, {source} force")))
+            figs.append(
+                (f"{slug}{tag}", fig_properties(geo, g, f"{name}: {Pass(*p).label()}, {method}, {source} force"))
+            )
     if geo.ny < MIN_IMAGE_LINES:
         notes.append(f"{geo.ny} line(s): no images (fewer than {MIN_IMAGE_LINES}), the profile only")
     figs.append(("profile", fig_profile(geo, df, profile_line(geo))))

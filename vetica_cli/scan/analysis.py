@@ -127,7 +127,7 @@ def domain_stats(table: pd.DataFrame, margin: int = MARGIN) -> pd.DataFrame:
                     err = gd[f"{q}_err_pct"].to_numpy(float)
                     err = err[np.isfinite(err)]
                     out.append({"steady": p[0], "pixel_time": p[1], "method": method, "force_source": source,
-                                "domain": int(d), "quantity": q, "n": int(len(v)), "median": med,
+                                "domain": int(d), "quantity": q, "n": len(v), "median": med,
                                 "spread_pct": _spread_pct(v, med), "truth": float(np.median(gd[f"{q}_theory"])),
                                 "median_err_pct": float(np.median(err)) if len(err) else math.nan})  # fmt: skip
     return pd.DataFrame(out)
@@ -221,7 +221,10 @@ def _fmt(v: float) -> str:
 def summary_markdown(table: pd.DataFrame, meta: dict, margin: int = MARGIN) -> str:
     """The three measures as Markdown tables (what ``vetica scan`` prints at the end)."""
     names = (meta.get("scan") or {}).get("domains") or []
-    dname = lambda d: names[d] if d < len(names) else str(d)  # noqa: E731
+
+    def dname(d: int) -> str:
+        return names[d] if d < len(names) else str(d)
+
     lines = [f"Interior pixels: every neighbour within {margin} pixel(s) in the same domain; errors signed, %.", ""]
     st = domain_stats(table, margin)
     params = summary_names(table)
@@ -234,10 +237,16 @@ def summary_markdown(table: pd.DataFrame, meta: dict, margin: int = MARGIN) -> s
             cells = [f"{_fmt(g.loc[q, 'median'])} ({_fmt(g.loc[q, 'truth'])}) ±{_fmt(g.loc[q, 'spread_pct'])}, "
                      f"{_fmt(g.loc[q, 'median_err_pct'])}" for q in params if q in g.index]  # fmt: skip
             n = int(g["n"].iloc[0])
-            lines.append(f"| {pass_label((stdy, pt))} | {method} | {source} | {dname(d)} | {n} | " + " | ".join(cells) + " |")
+            lines.append(
+                f"| {pass_label((stdy, pt))} | {method} | {source} | {dname(d)} | {n} | " + " | ".join(cells) + " |"
+            )
     ah = apparent_heights(table, margin)
     if len(ah):
-        lines += ["", "| pass | domain | true Δh [nm] | apparent Δh [nm] | material contrast [nm] |", "|---|---|---|---|---|"]
+        lines += [
+            "",
+            "| pass | domain | true Δh [nm] | apparent Δh [nm] | material contrast [nm] |",
+            "|---|---|---|---|---|",
+        ]
         for _, r in ah[ah["domain"] != 0].iterrows():
             lines.append(f"| {pass_label((r['steady'], r['pixel_time']))} | {dname(int(r['domain']))} | "
                          f"{r['true_dh'] * 1e9:.3f} | {r['apparent_dh'] * 1e9:.3f} | {r['contrast'] * 1e9:+.3f} |")  # fmt: skip
@@ -247,9 +256,13 @@ def summary_markdown(table: pd.DataFrame, meta: dict, margin: int = MARGIN) -> s
                   "| pass | method | force | " + " | ".join(["topography", *params]) + " |",
                   "|---" * (4 + len(params)) + "|"]  # fmt: skip
         for p in passes(table):
-            sel = ew[(ew["steady"] == p[0]) & ((ew["pixel_time"] == p[1]) | (ew["pixel_time"].isna() & math.isnan(p[1])))]
+            sel = ew[
+                (ew["steady"] == p[0]) & ((ew["pixel_time"] == p[1]) | (ew["pixel_time"].isna() & math.isnan(p[1])))
+            ]
             topo = sel[sel["quantity"] == "topography"].iloc[0]
-            for (method, source), g in sel[sel["quantity"] != "topography"].groupby(["method", "force_source"], sort=False):
+            for (method, source), g in sel[sel["quantity"] != "topography"].groupby(
+                ["method", "force_source"], sort=False
+            ):
                 g = g.set_index("quantity")
                 cells = [f"{_fmt(topo['median_px'])} / {topo['max_px']}"]
                 cells += [f"{_fmt(g.loc[q, 'median_px'])} / {g.loc[q, 'max_px']}" for q in params if q in g.index]

@@ -168,7 +168,9 @@ def parse_scan(raw: Any, extract: dict) -> ScanSpec:
     raw = _mapping("scan", raw)
     _unknown("scan", raw, SCAN_DEFAULTS)
     if "method" in extract:
-        raise ConfigError(f"extract.method: {extract['method']!r} is not used by a scan; list the methods in scan.methods")
+        raise ConfigError(
+            f"extract.method: {extract['method']!r} is not used by a scan; list the methods in scan.methods"
+        )
     d = {**SCAN_DEFAULTS, **raw}
     px = d["pixels"]
     if not isinstance(px, (list, tuple)) or len(px) != 2:
@@ -219,7 +221,9 @@ def parse_sample(raw: Any) -> Sample:
     raw = _mapping("sample", raw)
     _unknown("sample", raw, ("background", "features"))
     if raw.get("background") is None:
-        raise ConfigError("sample.background: missing; expected a surface section plus its height, e.g. {height: 0.0, k0: 64.0}")
+        raise ConfigError(
+            "sample.background: missing; expected a surface section plus its height, e.g. {height: 0.0, k0: 64.0}"
+        )
     bg = dict(_mapping("sample.background", raw["background"]))
     height = _num("sample.background.height", bg.pop("height", 0.0))
     background = _surface("sample.background", bg)
@@ -310,7 +314,9 @@ def build(raw: dict, name: str = "scan") -> ScanConfig:
     if not isinstance(raw, dict):
         raise ConfigError(f"a scan config must be a mapping, got {type(raw).__name__}")
     if "surface" in raw:
-        raise ConfigError("surface: a scan takes its surfaces from 'sample:' (background and features); remove 'surface:'")
+        raise ConfigError(
+            "surface: a scan takes its surfaces from 'sample:' (background and features); remove 'surface:'"
+        )
     if "sweep" in raw:
         raise ConfigError("sweep: a scan config has no 'sweep:' block; list pixel times in scan.pixel_time")
     for k in raw:
@@ -321,7 +327,9 @@ def build(raw: dict, name: str = "scan") -> ScanConfig:
         raise ConfigError(f"{missing}: missing; a scan config needs the sections 'scan:' and 'sample:'")
     numerics = _mapping("numerics", raw.get("numerics"))
     if "steady" in numerics:
-        raise ConfigError("numerics.steady: a scan sets each pixel's steady state with scan.steady; remove numerics.steady")
+        raise ConfigError(
+            "numerics.steady: a scan sets each pixel's steady state with scan.steady; remove numerics.steady"
+        )
     extract = _extract(raw.get(EXTRACT_SECTION))
     force = extract.get("force", DEFAULT_FORCE)
     spec = parse_scan(raw.get("scan"), extract)
@@ -344,7 +352,10 @@ def _resolved(name, description, point: Config, spec: ScanSpec, sample: Sample, 
         out["description"] = description
     out.update({s: pd[s] for s in POINT_SECTIONS})
     out[EXTRACT_SECTION] = {"force": force}
-    one = lambda v: v[0] if len(v) == 1 else list(v)  # noqa: E731
+
+    def one(v):
+        return v[0] if len(v) == 1 else list(v)
+
     out["scan"] = {"pixels": [r.nx, r.ny], "size": [r.size_x, r.size_y], "pixel_time": one(spec.pixel_times),
                    "steady": one(spec.steady), "methods": list(spec.methods)}  # fmt: skip
     out["sample"] = {"background": {"height": sample.height, **sample.background},
@@ -367,7 +378,9 @@ def set_path(d: dict, key: str, value: Any) -> None:
         nxt = parts[i + 1]
         if isinstance(node, list):
             if not part.isdigit() or int(part) >= len(node):
-                raise ConfigError(f"--set {key}: {'.'.join(parts[:i])} has {len(node)} items; {part!r} is not one of them")
+                raise ConfigError(
+                    f"--set {key}: {'.'.join(parts[:i])} has {len(node)} items; {part!r} is not one of them"
+                )
             node = node[int(part)]
             continue
         if not isinstance(node, dict):

@@ -78,7 +78,7 @@ class LineTask:
         driver = LineDriver(configs)
         line = smap.line(iy)
         period = 1.0 / cfg.point.probe.f1
-        n_periods = int(round(p.pixel_time / period)) if p.steady == "transient" else 0
+        n_periods = round(p.pixel_time / period) if p.steady == "transient" else 0
         lead = n_periods if n_periods else configs[0].numerics.settle_cycles
         m0, h0 = line[0]
         driver.start(m0, h0, lead)

@@ -191,7 +191,7 @@ class LineDriver:
             self.ctrl.update(engine.amplitude(last, kern.period_s), True)
         # q = A cos(w t - phi) is highest at w t = phi: start every pixel there
         phi = math.radians(engine.phase_deg(last)) % (2.0 * math.pi)
-        steps = int(round(phi / (2.0 * math.pi) * kern.nt)) % kern.nt
+        steps = round(phi / (2.0 * math.pi) * kern.nt) % kern.nt
         if steps:
             kern.advance(self.s, n_steps=steps, zb_step=self.ctrl.zb_step)
         self.base = float(self.s[T.S_ZB]) + h

@@ -183,8 +183,14 @@ def scan_meta(cfg: ScanConfig, smap, zb_ref: float, zb_stop: str) -> dict:
             "pixels": [r.nx, r.ny],
             "size": [r.size_x, r.size_y],
             "pitch": list(r.pitch),
-            "passes": [{"steady": p.steady, "pixel_time": None if math.isnan(p.pixel_time) else p.pixel_time,
-                        "label": p.label()} for p in cfg.scan.passes()],  # fmt: skip
+            "passes": [
+                {
+                    "steady": p.steady,
+                    "pixel_time": None if math.isnan(p.pixel_time) else p.pixel_time,
+                    "label": p.label(),
+                }
+                for p in cfg.scan.passes()
+            ],
             "methods": list(cfg.scan.methods),
             "force": cfg.force,
             "domains": cfg.sample.domain_names(),
@@ -222,9 +228,10 @@ def dry_run_text(cfg: ScanConfig, output: Path, jobs: int) -> str:
     r = cfg.scan.raster
     smap = paint(cfg.sample, r)
     period = 1.0 / cfg.point.probe.f1
-    lines = [f"scan {cfg.name}: {r.nx} x {r.ny} pixels over {r.size_x * 1e6:g} x {r.size_y * 1e6:g} um "
-             f"(pitch {r.pitch[0] * 1e9:.4g} x {r.pitch[1] * 1e9:.4g} nm), methods {', '.join(cfg.scan.methods)}, "
-             f"force {cfg.force}"]  # fmt: skip
+    head = (f"scan {cfg.name}: {r.nx} x {r.ny} pixels over {r.size_x * 1e6:g} x {r.size_y * 1e6:g} um "
+            f"(pitch {r.pitch[0] * 1e9:.4g} x {r.pitch[1] * 1e9:.4g} nm), methods {', '.join(cfg.scan.methods)}, "
+            f"force {cfg.force}")  # fmt: skip
+    lines = [head]
     for name, n in zip(cfg.sample.domain_names(), smap.covered):
         lines.append(f"  {name}: {n} pixels" + ("  (covers no pixel centre)" if n == 0 else ""))
     total = 0.0

@@ -58,7 +58,9 @@ def column_units(cfg: ScanConfig) -> dict:
     units.update(study_units(Study(name=cfg.name, description="", keys=(), points=points, base={}, sweep={})))
     units.pop("point", None)
     units["stop_reason"] = STOP_REASONS
-    units["status"] = "ok (extracted; record proven periodic) | not_steady (extracted; record not proven periodic) | failed (see error)"
+    units["status"] = (
+        "ok (extracted; record proven periodic) | not_steady (extracted; record not proven periodic) | failed (see error)"
+    )
     units["sim_time"] = "s: simulated time since the line's start at the end of the pixel's record"
     units["wall_s"] = "s: wall time of the pixel's simulation plus this row's extraction"
     return units
