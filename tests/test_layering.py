@@ -1,6 +1,6 @@
 """The package's architecture, checked on the source (ast, no imports executed).
 
-Imports point one way only (STYLE: cli -> plots -> study -> extraction/simulation
+Imports point one way only (STYLE: cli -> plots -> scan -> study -> extraction/simulation
 -> surfaces/signals -> core; ``errors``, ``io``, ``constants``, ``checks`` usable
 from anywhere), there is no import cycle, and no module -- in the package, the
 tests or the scripts -- imports another module's ``_private`` name or patches one.
@@ -19,6 +19,7 @@ PKG = ROOT / "vetica_cli"
 LAYERS = (
     {"cli"},
     {"plots"},
+    {"scan"},
     {"study", "bench", "report"},
     {"extraction", "simulation"},
     {"surfaces", "signals"},

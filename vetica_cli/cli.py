@@ -216,6 +216,47 @@ def sweep(
 
 @app.command()
 @user_errors
+def scan(
+    config: Path = typer.Argument(..., help="Scan YAML: probe/operation/numerics/extract plus 'scan:' and 'sample:'."),
+    output: Optional[Path] = typer.Option(
+        None, "-o", "--output", help="Parquet table to write (default: results/<config name>.parquet)."
+    ),
+    jobs: int = typer.Option(2, "--jobs", "-j", help="Parallel workers (processes), one core each; a line per job."),
+    backend: str = typer.Option("loky", help="loky (local processes) or dask (a Dask cluster via joblib)."),
+    scheduler: Optional[str] = typer.Option(
+        None, help="Dask scheduler address, e.g. tcp://host:8786 (with --backend dask; default: a local cluster)."
+    ),
+    resume: bool = typer.Option(
+        True, "--resume/--no-resume", help="Reuse lines persisted in <output>.parts/ by an earlier (killed) run."
+    ),
+    set_: Optional[List[str]] = typer.Option(
+        None, "--set", help="Override one key, e.g. --set scan.pixel_time=1e-3 or sample.features.0.height=2e-9."
+    ),
+    dry_run: bool = typer.Option(False, "--dry-run", help="Print the pixels, domains and a cost estimate, run nothing."),
+    quiet: bool = typer.Option(False, "--quiet", "-q", help="No progress bar."),
+):
+    """Image a heterogeneous sample as a tapping-mode AFM does: scan it line by line, pixel by
+    pixel (the cantilever and the controller carry over, the surface under each pixel starts
+    undeformed), extract every pixel with every scan.methods, and write one tidy table (one
+    row per pixel, method and force source: x, y, height_true, topography, amplitude,
+    phase_deg, e_diss_ev, ..., each estimate with _theory and _err_pct, status, error) plus
+    <name>.config.yaml and <name>.summary.md (per-domain medians against the truth, apparent
+    heights, edge-artefact widths).  A killed scan run again computes only the missing lines.
+    """
+    from .scan.run import ScanInterrupted, scan_command
+    from .simulation.config import parse_set
+
+    try:
+        text = scan_command(config, output, parse_set(set_), dry_run=dry_run, jobs=jobs, backend=backend,
+                            scheduler=scheduler, resume=resume, progress=not quiet)  # fmt: skip
+    except ScanInterrupted as exc:
+        typer.echo(str(exc), err=True)
+        raise typer.Exit(130) from None
+    typer.echo(text)
+
+
+@app.command()
+@user_errors
 def plot(
     table: Path = typer.Argument(..., help="A run (vetica simulate) or sweep table (vetica sweep), Parquet."),
     output: Optional[Path] = typer.Option(
@@ -236,8 +277,9 @@ def plot(
     force, and force against distance and velocity (fig. 62).  A sweep table
     gives the chapter-4 figures that its swept keys call for (errors and
     acceptance regime against cd, f1, print step; E_diss maps; peak force,
-    penetration, contact times, zero-reference depth).  Files are named
-    <table stem>_<figure>.png.
+    penetration, contact times, zero-reference depth).  A scan table (vetica scan)
+    gives images of topography, phase, E_diss and each extracted property beside its
+    truth and error, and a line profile.  Files are named <table stem>_<figure>.png.
     """
     from .plots import plot as _plot
 

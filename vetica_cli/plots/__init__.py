@@ -25,7 +25,8 @@ excluded and counted in the note at the bottom of the figure.
 Modules: :mod:`.style` (conventions and helpers), :mod:`.run` (run figures),
 :mod:`.data` (the sweep rows the study figures draw), :mod:`.study` (which
 study figures a table calls for), and one module per family of study figures:
-:mod:`.errors`, :mod:`.acceptance`, :mod:`.maps`, :mod:`.observables`.
+:mod:`.errors`, :mod:`.acceptance`, :mod:`.maps`, :mod:`.observables`; and the scan
+images of a map from ``vetica scan`` (:mod:`.scanmaps`).
 """
 
 from __future__ import annotations
@@ -39,6 +40,7 @@ import pandas as pd
 from ..errors import InputError
 from ..io import check_output_dir, read_table
 from .run import run_figures
+from .scanmaps import scan_figures
 from .study import sweep_figures
 from .style import save_png
 
@@ -75,6 +77,8 @@ def plot(path: str | Path, outdir: str | Path | None = None, cutoff_hz: float | 
     kind = table_kind(df, meta, path)
     if kind == "run":
         figures, notes = run_figures(df, meta, cutoff_hz)
+    elif kind == "scan":
+        figures, notes = scan_figures(df, meta)
     else:
         figures, notes = sweep_figures(df, meta)
     result = PlotResult(notes=notes)
@@ -84,11 +88,13 @@ def plot(path: str | Path, outdir: str | Path | None = None, cutoff_hz: float | 
 
 
 def table_kind(df: pd.DataFrame, meta: dict, path: Path | str = "table") -> str:
-    """'run' or 'sweep'; InputError naming what is missing otherwise."""
+    """'run', 'sweep' or 'scan' (a map from 'vetica scan'); InputError naming what is missing otherwise."""
     if not meta:
         raise InputError(
             f"{path}: no 'vetica' metadata; expected a run from 'vetica simulate' or a table from 'vetica sweep'"
         )
+    if meta.get("table") == "scan":
+        return "scan"
     if all(c in df.columns for c in SWEEP_COLUMNS):
         return "sweep"
     if all(c in df.columns for c in RUN_COLUMNS):

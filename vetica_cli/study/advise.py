@@ -326,7 +326,7 @@ def advise(material: Material, overrides: dict | None = None, knobs: dict | None
                               "force": force})  # fmt: skip
     t0 = time.perf_counter()
     rows: list = [None] * len(items)
-    bar = Progress(len(items), 0, 0, enabled=progress, label="advise", unit="simulations")
+    bar = Progress(len(items), 0, 0, enabled=progress, name="advise", unit="simulations")
     failed = 0
 
     def on_result(i, res):

@@ -57,10 +57,11 @@ def _local_imports(path: Path, root: Path) -> set[Path]:
     return out
 
 
-def fingerprint_files() -> list[Path]:
-    """The import closure of :data:`FINGERPRINT_ROOTS`: simulation, extraction, surfaces,
-    signals, kernels, and the study code that turns them into rows."""
-    todo = [PACKAGE / name for name in FINGERPRINT_ROOTS]
+def fingerprint_files(roots: tuple[str, ...] = FINGERPRINT_ROOTS) -> list[Path]:
+    """The import closure of ``roots`` (package-relative paths; default
+    :data:`FINGERPRINT_ROOTS`: simulation, extraction, surfaces, signals, kernels, and the
+    study code that turns them into rows)."""
+    todo = [PACKAGE / name for name in roots]
     missing = [str(f) for f in todo if not f.is_file()]
     if missing:  # a moved module must not silently drop out of the fingerprint
         raise FileNotFoundError(f"fingerprint roots missing: {', '.join(missing)}")
@@ -74,14 +75,14 @@ def fingerprint_files() -> list[Path]:
     return sorted(seen)
 
 
-@functools.lru_cache(maxsize=1)
-def code_fingerprint() -> str:
-    """Hash of the package source that computes a point (:func:`fingerprint_files`).
-    A part made by different code is stale and is recomputed, so a resumed sweep
-    never mixes results of two code versions; editing e.g. the plots leaves
-    parts valid."""
+@functools.lru_cache(maxsize=4)
+def code_fingerprint(roots: tuple[str, ...] = FINGERPRINT_ROOTS) -> str:
+    """Hash of the package source that computes a point (:func:`fingerprint_files` of
+    ``roots``; a scan passes its own).  A part made by different code is stale and is
+    recomputed, so a resumed sweep never mixes results of two code versions; editing
+    e.g. the plots leaves parts valid."""
     h = hashlib.sha256()
-    for f in fingerprint_files():
+    for f in fingerprint_files(roots):
         h.update(str(f.relative_to(PACKAGE)).encode())
         h.update(f.read_bytes())
     return h.hexdigest()[:16]

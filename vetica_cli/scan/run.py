@@ -1,0 +1,269 @@
+"""``vetica scan CONFIG``: plan the lines, run the missing ones, write the table.
+
+The path of a scan, one way through:
+
+1. the config is validated (:mod:`.config`) and the sample painted on the raster
+   (:mod:`.sample`);
+2. the zero of the measured topography is the base height of the background's own
+   periodic orbit (:func:`.pixel.reference_base`, one solve in this process);
+3. every line of every pass is a job (:class:`.line.LineItem`) named by a hash of what
+   it computes (:func:`line_key`); lines persisted in ``<output>.parts/`` by an earlier
+   run with the same code are reused (a killed scan resumes by line, like a sweep);
+4. a launcher (:mod:`vetica_cli.study.launch`: serial, loky, dask) runs the task
+   (:class:`.line.LineTask`, passed in) over the missing lines; each finished line is
+   written at once as a part;
+5. the table (:mod:`.table`) is written atomically with the units, the resolved config,
+   the sample's geometry and the topography's zero in its metadata, the config as
+   ``<output stem>.config.yaml`` and the measures (:mod:`.analysis`) as
+   ``<output stem>.summary.md``.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import math
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import pandas as pd
+
+from .. import __version__
+from ..errors import InputError
+from ..io import read_table, write_table, write_text
+from ..study.launch import Launcher, make_launcher
+from ..study.progress import Progress
+from ..study.schema import STATUSES
+from ..study.store import code_fingerprint, part_path, parts_dir
+from .analysis import summary_markdown
+from .config import ScanConfig, dump, load_scan
+from .line import LineItem, LineTask
+from .pixel import reference_base
+from .sample import paint, surface_key
+from .table import assemble, column_units, columns
+
+SCAN_ROOTS = ("scan/line.py", "scan/table.py")  # the code that computes a line's rows (its import closure)
+SECONDS_PER_PERIOD = 0.8e-3  # kernel, one drive period away from recording (hybrid, 50 kHz; dry-run estimate)
+SECONDS_PER_RECORD = 0.07  # one pixel's record, observables and VETICA at PS 1 ns, 4 periods (dry-run estimate)
+
+
+@dataclass
+class ScanResult:
+    table: pd.DataFrame
+    meta: dict
+    output: Path
+    config_path: Path
+    summary_path: Path
+    computed: list = field(default_factory=list)  # line keys computed in this call
+    reused: list = field(default_factory=list)  # line keys read from parts
+    wall_s: float = 0.0
+
+
+def line_key(cfg: ScanConfig, smap, steady: str, pixel_time: float, iy: int, zb_ref: float) -> str:
+    """16-hex hash of everything a line's rows depend on: the point config, the pass, the
+    methods and force, the line's pixels (surface, height, domain, place), the topography's
+    zero and the package version (so adding a pixel time or a line keeps the others' parts)."""
+    x, y = cfg.scan.raster.centres()
+    point = cfg.point.to_dict()
+    point["numerics"].pop("steady")
+    pixels = [[surface_key(smap.materials[int(m)]), float(h), int(d)]
+              for m, h, d in zip(smap.material[iy], smap.height[iy], smap.domain[iy])]  # fmt: skip
+    blob = {"version": __version__, "point": point, "steady": steady,
+            "pixel_time": None if math.isnan(pixel_time) else pixel_time, "methods": list(cfg.scan.methods),
+            "force": cfg.force, "x": [float(v) for v in x], "y": float(y[iy]), "pixels": pixels, "zb_ref": zb_ref}  # fmt: skip
+    return hashlib.sha256(json.dumps(blob, sort_keys=True).encode()).hexdigest()[:16]
+
+
+def read_line(path: Path, key: str, fingerprint: str) -> pd.DataFrame | None:
+    """A persisted line, or None when absent, unreadable or made by other code."""
+    if not path.is_file():
+        return None
+    try:
+        df, meta = read_table(path)
+    except InputError:
+        return None
+    if meta.get("line") != key or meta.get("code") != fingerprint:
+        return None
+    return df
+
+
+def _items(cfg: ScanConfig, smap, zb_ref: float) -> list[LineItem]:
+    return [LineItem(line_key(cfg, smap, p.steady, p.pixel_time, iy, zb_ref), cfg.resolved, p.steady, p.pixel_time,
+                     iy, zb_ref)
+            for p in cfg.scan.passes() for iy in range(cfg.scan.raster.ny)]  # fmt: skip
+
+
+def failed_pixels(df: pd.DataFrame) -> int:
+    """Pixels of a line with a failed row."""
+    return int(df.loc[df["status"] == "failed", "ix"].nunique()) if len(df) else 0
+
+
+def run_scan(cfg: ScanConfig, output: str | Path, jobs: int = 2, backend: str = "loky", scheduler: str | None = None,
+             resume: bool = True, progress: bool = True, console=None, task: LineTask | None = None,
+             launcher: Launcher | None = None) -> ScanResult:  # fmt: skip
+    """Scan every missing line of ``cfg`` (module docstring), then write the table.
+
+    ``task``: the job function (default :class:`.line.LineTask`: the real simulation and
+    extraction); ``launcher``: where (default from ``backend``, ``jobs``, ``scheduler``;
+    a given launcher is not closed here)."""
+    t_start = time.perf_counter()
+    output = Path(output)
+    if output.suffix.lower() != ".parquet":
+        raise InputError(f"-o {str(output)!r}: the table is written as Parquet; expected a .parquet path")
+    own = launcher is None
+    launcher = make_launcher(backend, jobs, scheduler) if own else launcher
+    try:
+        smap = paint(cfg.sample, cfg.scan.raster)
+        zb_ref, zb_stop = reference_base(cfg.material_config(cfg.sample.background, "orbit"))
+        items = _items(cfg, smap, zb_ref)
+        done, computed, reused = _run_lines(items, output, launcher, task or LineTask(), resume, progress, console,
+                                            cfg.scan.raster.nx)  # fmt: skip
+    finally:
+        if own:
+            launcher.close()
+    table = assemble(cfg, [done[it.key] for it in items])
+    meta = scan_meta(cfg, smap, zb_ref, zb_stop)
+    meta["wall_s"] = time.perf_counter() - t_start
+    meta["lines"] = {"total": len(items), "computed": len(computed), "reused": len(reused)}
+    write_table(table, output, meta)
+    config_path = output.with_name(output.stem + ".config.yaml")
+    write_text(config_path, dump(cfg))
+    summary_path = output.with_name(output.stem + ".summary.md")
+    write_text(summary_path, f"# {cfg.name}: scan summary\n\n" + summary_markdown(table, meta) + "\n")
+    return ScanResult(table, meta, output, config_path, summary_path, computed, reused, time.perf_counter() - t_start)
+
+
+def _run_lines(items, output, launcher, task, resume, progress, console, nx):
+    """Run the missing lines, persisting each as it finishes.  Returns ``(done: key -> rows
+    frame, keys computed now, keys read from parts)``."""
+    pdir = parts_dir(output)
+    fp = code_fingerprint(SCAN_ROOTS)
+    done: dict[str, pd.DataFrame] = {}
+    if resume:
+        for it in items:
+            df = read_line(part_path(pdir, it.key), it.key, fp)
+            if df is not None:
+                done[it.key] = df
+    reused = list(done)
+    todo = [it for it in items if it.key not in done]
+    pdir.mkdir(parents=True, exist_ok=True)
+    for stale in pdir.glob(".*.tmp"):  # temporaries of a killed write
+        stale.unlink(missing_ok=True)
+    computed: list[str] = []
+    failed = sum(failed_pixels(df) for df in done.values())
+    bar = Progress(len(items) * nx, len(done) * nx, failed, enabled=progress, console=console, name="scan",
+                   unit="pixels", groups=(len(done), len(items), "lines"))  # fmt: skip
+
+    def on_result(i: int, res) -> None:
+        nonlocal failed
+        it = todo[i]
+        df = pd.DataFrame(res.rows)
+        write_table(df, part_path(pdir, it.key), {"line": it.key, "code": fp, "iy": it.iy, "steady": it.steady,
+                                                  "pixel_time": None if math.isnan(it.pixel_time) else it.pixel_time,
+                                                  "wall_s": res.wall_s})  # fmt: skip
+        done[it.key] = df
+        computed.append(it.key)
+        failed += failed_pixels(df)
+        bar.advance(res.pixels, failed, 1)
+
+    with bar:
+        launcher.launch(task, todo, on_result)
+    return done, computed, reused
+
+
+def scan_meta(cfg: ScanConfig, smap, zb_ref: float, zb_stop: str) -> dict:
+    """The table's metadata: kind, geometry of the sample, passes, units, resolved config."""
+    r = cfg.scan.raster
+    return {
+        "table": "scan",
+        "scan": {
+            "name": cfg.name,
+            "description": cfg.description,
+            "pixels": [r.nx, r.ny],
+            "size": [r.size_x, r.size_y],
+            "pitch": list(r.pitch),
+            "passes": [
+                {
+                    "steady": p.steady,
+                    "pixel_time": None if math.isnan(p.pixel_time) else p.pixel_time,
+                    "label": p.label(),
+                }
+                for p in cfg.scan.passes()
+            ],
+            "methods": list(cfg.scan.methods),
+            "force": cfg.force,
+            "domains": cfg.sample.domain_names(),
+            "domain_pixels": smap.covered,
+            "background": {"height": cfg.sample.height, "surface": cfg.sample.background},
+            "features": [f.to_dict() for f in cfg.sample.features],
+            "zb_ref": zb_ref,
+            "zb_ref_stop_reason": zb_stop,
+        },
+        "config": cfg.resolved,
+        "units": column_units(cfg),
+        "columns": columns(cfg),
+        "version": __version__,
+        "code": code_fingerprint(SCAN_ROOTS),
+    }
+
+
+def summary(res: ScanResult) -> str:
+    """What the scan did, and its measures."""
+    t = res.table
+    px = t.drop_duplicates(subset=["steady", "pixel_time", "iy", "ix"])
+    by_status = t["status"].value_counts().to_dict()
+    lines = [
+        f"{res.meta['lines']['total']} lines ({len(res.computed)} computed, {len(res.reused)} reused from "
+        f"{parts_dir(res.output).name}/), {len(px)} pixels, {len(t)} rows: "
+        + ", ".join(f"{by_status.get(s, 0)} {s}" for s in STATUSES),
+        summary_markdown(t, res.meta),
+        f"wrote {res.output}, {res.config_path.name} and {res.summary_path.name} in {res.wall_s:.1f} s",
+    ]
+    return "\n".join(lines)
+
+
+def dry_run_text(cfg: ScanConfig, output: Path, jobs: int) -> str:
+    """Lines, pixels, domains and a cost estimate; runs nothing."""
+    r = cfg.scan.raster
+    smap = paint(cfg.sample, r)
+    period = 1.0 / cfg.point.probe.f1
+    head = (f"scan {cfg.name}: {r.nx} x {r.ny} pixels over {r.size_x * 1e6:g} x {r.size_y * 1e6:g} um "
+            f"(pitch {r.pitch[0] * 1e9:.4g} x {r.pitch[1] * 1e9:.4g} nm), methods {', '.join(cfg.scan.methods)}, "
+            f"force {cfg.force}")  # fmt: skip
+    lines = [head]
+    for name, n in zip(cfg.sample.domain_names(), smap.covered):
+        lines.append(f"  {name}: {n} pixels" + ("  (covers no pixel centre)" if n == 0 else ""))
+    total = 0.0
+    for p in cfg.scan.passes():
+        periods = round(p.pixel_time / period) if p.steady == "transient" else 40
+        per_pixel = periods * SECONDS_PER_PERIOD + SECONDS_PER_RECORD * len(cfg.scan.methods)
+        total += per_pixel * r.nx * r.ny
+        lines.append(f"  pass {p.label()}: {r.ny} lines, ~{per_pixel:.2f} s a pixel")
+    lines.append(f"~{total / jobs / 60:.1f} min on {jobs} worker(s) (measured costs at PS 1 ns and 4 recorded periods: "
+                 f"{SECONDS_PER_PERIOD * 1e3:g} ms a drive period, {SECONDS_PER_RECORD:g} s a record per method); "
+                 f"would write {output}")  # fmt: skip
+    return "\n".join(lines)
+
+
+class ScanInterrupted(KeyboardInterrupt):
+    """Ctrl-C during a scan; the message says what is persisted and how to go on."""
+
+
+def scan_command(config: str | Path, output: str | Path | None = None, overrides: dict | None = None,
+                 dry_run: bool = False, jobs: int = 2, **run_kw) -> str:  # fmt: skip
+    """``vetica scan CONFIG``: load the scan (``overrides`` as dotted keys), then print its
+    plan and cost (``dry_run``) or run it (:func:`run_scan` keywords in ``run_kw``).
+    The table goes to ``output`` (default ``results/<config stem>.parquet``).  Raises
+    :class:`ScanInterrupted` on Ctrl-C."""
+    cfg = load_scan(config, overrides)
+    out = Path(output) if output is not None else Path("results") / f"{Path(config).stem}.parquet"
+    if dry_run:
+        return dry_run_text(cfg, out, jobs)
+    try:
+        res = run_scan(cfg, out, jobs=jobs, **run_kw)
+    except KeyboardInterrupt:
+        n = len(list(parts_dir(out).glob("*.parquet")))
+        raise ScanInterrupted(f"interrupted: {n} lines are persisted in {parts_dir(out)}/; "
+                              "run the same command again to compute the rest") from None  # fmt: skip
+    return summary(res)
