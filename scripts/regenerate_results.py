@@ -32,7 +32,9 @@ FIG = RES / "figures"
 THESIS = ["dashpot", "dashpot_vdw_off", "stiffness_ratio", "setpoint", "frequency", "print_step", "paddle_stiffness"]
 EXTRA = ["stiffness_ratio_vdw_off", "surface_position", "wiechert_arm2_cd"]
 METHODS = ["method_dashpot", "method_stiffness_ratio", "method_noise_reconstructed", "method_low_cd", "method_pull"]
-STUDIES = THESIS + EXTRA + METHODS
+# measurements behind results/README's "Thesis findings: causes" (issue 9)
+FINDINGS = ["findings_table5", "findings_tau_c_edge", "findings_setpoint", "findings_ediss_pull"]
+STUDIES = THESIS + EXTRA + METHODS + FINDINGS
 
 
 def vetica(*args: str) -> None:

@@ -411,3 +411,18 @@ def test_tables_comparing_methods_get_one_titled_figure_set_per_method():
     assert "full extraction" in full.get_suptitle()
     assert "VETICA" in dict(figs)["fig43-46_errors_vs_cd_vetica"].get_suptitle()
     assert "methods: full, vetica" in notes[-1]
+
+
+def test_a_text_swept_key_is_a_series_not_an_axis(tmp_path):
+    """A study swept on a text key (numerics.steady: orbit | transient, as
+    configs/findings_table5.yaml) plots: the cd figures carry it as series, no figure uses it
+    as an axis, and the note says so (it used to raise converting 'orbit' to float)."""
+    df, meta = synthetic_sweep("dashpot", failed=0, not_steady=0)
+    df = pd.concat([df.assign(**{"numerics.steady": "orbit"}), df.assign(**{"numerics.steady": "transient"})])
+    meta["config"]["sweep"]["numerics.steady"] = ["orbit", "transient"]
+    path = write_table(df.reset_index(drop=True), tmp_path / "t.parquet", meta)
+    res = runner.invoke(app, ["plot", str(path), "-o", str(tmp_path / "figs")])
+    assert res.exit_code == 0, res.output
+    names = {p.name for p in (tmp_path / "figs").glob("*.png")}
+    assert "t_fig43-46_errors_vs_cd.png" in names and not any("numerics_steady" in n for n in names)
+    assert "numerics.steady takes text values" in res.output

@@ -86,12 +86,16 @@ def sweep_figures(df: pd.DataFrame, meta: dict) -> tuple[list, list]:
         raise InputError("the sweep table varies no key: nothing to plot against")
     # tables comparing extraction methods (sweep key extract.method): one set of figures per method
     methods = sorted(set(df["method"].astype(str))) if "method" in df.columns else [DEFAULT_METHOD]
+    text_keys = {k for k in swept if k in df.columns and not pd.api.types.is_numeric_dtype(df[k])}
     figs, notes = [], []
     for method in methods:
         dm = df[df["method"].astype(str) == method] if len(methods) > 1 else df
         sw = SweepData(df=dm, swept=swept, base=base_config(meta), method=method)
         for name, builder, args in select_sweep_figures(swept):
             label = name if len(methods) == 1 else f"{name}_{method}"
+            if builder == "errors_vs" and args[0] in text_keys:
+                notes.append(f"{label} skipped: {args[0]} takes text values, which are series, not an axis")
+                continue
             try:
                 fig = BUILDERS[builder](sw, *args)
             except KeyError as exc:  # e.g. no 'ok' point for one force source

@@ -189,7 +189,9 @@ def disp(key: str, values) -> np.ndarray:
     return np.asarray(values, float) * axis_meta(key)[2]
 
 
-def _fmt_value(key: str, v: float) -> str:
+def _fmt_value(key: str, v: float | str | bool) -> str:
+    if isinstance(v, (str, bool, np.bool_)):  # text and switch keys (numerics.steady, surface.vdw_on_surface)
+        return str(v)
     text = _value_text(key, v)
     if text is not None:
         return text
