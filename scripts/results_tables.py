@@ -10,6 +10,7 @@ The acceptance regime is the one `vetica sweep` and `vetica plot` use
 
 from __future__ import annotations
 
+import json
 import sys
 from pathlib import Path
 
@@ -30,6 +31,7 @@ STUDIES = [
     "stiffness_ratio_vdw_off",
     "frequency",
 ]
+THESIS7 = ["dashpot", "dashpot_vdw_off", "stiffness_ratio", "setpoint", "frequency", "print_step", "paddle_stiffness"]
 CD = "surface.cd"
 Q = ["tau_c", "k_g", "k0", "k_inf", "cd"]
 QL = {"tau_c": "τc", "k_g": "Kg", "k0": "k0", "k_inf": "k_inf", "cd": "cd"}
@@ -66,22 +68,56 @@ def regime_str(d: pd.DataFrame) -> tuple[str, float]:
 
 
 def overview() -> str:
+    tpath = RES / "timings.json"
+    timings = json.loads(tpath.read_text()) if tpath.is_file() else {}
     rows = []
     for n in STUDIES:
         df = load(n)
         pts = df[df.force_source == "true"]
         st = pts["status"].value_counts()
+        w = timings.get(n, {}).get("wall_s", np.nan)
         rows.append(
             {
                 "study": n,
                 "points": len(pts),
                 "ok": int(st.get("ok", 0)),
+                "no_estimate": int(st.get("no_estimate", 0)),
                 "not_steady": int(st.get("not_steady", 0)),
                 "failed": int(st.get("failed", 0)),
-                "simulated time [s]": float(pts["sim_time"].sum()),
+                "simulated time [ms]": float(pts["sim_time"].sum()) * 1e3,
+                "wall time [s]": w,
             }
         )
-    return md(pd.DataFrame(rows))
+    out = md(pd.DataFrame(rows))
+    t7 = [timings[s]["wall_s"] for s in THESIS7 if s in timings]
+    if len(t7) == len(THESIS7):
+        loads = [timings[s].get("load_at_start", np.nan) for s in THESIS7]
+        out += (
+            f"\n\nThe seven thesis study configs ({', '.join(THESIS7)}): {sum(t7):.1f} s wall together "
+            f"(2 workers; load average at their starts {min(loads):.2f} – {max(loads):.2f}; results/timings.json)."
+        )
+    return out
+
+
+def no_estimate_table() -> str:
+    """Where the extraction gave no value although the record is steady, and why (first reason)."""
+    rows = []
+    for n in STUDIES:
+        df = load(n)
+        d = df[(df.force_source == "true") & (df.status == "no_estimate")]
+        if not len(d):
+            continue
+        reason = d["error"].astype(str).str.extract(r"^(no estimate of [^:]+: stage \w+: [^(;]+)")[0].value_counts()
+        rows.append(
+            {
+                "study": n,
+                "no_estimate points": len(d),
+                "cd range [kg/s]": f"{d[CD].min():.2g} – {d[CD].max():.2g}" if CD in d else "–",
+                "τc theory range [ms]": f"{d['tau_c_theory'].min() * 1e3:.2g} – {d['tau_c_theory'].max() * 1e3:.2g}",
+                "most common reason": f"{reason.index[0].strip()} ({reason.iloc[0]} of {len(d)})" if len(reason) else "–",
+            }
+        )
+    return md(pd.DataFrame(rows)) if rows else "none"
 
 
 def dashpot_tables() -> str:
@@ -174,6 +210,7 @@ def regime_by(name: str, key: str, scale: float, unit: str) -> str:
             row[f"regime, {src}"] = s
             row[f"decades, {src}"] = dec
         gt = g[g.force_source == "true"]
+        row["no_estimate"] = int((gt.status == "no_estimate").sum())
         row["not_steady"] = int((gt.status == "not_steady").sum())
         row["failed"] = int((gt.status == "failed").sum())
         row["min τc err % (true)"] = gt.loc[gt.status == "ok", "tau_c_err_pct"].abs().min()
@@ -196,7 +233,6 @@ def frequency_tables() -> str:
                 g["contact_time"].mean() / (g["contact_time"].mean() + g["noncontact_time"].mean())
             ).to_numpy()
             * 100,
-            "max_time [ms]": g["numerics.max_time"].first().to_numpy() * 1e3,
         }
     )
     parts.append(
@@ -338,13 +374,79 @@ def not_steady_table() -> str:
                 "max_time [ms]": ", ".join(f"{v * 1e3:g}" for v in sorted(d["sim_time"].unique())),
             }
         )
-    return md(pd.DataFrame(rows))
+    return md(pd.DataFrame(rows)) if rows else "none"
+
+
+def findings_tables() -> str:
+    """The measurements behind results/README's "Thesis findings: causes" (configs/findings_*.yaml)."""
+    parts = []
+    t = load("findings_table5")
+    t = t[t.force_source == "true"]
+    cols = ["surface.vdw_on_surface", "numerics.steady", "numerics.print_step", "status", "sim_time",
+            "tau_c_err_pct", "k_g_err_pct", "k0_err_pct", "k_inf_err_pct", "cd_err_pct"]  # fmt: skip
+    d = t[cols].copy()
+    d["numerics.print_step"] *= 1e9
+    d["sim_time"] *= 1e3
+    d = d.rename(columns={"numerics.print_step": "PS [ns]", "sim_time": "simulated [ms]"})
+    parts.append("Table 5 point (30 kHz, cd 8e-2 kg/s, 16:1), true force, errors signed % (findings_table5):\n\n" + md(d))
+    t = load("findings_tau_c_edge")
+    t = t[t.force_source == "true"]
+    pv = t.pivot_table(index=CD, columns="numerics.print_step", values="tau_c_err_pct", dropna=False)
+    pv.columns = [f"τc err % at PS {c * 1e9:g} ns" for c in pv.columns]
+    parts.append("τc error against cd and print step, 50 kHz, 16:1, pull off (findings_tau_c_edge; – = no estimate):\n\n"
+                 + md(pv.reset_index().rename(columns={CD: "cd [kg/s]"})))  # fmt: skip
+    t = load("findings_setpoint")
+    t = t[t.force_source == "true"]
+    rows = []
+    for (vdw, cd), g in t.groupby(["surface.vdw_on_surface", CD]):
+        g = g.sort_values("operation.setpoint")
+        x, y = g["operation.setpoint"].to_numpy(), g["contact_time"].to_numpy() * 1e6
+        m = x >= 0.4 - 1e-9
+        p = np.polyfit(x[m], y[m], 1)
+        r = y[m] - np.polyval(p, x[m])
+        ok = g[(g.status == "ok")]
+        lo, hi = ok.iloc[0], ok.iloc[-1]
+        rows.append({"pull": "on" if vdw else "off", "cd [kg/s]": cd,
+                     "contact 25 / 40 / 80 % [µs]": f"{y[0]:.3f} / {y[x.searchsorted(0.4 - 1e-9)]:.3f} / {y[-1]:.3f}",
+                     "linear fit ≥ 40 %: R²": 1 - np.sum(r**2) / np.sum((y[m] - y[m].mean()) ** 2),
+                     "max residual [ns]": np.abs(r).max() * 1e3,
+                     "k_inf err % 25 → 80 %": f"{lo['k_inf_err_pct']:.3g} → {hi['k_inf_err_pct']:.3g}",
+                     "cd err % 25 → 80 %": f"{lo['cd_err_pct']:.3g} → {hi['cd_err_pct']:.3g}",
+                     "k0 err % 25 → 80 %": f"{lo['k0_err_pct']:.3g} → {hi['k0_err_pct']:.3g}"})  # fmt: skip
+    parts.append("Set point 25 … 80 % in 5 % steps, true force (findings_setpoint):\n\n" + md(pd.DataFrame(rows), ".4g"))
+    t = load("findings_ediss_pull")
+    t = t[t.force_source == "true"]
+    ref = {(750e3, 700.0): ("fig. 28", 45.9), (1.5e6, 2800.0): ("fig. 29A", 61.4), (1.5e6, 700.0): ("fig. 29B", 59.2)}
+    rows = []
+    for (f2, k2), g in t.groupby(["probe.f2", "probe.k2"]):
+        lab, th = ref.get((f2, k2), ("–", np.nan))
+        on = float(g.loc[g["surface.vdw_on_surface"].astype(bool), "e_diss_ev"].iloc[0])
+        off = float(g.loc[~g["surface.vdw_on_surface"].astype(bool), "e_diss_ev"].iloc[0])
+        rows.append({"f2 [kHz]": f2 * 1e-3, "k2 [N/m]": k2, "thesis": lab, "thesis E_diss [eV]": th,
+                     "pull on [eV]": on, "vs thesis %": 100 * (on - th) / th,
+                     "pull off [eV]": off, "vs thesis % ": 100 * (off - th) / th})  # fmt: skip
+    parts.append("E_diss of the system of figs. 28–29 (findings_ediss_pull):\n\n" + md(pd.DataFrame(rows), ".4g"))
+    return "\n\n".join(parts)
+
+
+def surface_position_tables() -> str:
+    """Figs. 59-60: deviation of the recorded contact / separation from the true events (surface_position)."""
+    t = load("surface_position")
+    t = t[t.force_source == "true"].sort_values("numerics.print_step")
+    d = pd.DataFrame({"PS [ns]": t["numerics.print_step"].to_numpy() * 1e9,
+                      "contact position dev [pm]": t["contact_pos_dev"].to_numpy() * 1e12,
+                      "separation position dev [pm]": t["separation_pos_dev"].to_numpy() * 1e12,
+                      "contact time dev [ns]": t["contact_time_dev"].to_numpy() * 1e9,
+                      "separation time dev [ns]": t["separation_time_dev"].to_numpy() * 1e9})  # fmt: skip
+    keep = np.unique(np.r_[0:len(d):6, len(d) - 1])
+    return "Every 6th print step of the 60 (surface_position, true force):\n\n" + md(d.iloc[keep], ".3g")
 
 
 def main(argv: list[str]) -> int:
     sections = {
         "overview": overview,
         "not_steady": not_steady_table,
+        "no_estimate": no_estimate_table,
         "dashpot": dashpot_tables,
         "frequency": frequency_tables,
         "print_step": print_step_tables,
@@ -352,6 +454,8 @@ def main(argv: list[str]) -> int:
         "stiffness_ratio_vdw_off": ratio_vdw_off_tables,
         "setpoint": setpoint_tables,
         "paddle_stiffness": paddle_tables,
+        "surface_position": surface_position_tables,
+        "findings": findings_tables,
     }
     want = argv or list(sections)
     for s in want:

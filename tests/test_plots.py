@@ -274,6 +274,9 @@ def test_means_against_a_setting_use_only_the_cd_values_ok_at_every_setting():
     )
     mean, _lo, hi, n = mean_band(df, "operation.setpoint", "peak_force", ["surface.cd"])
     assert mean.tolist() == [15.0, 15.0] and n.tolist() == [2, 2] and hi.tolist() == [20.0, 20.0]
+    # a steady record without an estimate still has its observables: it counts
+    df.loc[1, "status"] = "no_estimate"
+    assert mean_band(df, "operation.setpoint", "peak_force", ["surface.cd"])[0].tolist() == [15.0, 15.0]
     # no common value: fall back to every ok point
     df.loc[df["surface.cd"] < 3, "status"] = ["not_steady", "not_steady", "ok", "ok"]
     mean, *_ = mean_band(df, "operation.setpoint", "peak_force", ["surface.cd"])

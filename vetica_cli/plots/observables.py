@@ -91,12 +91,14 @@ def _no_effect(pts: pd.DataFrame, col: str, key: str, others: list) -> bool:
 
 
 def common_ok(pts: pd.DataFrame, key: str, rest: list) -> tuple[pd.DataFrame, bool]:
-    """The ok points whose values of the other keys ``rest`` are ok at every value of ``key``.
+    """The steady points (``ok`` or ``no_estimate``: the record is proven periodic, so its
+    observables hold whatever the extraction gave) whose values of the other keys ``rest`` are
+    steady at every value of ``key``.
 
     Averaging over a different set of cd values at each setting would draw the change of
-    sample, not the effect of ``key``; (ok points, False) when no such common set exists.
+    sample, not the effect of ``key``; (steady points, False) when no such common set exists.
     """
-    ok = pts[pts["status"].astype(str) == "ok"]
+    ok = pts[pts["status"].astype(str).isin(("ok", "no_estimate"))]
     if not rest:
         return ok, True
     n_key = pts[key].nunique()
@@ -149,9 +151,9 @@ def _twin_plot(sw: SweepData, key: str, left: str, right: str, styles, title: st
         sub, common = common_ok(pts, key, rest)
         n = len(sub.drop_duplicates(subset=rest))
         which = (
-            f"the {n} values of {over} that are ok at every {axis_meta(key)[0]}"
+            f"the {n} values of {over} that are steady at every {axis_meta(key)[0]}"
             if common
-            else f"the ok points of {over}"
+            else f"the steady points of {over}"
         )
         extra = f"lines: mean over {which}; bands: their min-max range"
     add_note(fig, status_note(pts, sw.swept, extra, marked=not averaged))
