@@ -51,7 +51,7 @@ import yaml
 from ..errors import ConfigError
 from ..extraction import DEFAULT_METHOD, METHODS
 from ..simulation.config import Config, from_dict, read_yaml
-from ..study.grid import EXTRACT_KEYS, EXTRACT_SECTION, META_KEYS, check_extract_value
+from ..study.grid import EXTRACT_SECTION, META_KEYS, extract_section
 from ..surfaces import COMMON_KEYS, DEFAULT_MODEL
 from .sample import SHAPES, Feature, Raster, Sample
 
@@ -270,14 +270,7 @@ def _feature(i: int, raw: Any, bg_raw: dict) -> Feature:
 
 def _extract(raw: Any) -> dict:
     """The ``extract:`` section: the sweep's extraction keys (study.grid.EXTRACT_KEYS)."""
-    raw = _mapping(EXTRACT_SECTION, raw)
-    out = {}
-    for name, value in raw.items():
-        key = f"{EXTRACT_SECTION}.{name}"
-        if key not in EXTRACT_KEYS:
-            raise ConfigError(f"unknown key {key!r}; allowed: {', '.join(EXTRACT_KEYS)}")
-        out[name] = check_extract_value(key, value, key)
-    return out
+    return extract_section(_mapping(EXTRACT_SECTION, raw))
 
 
 def _check_cross(point: Config, spec: ScanSpec, sample: Sample) -> None:

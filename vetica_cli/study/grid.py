@@ -437,7 +437,7 @@ def grid(raw: dict, name: str = "study", overrides: dict | None = None) -> Grid:
     description = str(raw.get("description") or "")
     sweep = raw.get("sweep")
     base = {k: (dict(v) if isinstance(v, dict) else v) for k, v in raw.items() if k in SECTIONS}
-    extract = _extract_section(raw.get(EXTRACT_SECTION))
+    extract = extract_section(raw.get(EXTRACT_SECTION))
     material = _material_section(raw.get(MATERIAL_SECTION))
     keys, factors = _factors(sweep)
     overrides = dict(overrides or {})
@@ -511,7 +511,7 @@ def _model_of(sections: dict) -> str:
     return model if isinstance(model, str) and model in MODELS else DEFAULT_MODEL
 
 
-def _extract_section(body: Any) -> dict:
+def extract_section(body: Any) -> dict:
     """The base ``extract:`` section, checked: {name: value} for keys of EXTRACT_KEYS."""
     if body is None:
         return {}
