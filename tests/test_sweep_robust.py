@@ -129,7 +129,11 @@ def _shm_of(pid: int) -> list[str]:
     return [f for f in os.listdir("/dev/shm") if f"-{pid}-" in f or f"_{pid}_" in f]
 
 
-def _start_sweep(tmp_path, n=10, extra=()):
+SLOW_N = 40  # points of the interrupted sweeps: enough that one is still running when the signal comes
+# (a point costs ~0.3 s since the orbit solver; 10 points could all finish between the first part and the signal)
+
+
+def _start_sweep(tmp_path, n=SLOW_N, extra=()):
     cfg = tmp_path / "cheap.yaml"
     cfg.write_text(CHEAP_STUDY.format(n=n))
     out = tmp_path / "out" / "cheap.parquet"
@@ -166,14 +170,14 @@ def test_sigterm_and_ctrl_c_stop_the_workers_and_say_what_is_persisted(tmp_path,
     lines = [ln for ln in err.splitlines() if ln.strip()]
     assert len(lines) == 1 and lines[0].startswith(f"interrupted ({sig.name}): "), err
     n = int(lines[0].split(": ")[1].split(" of ")[0])
-    assert 1 <= n < 10 and f"in {parts_dir(out)}/" in lines[0]
+    assert 1 <= n < SLOW_N and f"in {parts_dir(out)}/" in lines[0]
     assert _wait_gone(kids, 30) < 5.0
     time.sleep(0.5)
     assert _shm_of(proc.pid) == [] and not lock_path(out).exists() and not out.exists()
     persisted = len(list(parts_dir(out).glob("*.parquet")))
     assert persisted >= n
     res = sweep_command(cfg, out, jobs=2, progress=False)
-    assert f"10 points ({10 - persisted} computed, {persisted} reused" in res
+    assert f"{SLOW_N} points ({SLOW_N - persisted} computed, {persisted} reused" in res
     assert out.is_file() and not parts_dir(out).exists() and not lock_path(out).exists()
 
 
@@ -195,7 +199,7 @@ def test_workers_exit_within_seconds_when_the_sweep_is_killed(tmp_path):
     persisted = len(list(parts_dir(out).glob("*.parquet")))
     assert lock_path(out).exists()  # left by kill -9, but not held
     text = sweep_command(cfg, out, jobs=2, progress=False)
-    assert f"{10 - persisted} computed, {persisted} reused" in text
+    assert f"{SLOW_N - persisted} computed, {persisted} reused" in text
 
 
 def test_shm_left_by_a_killed_process_group_is_removed_and_live_entries_kept(tmp_path):
@@ -221,7 +225,7 @@ def test_shm_left_by_a_killed_process_group_is_removed_and_live_entries_kept(tmp
 def test_a_second_sweep_on_the_same_output_exits_2_naming_the_first(tmp_path):
     """Two sweeps on one output: the second stops at once with one line naming the first
     (pid), writes nothing; the first runs on to its end."""
-    proc, cfg, out = _start_sweep(tmp_path, n=8)
+    proc, cfg, out = _start_sweep(tmp_path, n=30)
     try:
         r = runner.invoke(app, ["sweep", str(cfg), "-o", str(out), "-q"])
         assert r.exit_code == 2, r.output
@@ -230,7 +234,7 @@ def test_a_second_sweep_on_the_same_output_exits_2_naming_the_first(tmp_path):
     finally:
         stdout, err = proc.communicate(timeout=300)
     assert proc.returncode == 0, err
-    assert "8 points (8 computed, 0 reused" in stdout
+    assert "30 points (30 computed, 0 reused" in stdout
 
 
 # --------------------------------------------------------------------- parts hygiene
