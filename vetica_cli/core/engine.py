@@ -96,7 +96,7 @@ class KernelSetup:
     steps_per_period: int
     stride: int  # fine steps per print step
     hybrid: bool = True
-    d_switch: float = 1e-9  # [m]
+    d_switch: float = 2e-9  # [m] (numerics.switch_gap)
     ladder_max: int = 13  # longest far step 2**ladder_max dt
 
     def build(self):

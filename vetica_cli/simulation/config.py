@@ -105,7 +105,7 @@ class Numerics:
     record_cycles: int = 10  # steady drive periods recorded
     steady: str = "orbit"  # orbit: solve the periodic orbit | transient: time-step it, as an instrument does
     integrator: str = "hybrid"  # hybrid: exact propagation away from the surface | verlet: all fine steps
-    switch_gap: float = 1e-9  # hybrid: gap [m] below which (and in contact) only fine steps are taken
+    switch_gap: float = 2e-9  # hybrid: gap [m] below which (and in contact) only fine steps are taken (scripts/hybrid_vs_verlet.py)
     tol_orbit: float = 1e-13  # steady: per-period state change and mean arm stretch <= tol_orbit [m]
     orbit_max_periods: int = 150  # period evaluations of the orbit solver's first strategy
     max_time: float = 0.03  # simulated-time budget of the approach and of the transient [s]
