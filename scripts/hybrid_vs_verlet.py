@@ -88,6 +88,9 @@ def main() -> None:
         big = ref["e_diss_ev"].abs() >= EDISS_FLOOR
         rb = de[big] / ref["e_diss_ev"][big].abs()
         i, j = rb.idxmax(), de.idxmax()
+        over = rb[rb > 1e-4]
+        print(f"  e_diss_ev above 1e-4 relative (E_diss >= {EDISS_FLOOR} eV): {len(over)} points"
+              + "".join(f"; {k[0]}: {k[1]} {v:.1e} (E_diss {ref.loc[k, 'e_diss_ev']:.3g} eV)" for k, v in over.items()))
         print(f"  e_diss_ev: largest absolute difference {de.max():.1e} eV ({j[0]}: {j[1]}); largest relative where "
               f"E_diss >= {EDISS_FLOOR} eV: {rb.max():.1e} ({i[0]}: {i[1]}; {int(big.sum())} of {len(big)} points)")  # fmt: skip
 
