@@ -129,8 +129,8 @@ def _shm_of(pid: int) -> list[str]:
     return [f for f in os.listdir("/dev/shm") if f"-{pid}-" in f or f"_{pid}_" in f]
 
 
-SLOW_N = 40  # points of the interrupted sweeps: enough that one is still running when the signal comes
-# (a point costs ~0.3 s since the orbit solver; 10 points could all finish between the first part and the signal)
+SLOW_N = 20  # points of the interrupted sweeps: enough that some are still running when the signal comes
+# (a point costs ~0.3 s since the orbit solver)
 
 
 def _start_sweep(tmp_path, n=SLOW_N, extra=()):
@@ -138,8 +138,12 @@ def _start_sweep(tmp_path, n=SLOW_N, extra=()):
     cfg.write_text(CHEAP_STUDY.format(n=n))
     out = tmp_path / "out" / "cheap.parquet"
     code = "import sys; from vetica_cli.cli import main; sys.argv[0] = 'vetica'; main()"
+    # SIGINT back to its default in the child: a test run started in the background by a
+    # non-interactive shell (nohup, `&`, some CI runners) inherits SIGINT ignored, and Python
+    # then installs no KeyboardInterrupt handler, as a sweep started that way would not have one
     proc = subprocess.Popen([sys.executable, "-c", code, "sweep", str(cfg), "-o", str(out), "-q", "--jobs", "2", *extra],
-                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, cwd=ROOT)  # fmt: skip
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, cwd=ROOT,
+                            preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))  # fmt: skip
     deadline = time.monotonic() + 180
     while len(list(parts_dir(out).glob("*.parquet"))) < 1:
         assert proc.poll() is None, proc.communicate()
@@ -225,7 +229,7 @@ def test_shm_left_by_a_killed_process_group_is_removed_and_live_entries_kept(tmp
 def test_a_second_sweep_on_the_same_output_exits_2_naming_the_first(tmp_path):
     """Two sweeps on one output: the second stops at once with one line naming the first
     (pid), writes nothing; the first runs on to its end."""
-    proc, cfg, out = _start_sweep(tmp_path, n=30)
+    proc, cfg, out = _start_sweep(tmp_path, n=20)
     try:
         r = runner.invoke(app, ["sweep", str(cfg), "-o", str(out), "-q"])
         assert r.exit_code == 2, r.output
@@ -234,7 +238,7 @@ def test_a_second_sweep_on_the_same_output_exits_2_naming_the_first(tmp_path):
     finally:
         stdout, err = proc.communicate(timeout=300)
     assert proc.returncode == 0, err
-    assert "30 points (30 computed, 0 reused" in stdout
+    assert "20 points (20 computed, 0 reused" in stdout
 
 
 # --------------------------------------------------------------------- parts hygiene
