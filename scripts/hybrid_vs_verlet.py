@@ -17,29 +17,20 @@ from __future__ import annotations
 import argparse
 import sys
 from dataclasses import replace
-from pathlib import Path
 
 import numpy as np
 import pandas as pd
 from joblib import Parallel, delayed
 
-ROOT = Path(__file__).resolve().parent.parent
-THESIS = ["dashpot", "dashpot_vdw_off", "stiffness_ratio", "setpoint", "frequency", "print_step", "paddle_stiffness"]
 OBS = ["peak_force", "e_diss_ev", "contact_time", "amplitude", "phase_deg", "max_penetration"]
 EDISS_FLOOR = 0.01  # [eV]
 GAPS = [0.5e-9, 1e-9, 2e-9]  # 2 nm is numerics.switch_gap's default: the smallest of these with every observable within 1e-4
 
 
 def sample(every: int) -> list[tuple[str, str, object]]:
-    from vetica_cli.study.grid import load_study
-    from vetica_cli.study.plan import plan
+    from steady_grid import thesis_simulations  # scripts/ is on the path when a script runs
 
-    out = []
-    for name in THESIS:
-        for task in plan(load_study(ROOT / "configs" / f"{name}.yaml")):
-            p = task.points[0]
-            out.append((name, p.label(), p.config))
-    return out[::every]
+    return thesis_simulations()[::every]
 
 
 def one(study: str, label: str, cfg) -> list[dict]:

@@ -28,7 +28,8 @@ import pandas as pd
 from joblib import Parallel, delayed
 
 ROOT = Path(__file__).resolve().parent.parent
-THESIS = ["dashpot", "dashpot_vdw_off", "stiffness_ratio", "setpoint", "frequency", "print_step", "paddle_stiffness"]
+from regenerate_results import THESIS  # noqa: E402  (scripts/ is on the path when a script runs)
+
 EXTREMES = {  # setting -> overrides of the worked example (16:1 unless stated, as the studies)
     "32:1": {"surface.stiffness_ratio": 32},
     "1:8": {"surface.stiffness_ratio": 0.125},
@@ -42,18 +43,23 @@ EXTREMES = {  # setting -> overrides of the worked example (16:1 unless stated, 
 CD_RANGE = np.logspace(-7, 4, 12)
 
 
-def configs(quick: bool) -> list[tuple[str, str, object]]:
-    from vetica_cli.simulation.config import load
+def thesis_simulations() -> list[tuple[str, str, object]]:
+    """(study, point label, config) of every distinct simulation of the seven thesis study configs."""
     from vetica_cli.study.grid import load_study
     from vetica_cli.study.plan import plan
 
     out = []
-    if not quick:
-        for name in THESIS:
-            study = load_study(ROOT / "configs" / f"{name}.yaml")
-            for task in plan(study):
-                p = task.points[0]
-                out.append((name, p.label(), p.config))
+    for name in THESIS:
+        for task in plan(load_study(ROOT / "configs" / f"{name}.yaml")):
+            p = task.points[0]
+            out.append((name, p.label(), p.config))
+    return out
+
+
+def configs(quick: bool) -> list[tuple[str, str, object]]:
+    from vetica_cli.simulation.config import load
+
+    out = [] if quick else thesis_simulations()
     for setting, over in EXTREMES.items():
         for cd in CD_RANGE:
             flat = {**over, "surface.cd": float(cd), "surface.k_inf": 4.0}
