@@ -17,7 +17,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from vetica_cli.plots.observables import common_ok
+from vetica_cli.plots.observables import common_steady
 from vetica_cli.study.acceptance import regime
 
 RES = Path(__file__).resolve().parent.parent / "results"
@@ -221,7 +221,7 @@ def regime_by(name: str, key: str, scale: float, unit: str) -> str:
 def frequency_tables() -> str:
     df = load("frequency")
     parts = [regime_by("frequency", "probe.f1", 1e-3, "kHz")]
-    pts = common_ok(df[df.force_source == "true"], "probe.f1", [CD])[0]
+    pts = common_steady(df[df.force_source == "true"], "probe.f1", [CD])[0]
     g = pts.groupby("probe.f1")
     t = pd.DataFrame(
         {
@@ -236,7 +236,7 @@ def frequency_tables() -> str:
         }
     )
     parts.append(
-        "Contact and non-contact time per cycle (mean over the cd values that are ok at every f1, as the figure averages, fig. 51):\n\n"
+        "Contact and non-contact time per cycle (mean over the cd values that are steady at every f1, as the figure averages, fig. 51):\n\n"
         + md(t)
     )
     return "\n\n".join(parts)
@@ -267,7 +267,7 @@ def ratio_tables() -> str:
             f"Mean error within each ratio's acceptance regime, {src} force (fig. 47):\n\n"
             + md(mean_err_in_regime(df, "surface.stiffness_ratio", src))
         )
-    pts = common_ok(df[df.force_source == "true"], "surface.stiffness_ratio", [CD])[0]
+    pts = common_steady(df[df.force_source == "true"], "surface.stiffness_ratio", [CD])[0]
     g = pts.groupby("surface.stiffness_ratio")
     lo_cd, hi_cd = df[CD].min(), df[CD].max()
     t = pd.DataFrame(
@@ -282,7 +282,7 @@ def ratio_tables() -> str:
     t[f"E_diss at cd {lo_cd:g} [eV]"] = ed[lo_cd].to_numpy()
     t[f"E_diss at cd {hi_cd:g} [eV]"] = ed[hi_cd].to_numpy()
     parts.append(
-        "Means over the cd values that are ok at every ratio (figs. 48, 49) and E_diss at the ends of the cd range (fig. 41):\n\n"
+        "Means over the cd values that are steady at every ratio (figs. 48, 49) and E_diss at the ends of the cd range (fig. 41):\n\n"
         + md(t)
     )
     return "\n\n".join(parts)
@@ -308,7 +308,7 @@ def setpoint_tables() -> str:
             + md(mean_err_in_regime(df, "operation.setpoint", src))
         )
     pts = df[(df.force_source == "true") & (df.status != "failed")]
-    g = common_ok(pts, "operation.setpoint", [CD])[0].groupby("operation.setpoint")
+    g = common_steady(pts, "operation.setpoint", [CD])[0].groupby("operation.setpoint")
     t = pd.DataFrame(
         {
             "set point %": g.size().index * 100,
@@ -329,7 +329,7 @@ def setpoint_tables() -> str:
     t["deepest zero depth [nm]"] = [d[0] for d in depth]
     t["at cd [kg/s]"] = [d[1] for d in depth]
     parts.append(
-        "Means over the cd values that are ok at every set point (figs. 54, 56, as the figures average) and the deepest steady-state zero reference over all simulated points (fig. 57):\n\n"
+        "Means over the cd values that are steady at every set point (figs. 54, 56, as the figures average) and the deepest steady-state zero reference over all simulated points (fig. 57):\n\n"
         + md(t)
     )
     fails = df[(df.force_source == "true") & (df.status == "failed")]

@@ -90,7 +90,7 @@ def _no_effect(pts: pd.DataFrame, col: str, key: str, others: list) -> bool:
     return bool(np.all(spread.to_numpy(float) <= 1e-9 * scale))
 
 
-def common_ok(pts: pd.DataFrame, key: str, rest: list) -> tuple[pd.DataFrame, bool]:
+def common_steady(pts: pd.DataFrame, key: str, rest: list) -> tuple[pd.DataFrame, bool]:
     """The steady points (``ok`` or ``no_estimate``: the record is proven periodic, so its
     observables hold whatever the extraction gave) whose values of the other keys ``rest`` are
     steady at every value of ``key``.
@@ -98,23 +98,23 @@ def common_ok(pts: pd.DataFrame, key: str, rest: list) -> tuple[pd.DataFrame, bo
     Averaging over a different set of cd values at each setting would draw the change of
     sample, not the effect of ``key``; (steady points, False) when no such common set exists.
     """
-    ok = pts[pts["status"].astype(str).isin(("ok", "no_estimate"))]
+    steady = pts[pts["status"].astype(str).isin(("ok", "no_estimate"))]
     if not rest:
-        return ok, True
+        return steady, True
     n_key = pts[key].nunique()
-    counts = ok.groupby(rest)[key].nunique()
+    counts = steady.groupby(rest)[key].nunique()
     common = counts[counts == n_key].index
     if len(common) == 0:
-        return ok, False
-    sel = ok.set_index(rest).index.isin(common)
-    return ok[sel], True
+        return steady, False
+    sel = steady.set_index(rest).index.isin(common)
+    return steady[sel], True
 
 
 def mean_band(pts: pd.DataFrame, key: str, col: str, rest: list | None = None):
-    """Mean, min and max of ``col`` at each value of ``key`` over the ok points of the other keys
-    ``rest`` that are ok at every value of ``key`` (all ok points if there are none)."""
-    ok, _ = common_ok(pts, key, rest or [])
-    g = ok.groupby(key)[col]
+    """Mean, min and max of ``col`` at each value of ``key`` over the steady points of the other
+    keys ``rest`` that are steady at every value of ``key`` (all steady points if there are none)."""
+    steady, _ = common_steady(pts, key, rest or [])
+    g = steady.groupby(key)[col]
     return g.mean(), g.min(), g.max(), g.count()
 
 
@@ -148,7 +148,7 @@ def _twin_plot(sw: SweepData, key: str, left: str, right: str, styles, title: st
     if averaged:
         rest = [k for k in sw.swept if k != key]
         over = ", ".join(rest)
-        sub, common = common_ok(pts, key, rest)
+        sub, common = common_steady(pts, key, rest)
         n = len(sub.drop_duplicates(subset=rest))
         which = (
             f"the {n} values of {over} that are steady at every {axis_meta(key)[0]}"
