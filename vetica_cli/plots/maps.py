@@ -159,15 +159,7 @@ def fig_ediss_map(sw: SweepData) -> Figure | None:
         )
     for ax in axes[2 + len(sources) :]:
         ax.axis("off")
-    add_note(
-        fig,
-        status_note(
-            pts,
-            sw.swept,
-            f"grey cells: no value (failed point, or VETICA found no τc); τc error colours stop at {ERR_CAP:g} %",
-            regime=True,
-        ).replace("grey cross", "cross (white X on maps)"),
-    )
+    add_note(fig, _map_note(pts, sw, "cross (white X on maps)"))
     set_title(
         fig,
         sw,
@@ -175,6 +167,13 @@ def fig_ediss_map(sw: SweepData) -> Figure | None:
         "plane (cf. thesis figs. 41 and 50)",
     )
     return fig
+
+
+def _map_note(pts, sw: SweepData, cross: str) -> str:
+    """The status note of a τc-error map: grey cells, the colour cap, and how a not-steady point
+    is marked (``cross`` replaces the line figures' "grey cross")."""
+    text = f"grey cells: no value (failed point, or VETICA found no τc); τc error colours stop at {ERR_CAP:g} %"
+    return status_note(pts, sw.swept, text, regime=True).replace("grey cross", cross)
 
 
 def fig_depth_error_map(sw: SweepData) -> Figure | None:
@@ -198,15 +197,7 @@ def fig_depth_error_map(sw: SweepData) -> Figure | None:
             fontsize=9.5,
             loc="left",
         )
-    add_note(
-        fig,
-        status_note(
-            pts,
-            sw.swept,
-            f"grey cells: no value (failed point, or VETICA found no τc); τc error colours stop at {ERR_CAP:g} %",
-            regime=True,
-        ).replace("grey cross", "white X"),
-    )
+    add_note(fig, _map_note(pts, sw, "white X"))
     set_title(
         fig,
         sw,
