@@ -4,7 +4,9 @@
 
 Methods register themselves on import: ``vetica`` (:mod:`.vetica`, thesis 3.3),
 ``vetica-prestress`` (:mod:`.vetica_prestress`, VETICA with the Maxwell arm's
-pre-stress at contact) and ``full`` (:mod:`.fullfit`, the whole-cycle inversion).
+pre-stress at contact), ``full`` (:mod:`.fullfit`, the whole-cycle inversion), and the
+instrument's own numbers for comparison: ``observables`` (:mod:`.observables`: amplitude,
+phase, E_diss, virial, loss tangent) and ``dmt-fit`` (:mod:`.dmt_fit`: per-tap DMT analysis).
 Every result carries its material units (:mod:`.material`, thesis 4.6.2).  Adding a method is adding
 its module and one import line below.
 """
@@ -20,6 +22,8 @@ from .base import DEFAULT_METHOD, METHODS, ExtractionMethod, get, register
 from . import vetica as _vetica  # noqa: F401  (registers 'vetica')
 from . import vetica_prestress as _vetica_prestress  # noqa: F401  (registers 'vetica-prestress')
 from . import fullfit as _fullfit  # noqa: F401  (registers 'full')
+from . import observables as _observables  # noqa: F401  (registers 'observables')
+from . import dmt_fit as _dmt_fit  # noqa: F401  (registers 'dmt-fit')
 
 # isort: on
 from .material import ContactModel, contact_metadata, contact_model, material_entries, tap_contact

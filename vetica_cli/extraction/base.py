@@ -40,6 +40,11 @@ class ExtractionMethod(ABC):
         """The quantities the method reports for a surface of ``model``, in table order."""
         return model.quantities
 
+    def references(self, model: SurfaceModel) -> dict[str, Quantity]:
+        """Theory-only quantities the method reports beside its estimates (no value of their
+        own: ``<name>_theory`` in a study table, ``theory`` in the JSON); default none."""
+        return {}
+
     def options(self, given: dict) -> dict:
         """``given`` options checked and completed with the defaults; InputError (one line)
         for an option the method does not take or a bad value."""

@@ -49,6 +49,7 @@ def format_table(res: ExtractionResult, source=None) -> str:
             f"{label + ' [' + e.unit + ']':<14}{_num(e.value):>13}{_num(e.theory):>13}"
             f"{_num(e.error_pct, '.2f'):>10}   {extra}"
         )
+    lines += _reference_lines(res)
     lines += _material_lines(res)
     lines += method.detail_lines(res)
     lines += _reconstruction_lines(info)
@@ -98,6 +99,14 @@ def _material_lines(res: ExtractionResult) -> list[str]:
     return lines
 
 
+def _reference_lines(res: ExtractionResult) -> list[str]:
+    """The method's theory-only values (:meth:`~.base.ExtractionMethod.references`), one line."""
+    refs = get(res.method).references(surfaces.get(res.model))
+    items = [f"{q.label} {_num(res.references.get(k), '.4g')}{' ' + q.unit if q.unit else ''}"
+             for k, q in refs.items() if res.references.get(k) is not None]  # fmt: skip
+    return ["theory: " + ", ".join(items)] if items else []
+
+
 def _reconstruction_lines(info: dict) -> list[str]:
     lines = []
     if "cutoff_hz" in info:
@@ -141,6 +150,10 @@ def to_json(res: ExtractionResult) -> dict:
     if res.fitted:
         out["identifiable"] = {k: bool(res.estimates[k].identifiable) for k in res.fitted}
         out["identifiable_reason"] = {k: res.estimates[k].reason for k in res.fitted}
+    if res.references:
+        refs = get(res.method).references(surfaces.get(res.model))
+        out["theory"] = {k: {"value": finite_or_none(v), "unit": refs[k].unit if k in refs else ""}
+                         for k, v in res.references.items()}  # fmt: skip
     if res.material is not None:
         out["material"] = res.material
         out["contact_model"] = res.contact

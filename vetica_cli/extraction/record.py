@@ -64,6 +64,8 @@ class Record:
     meta_warnings: list = field(default_factory=list)  # warnings the simulation recorded, then the record's own
     a0: float | None = None  # [m] intermolecular distance: the keyword, else the metadata, else unknown
     vdw_on_surface: bool | None = None  # does the surface feel the pull: the keyword, else the metadata, else unknown
+    observables: dict = field(default_factory=dict)  # the simulator's own per-run observables (metadata; {} if measured)
+    energy: dict = field(default_factory=dict)  # the simulator's energy balance per cycle [eV] (metadata; {} if measured)
     t_start: float = 0.0  # perf_counter when the record was started
     t_force: float = 0.0  # perf_counter when the force was ready
 
@@ -253,7 +255,12 @@ def _z1_reference(approach, z1, meta, force_of: _ForceSource, need_approach: boo
     elif (meta.get("observables") or {}).get("z1") is not None:
         value, source = float(meta["observables"]["z1"]), "metadata"
     elif a0 is not None and pull is not None:
-        value, source = z1_estimate(steady[0], steady[1], a0, bool(pull))
+        try:
+            value, source = z1_estimate(steady[0], steady[1], a0, bool(pull))
+        except InputError:
+            if need_z1:
+                raise
+            value, source = None, "unknown: no tap in the record to estimate it from"  # e.g. a free cantilever
     elif not need_z1:  # the method works without it (e.g. the whole-cycle fit fits the surface height)
         value, source = None, "unknown: no approach segment, no metadata"
     elif a0 is not None:
@@ -368,4 +375,6 @@ def build_record(
     model, truth = surface_of(params)
     return Record(t=t, z=z, f=f, force=force, z1=z1_value, approach=approach_rec, model=model, truth=truth,
                   params=params, info=info, meta_warnings=warnings, t_start=t_start, t_force=t_force,
-                  a0=None if a0 is None else float(a0), vdw_on_surface=None if pull is None else bool(pull))  # fmt: skip
+                  a0=None if a0 is None else float(a0), vdw_on_surface=None if pull is None else bool(pull),
+                  observables=dict(meta.get("observables") or {}),
+                  energy=dict(meta.get("energy_ev_per_cycle") or {}))  # fmt: skip

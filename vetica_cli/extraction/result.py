@@ -85,6 +85,8 @@ class ExtractionResult:
     timing_s: dict = field(default_factory=dict)  # wall seconds per stage and 'total'
     material: dict | None = None  # material units (extraction.material): name -> {value, unit, ...}
     contact: dict | None = None  # the contact model and constants behind ``material``
+    references: dict = field(default_factory=dict)  # theory-only values the estimates are read against
+    # (ExtractionMethod.references: e.g. the surface's k', k'', tan delta at the drive frequency)
 
     def value(self, name: str) -> float | None:
         e = self.estimates.get(name)

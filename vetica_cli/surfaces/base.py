@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import copy
 import inspect
+import math
 from abc import ABC, abstractmethod
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -78,6 +79,29 @@ COMMON_KEYS: dict[str, CommonKey] = {
     "a0": CommonKey(0.2e-9, "float", "m", (positive, "a distance > 0 m")),  # intermolecular distance
     "vdw_on_surface": CommonKey(True, "bool", ""),  # the attraction also pulls the surface (SPEC 3)
 }
+
+
+# theory values of the surface's linear response at the drive frequency and at the contact's own time
+# scale (omega = pi / contact time), for the instrument's comparison methods (SPEC 14; SurfaceModel.dynamic_theory)
+DYNAMIC_QUANTITIES: dict[str, Quantity] = {
+    "k_storage_drive": Quantity("N/m", "k' (drive)", r"$k'(\omega_d)$", description="storage stiffness at the drive frequency"),
+    "k_loss_drive": Quantity("N/m", "k'' (drive)", r"$k''(\omega_d)$", description="loss stiffness at the drive frequency"),
+    "tan_delta_drive": Quantity("", "tan d (drive)", r"$\tan\delta(\omega_d)$",
+                                description="loss tangent k''/k' at the drive frequency"),
+    "k_storage_contact": Quantity("N/m", "k' (contact)", r"$k'(\pi/t_c)$",
+                                  description="storage stiffness at pi / contact time"),
+    "k_loss_contact": Quantity("N/m", "k'' (contact)", r"$k''(\pi/t_c)$", description="loss stiffness at pi / contact time"),
+    "tan_delta_contact": Quantity("", "tan d (contact)", r"$\tan\delta(\pi/t_c)$",
+                                  description="loss tangent at pi / contact time"),
+    "e_storage_drive": Quantity("Pa", "E*' (drive)", r"$E^{*\prime}(\omega_d)$",
+                                description="reduced storage modulus at the drive frequency (models with moduli)"),
+    "e_loss_drive": Quantity("Pa", "E*'' (drive)", r"$E^{*\prime\prime}(\omega_d)$",
+                             description="reduced loss modulus at the drive frequency (models with moduli)"),
+    "e_storage_contact": Quantity("Pa", "E*' (contact)", r"$E^{*\prime}(\pi/t_c)$",
+                                  description="reduced storage modulus at pi / contact time (models with moduli)"),
+    "e_loss_contact": Quantity("Pa", "E*'' (contact)", r"$E^{*\prime\prime}(\pi/t_c)$",
+                               description="reduced loss modulus at pi / contact time (models with moduli)"),
+}  # fmt: skip
 
 
 class SurfaceModel(ABC):
@@ -194,6 +218,53 @@ class SurfaceModel(ABC):
     def describe(self, params: dict) -> str:
         """The surface in a few words for messages, e.g. 'an SLS (one relaxation time)'."""
         return f"a {self.name} surface"
+
+
+    # ---- linear response to a small harmonic displacement (SPEC 14): what the instrument's loss
+    # tangent and the per-tap DMT modulus are compared with
+
+    def complex_stiffness(self, params: dict, omega: float) -> tuple[float, float] | None:
+        """Storage and loss stiffness ``k'(omega), k''(omega)`` [N/m] at angular frequency
+        ``omega`` [rad/s] of a surface that is a spring ``k_inf`` in parallel with Maxwell arms
+        ``(k_i, cd_i)`` (SPEC 14, 11)::
+
+            k*(omega) = k_inf + sum_i k_i (i x_i)/(1 + i x_i),   x_i = omega tau_i,  tau_i = cd_i/k_i
+            k'  = k_inf + sum_i k_i x_i^2/(1 + x_i^2)            k'' = sum_i k_i x_i/(1 + x_i^2)
+
+        Default: the springs of :meth:`kernel_arms`.  A model whose contact is not a set of
+        springs (a Hertzian half-space) returns None and gives :meth:`complex_modulus`."""
+        k_inf, k, cd = self.kernel_arms(params)
+        x = omega * np.asarray(cd, dtype=float) / np.asarray(k, dtype=float)
+        return float(k_inf + np.sum(k * x * x / (1.0 + x * x))), float(np.sum(k * x / (1.0 + x * x)))
+
+    def complex_modulus(self, params: dict, omega: float) -> tuple[float, float] | None:
+        """Reduced storage and loss moduli ``E*'(omega), E*''(omega)`` [Pa] (``E/(1 - nu^2)``) of
+        a model that has moduli (a half-space); default None (a model of springs)."""
+        return None
+
+    def dynamic_theory(self, params: dict, f_drive: float | None, contact_time: float | None) -> dict:
+        """:data:`DYNAMIC_QUANTITIES` at the drive frequency ``f_drive`` [Hz] and at the contact's
+        own time scale ``omega_c = pi / contact_time`` [s] (one contact as half a period):
+        the stiffnesses of :meth:`complex_stiffness`, the moduli of :meth:`complex_modulus`
+        where the model has them, ``tan delta = k''/k'`` (else ``E''/E'``).  None where an input
+        or the model's response is unknown."""
+        omegas = {
+            "drive": 2.0 * math.pi * f_drive if f_drive and f_drive > 0 else None,
+            "contact": math.pi / contact_time if contact_time and contact_time > 0 else None,
+        }
+        out: dict = dict.fromkeys(DYNAMIC_QUANTITIES)
+        for where, omega in omegas.items():
+            if omega is None:
+                continue
+            ks, em = self.complex_stiffness(params, omega), self.complex_modulus(params, omega)
+            if ks is not None:
+                out[f"k_storage_{where}"], out[f"k_loss_{where}"] = ks
+            if em is not None:
+                out[f"e_storage_{where}"], out[f"e_loss_{where}"] = em
+            pair = ks if ks is not None else em
+            if pair is not None and pair[0]:
+                out[f"tan_delta_{where}"] = pair[1] / pair[0]
+        return out
 
 
 MODELS: dict[str, SurfaceModel] = {}

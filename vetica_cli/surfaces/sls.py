@@ -31,6 +31,11 @@ class SLS(SurfaceModel):
         tau_r = cd / k0                    relaxation time      [s]
         tau_c = cd Kg / (k0 k_inf)         retardation time     [s]   (tau_r = tau_c Kr / Kg)
 
+    Under a small harmonic displacement at angular frequency ``omega`` (SPEC 14;
+    :meth:`~.base.SurfaceModel.complex_stiffness`), ``x = omega tau_r``::
+
+        k'  = k_inf + k0 x^2/(1 + x^2)     k'' = k0 x/(1 + x^2)     tan delta = k''/k'
+
     One Maxwell arm of the Wiechert surface (SPEC 11).  Defaults: the thesis's
     worked example (tables 2-4): ``k_inf`` 4 N/m, ``k0`` 128 N/m, ``cd`` 3e-5 kg/s.
     """

@@ -43,6 +43,10 @@ class Wiechert(SurfaceModel):
         E(t) = k_inf + sum_i k_i exp(-t/tau_i)     tau_i = cd_i / k_i      [N/m, s]
         Kg   = k_inf + sum_i k_i   (glassy)        Kr = k_inf (rubbery)    [N/m]
 
+    Storage and loss stiffness at angular frequency ``omega``: each arm adds
+    ``k_i x_i^2/(1 + x_i^2)`` and ``k_i x_i/(1 + x_i^2)``, ``x_i = omega tau_i``
+    (:meth:`~.base.SurfaceModel.complex_stiffness`, SPEC 14).
+
     One arm is the Zener SLS of thesis 3.2 (``k_1 = k0``, ``cd_1 = cd``).  Config::
 
         surface: {model: wiechert, k_inf: 4.0, arms: [{k: 64.0, cd: 3.0e-5}, {k: 32.0, cd: 1.0e-3}]}
