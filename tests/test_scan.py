@@ -141,7 +141,7 @@ BAD = [
     ("scan.size", {"scan": {"size": [-1e-6, 1e-6]}}, "scan.size: -1e-06 is not allowed; expected a length > 0 m"),
     ("scan.pixel_time short", {"scan": {"pixel_time": 1e-4}}, "expected >= (numerics.record_cycles + 2) drive periods"),
     ("scan.steady", {"scan": {"steady": "fast"}}, "scan.steady: 'fast' is not allowed; expected one of: transient, orbit"),
-    ("scan.methods", {"scan": {"methods": ["magic"]}}, "scan.methods: 'magic' is not allowed; expected a list of: vetica, vetica-prestress, full"),
+    ("scan.methods", {"scan": {"methods": ["magic"]}}, "scan.methods: 'magic' is not allowed; expected a list of: vetica, vetica-prestress, full, observables, dmt-fit"),
     ("scan.methods empty", {"scan": {"methods": []}}, "scan.methods: an empty list is not allowed"),
     ("scan unknown key", {"scan": {"speed": 1}}, "unknown key 'scan.speed'; allowed in scan: pixels, size"),
     ("background missing", {"sample": {"background": None}}, "sample.background: missing"),

@@ -360,6 +360,26 @@ def extract(
         None, "--prestress", help="vetica-prestress: auto (adhesion if the surface feels the pull, else creep), "
         "adhesion, creep or fit.",
     ),
+    free_amplitude: Optional[float] = typer.Option(
+        None, "--free-amplitude", help="--method observables: free amplitude A0 for the same drive, m (default: the "
+        "metadata's).", callback=checked("an amplitude > 0 m", lambda v: v > 0),
+    ),
+    k1: Optional[float] = typer.Option(None, "--k1", help="--method observables: flexural stiffness, N/m (default: "
+                                       "the metadata's).", callback=checked("a stiffness > 0 N/m", lambda v: v > 0)),
+    q1: Optional[float] = typer.Option(None, "--q1", help="--method observables: flexural quality factor (default: "
+                                       "the metadata's).", callback=checked("a quality factor > 0.5", lambda v: v > 0.5)),
+    drive_frequency: Optional[float] = typer.Option(
+        None, "--drive-frequency", help="--method observables: drive frequency, Hz (default: --f1, else the metadata's "
+        "f1).", callback=checked("a frequency > 0 Hz", lambda v: v > 0),
+    ),
+    drive_t0: Optional[float] = typer.Option(
+        None, "--drive-t0", help="--method observables: time at which the drive cos(2 pi f (t - t0)) peaks, s (the "
+        "phase reference; default 0 for a simulated run).", callback=checked("a finite time in s", lambda v: True),
+    ),
+    fit_range: Optional[str] = typer.Option(
+        None, "--fit-range", help="--method dmt-fit: LOW,HIGH fractions of the peak-to-adhesion force fitted on the "
+        "unloading branch (default 0.3,0.9).",
+    ),
 ):  # fmt: skip
     """Extract k0, k_inf, cd (and tau_c, Kg, Kr, tau_r) from a run with VETICA
     or another registered method (--method; full fits the SLS or Wiechert surface
@@ -386,6 +406,14 @@ def extract(
     opts = {k: v for k, v in given.items() if v is not None}
     if prestress is not None:
         opts["prestress"] = prestress
+    lock_in = {"free_amplitude": free_amplitude, "k1": k1, "q1": q1, "drive_frequency": drive_frequency,
+               "drive_t0": drive_t0}  # fmt: skip  (--f1 reaches observables as the record's f1)
+    opts.update({k: v for k, v in lock_in.items() if v is not None})
+    if fit_range is not None:
+        lo_hi = _numbers("--fit-range", fit_range)
+        if len(lo_hi) != 2:
+            raise InputError(f"--fit-range {fit_range!r} is not allowed; expected LOW,HIGH (two fractions)")
+        opts["fit_low"], opts["fit_high"] = lo_hi
     res = extract_file(run, force=force, method=method, kg_points=kg_points, k2=k2, f2=f2, q2=q2, z1=z1, f1=f1,
                        cutoff_hz=cutoff, a0=a0, vdw_on_surface=vdw_on_surface, contact=parse_contact(contact),
                        **opts)  # fmt: skip

@@ -80,8 +80,8 @@ def extract_many(df, meta: dict | None, force: str, methods: dict, *, contact=No
     if force not in FORCES:
         raise InputError(f"force {force!r} not allowed; choose one of: {', '.join(FORCES)}")
     ms = {key: get(key) for key in methods}
-    # the constants the record takes (a0, the surface pull) are options of a method that fits with them too
-    shared = {k: record_kw[k] for k in ("a0", "vdw_on_surface") if record_kw.get(k) is not None}
+    # the constants the record takes (a0, the surface pull, f1) are options of a method that uses them too
+    shared = {k: record_kw[k] for k in ("a0", "vdw_on_surface", "f1") if record_kw.get(k) is not None}
     opts = {key: m.options({**{k: v for k, v in shared.items() if k in m.options_default}, **(methods[key] or {})})
             for key, m in ms.items()}  # fmt: skip
     radius = ((meta or {}).get("params") or {}).get("probe", {}).get("tip_radius")

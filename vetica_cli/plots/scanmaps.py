@@ -24,9 +24,11 @@ from matplotlib.ticker import FixedLocator, FuncFormatter, NullLocator
 
 from .. import surfaces
 from ..errors import InputError
+from ..extraction import METHODS
 from ..scan.analysis import (
     apparent_heights,
     domain_stats,
+    estimate_names,
     edge_widths,
     grid,
     one_per_pixel,
@@ -82,12 +84,25 @@ class ScanGeometry:
 
 
 def quantity_info(name: str) -> tuple[str, str, float]:
-    """(matplotlib label, display unit, SI -> display) of a quantity from the model declaring it."""
-    for m in surfaces.MODELS.values():
-        q = m.quantities.get(name)
+    """(matplotlib label, display unit, SI -> display) of a quantity from the model or the
+    extraction method declaring it."""
+    default = surfaces.get(surfaces.DEFAULT_MODEL)
+    for q in (*(m.quantities.get(name) for m in surfaces.MODELS.values()),
+              *(me.quantities(default).get(name) for me in METHODS.values())):  # fmt: skip
         if q is not None:
             return q.tex, q.shown_unit, q.display_scale
     return name, "", 1.0
+
+
+def own_quantities(g: pd.DataFrame) -> list[str]:
+    """Quantities with values in ``g`` that no surface model declares: what a method reports
+    of its own instead of the model's (``observables``: ``tan_delta_am``, ...)."""
+    models = {q for m in surfaces.MODELS.values() for q in m.quantities}
+    return [q for q in estimate_names(g) if q not in models and g[q].notna().any()]
+
+
+# the instrument's maps beside VETICA's (issue 20): (method, quantity) drawn when the table has them
+INSTRUMENT_MAPS = (("vetica", "tau_c"), ("observables", "tan_delta_am"), ("dmt-fit", "e_dmt"), ("dmt-fit", "k_dmt"))
 
 
 def _outline(ax, geo: ScanGeometry) -> None:
@@ -145,7 +160,7 @@ def fig_images(geo: ScanGeometry, rows: pd.DataFrame, title: str) -> Figure:
 
 def fig_properties(geo: ScanGeometry, g: pd.DataFrame, title: str) -> Figure:
     """Each extracted property of one pass, method and force source: value, truth, signed error."""
-    qs = [q for q in summary_names(g) if g[q].notna().any() or g[f"{q}_theory"].notna().any()]
+    qs = own_quantities(g) or [q for q in summary_names(g) if g[q].notna().any() or g[f"{q}_theory"].notna().any()]
     fig = new_figure(13.0, 3.1 * len(qs) + 0.6)
     axes = np.atleast_2d(fig.subplots(len(qs), 3))
     ok = g[g["status"] != "failed"]
@@ -166,6 +181,36 @@ def fig_properties(geo: ScanGeometry, g: pd.DataFrame, title: str) -> Figure:
     fig.suptitle(title, fontsize=11)
     failed = int((g["status"] == "failed").sum())
     add_note(fig, f"{failed} failed pixel(s) drawn grey" if failed else "")
+    return fig
+
+
+def fig_instrument(geo: ScanGeometry, rows: pd.DataFrame, title: str) -> Figure | None:
+    """The instrument's maps beside VETICA's for one pass (issue 20): VETICA's tau_c, the loss
+    tangent tan d_AM from amplitude and phase, the per-tap DMT modulus and unloading stiffness
+    (top: extracted, first force source; bottom: the truth -- tau_c, the surface's tan delta at
+    the drive frequency, k' at pi / contact time; none for E* of a spring surface).  None when
+    the table has no instrument method."""
+    have = [(m, q) for m, q in INSTRUMENT_MAPS if q in rows.columns and (rows["method"] == m).any()]
+    if not any(m in ("observables", "dmt-fit") for m, _ in have):
+        return None
+    source = rows["force_source"].iloc[0]
+    fig = new_figure(4.4 * len(have), 7.0)
+    axes = np.atleast_2d(fig.subplots(2, len(have))).reshape(2, len(have))
+    shape = (geo.ny, geo.nx)
+    for j, (m, q) in enumerate(have):
+        g = rows[(rows["method"] == m) & (rows["force_source"] == source)]
+        ok = g[g["status"] != "failed"]
+        tex, unit, scale = quantity_info(q)
+        val, truth = grid(ok, q, shape) * scale, grid(g, f"{q}_theory", shape) * scale
+        norm = _value_norm(val, truth) if np.isfinite(truth).any() else _value_norm(val, val)
+        _image(axes[0, j], fig, geo, val, f"{tex} ({m})", unit, "viridis", norm)
+        if np.isfinite(truth).any():
+            _image(axes[1, j], fig, geo, truth, f"{tex} truth", unit, "viridis", norm)
+        else:
+            axes[1, j].set_axis_off()
+            axes[1, j].text(0.5, 0.5, f"no truth for {tex}\n(spring surfaces have no modulus)", ha="center",
+                            va="center", transform=axes[1, j].transAxes, fontsize=9)  # fmt: skip
+    fig.suptitle(f"{title}, {source} force: the instrument's numbers beside VETICA's", fontsize=11)
     return fig
 
 
@@ -306,6 +351,9 @@ def scan_figures(df: pd.DataFrame, meta: dict) -> tuple[list, list]:
         if geo.ny < MIN_IMAGE_LINES:
             continue
         figs.append((f"{slug}images", fig_images(geo, rows, f"{name}: {Pass(*p).label()}")))
+        inst = fig_instrument(geo, rows, f"{name}: {Pass(*p).label()}")
+        if inst is not None:
+            figs.append((f"{slug}instrument", inst))
         groups = list(rows.groupby(["method", "force_source"], sort=False))
         for (method, source), g in groups:
             tag = method if len(set(rows["force_source"])) == 1 else f"{method}_{source}"

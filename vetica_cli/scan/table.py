@@ -46,7 +46,7 @@ def scan_models(cfg: ScanConfig) -> list[surfaces.SurfaceModel]:
 
 def columns(cfg: ScanConfig) -> list[str]:
     """The table's columns in order."""
-    return list(PIXEL_COLUMNS) + result_columns(scan_models(cfg))
+    return list(PIXEL_COLUMNS) + result_columns(scan_models(cfg), cfg.scan.methods)
 
 
 def column_units(cfg: ScanConfig) -> dict:

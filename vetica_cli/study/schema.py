@@ -57,15 +57,36 @@ def study_models(study: Study) -> list[surfaces.SurfaceModel]:
     return [m for (k, _), m in sorted(used.items(), key=lambda kv: order.index(kv[0][0]))]
 
 
-def result_columns(models=None) -> list[str]:
+def study_methods(study: Study) -> list[str]:
+    """The extraction methods of a study's points, in order of first use."""
+    return list(dict.fromkeys(p.method for p in study.points))
+
+
+def method_quantities(models, methods) -> tuple[list[str], list[str]]:
+    """``(estimates, references)``: the quantities the ``methods`` (keys) report for points of
+    the surface ``models`` beyond the models' own (e.g. ``tan_delta_am`` of ``observables``),
+    and their theory-only references (``<name>_theory`` columns), in order of first use."""
+    own = {q for m in models for q in m.quantities}
+    est, refs = {}, {}
+    for key in methods or ():
+        for m in models:
+            est.update(dict.fromkeys(q for q in METHODS[key].quantities(m) if q not in own))
+            refs.update(dict.fromkeys(METHODS[key].references(m)))
+    return list(est), [r for r in refs if r not in est and r not in own]
+
+
+def result_columns(models=None, methods=None) -> list[str]:
     """Columns a job fills for each (point, force source), in table order, for points of the
-    surface ``models`` (default: the default model)."""
+    surface ``models`` (default: the default model) extracted by ``methods`` (keys; their own
+    quantities and references after the models')."""
     models = models or [surfaces.get(surfaces.DEFAULT_MODEL)]
-    quantities = list(dict.fromkeys(q for m in models for q in m.quantities))
+    extra, refs = method_quantities(models, methods)
+    quantities = list(dict.fromkeys([*(q for m in models for q in m.quantities), *extra]))
     sigmas = list(dict.fromkeys(q for m in models for q in sigma_names(m)))
     cols = ["method", "force_source"]
     for name in quantities:
         cols += [name, f"{name}_theory", f"{name}_err_pct"]
+    cols += [f"{name}_theory" for name in refs]
     cols += [f"{name}_sigma_pct" for name in sigmas]
     cols += ["unidentified", "taps", *OBSERVABLES, *MATERIAL_INPUTS, "stop_reason", "sim_time", "status", "error",
              "wall_s"]  # fmt: skip
@@ -88,6 +109,18 @@ def column_units(study: Study) -> dict:
             units[name] = f"{q.unit}: estimate of the {q.description} by the row's extraction method"
             units[f"{name}_theory"] = f"{q.unit}: {model.theory_source}"
             units[f"{name}_err_pct"] = "%: 100 (estimate - theory) / theory, signed (tables before v0.2: its magnitude)"
+        for key in study_methods(study):
+            meth = METHODS[key]
+            for name, q in {**meth.quantities(model), **meth.references(model)}.items():
+                if name in model.quantities:
+                    continue
+                unit = q.unit or "1"
+                if name in meth.quantities(model):
+                    units[name] = f"{unit}: {q.description} ({key})"
+                    units[f"{name}_err_pct"] = "%: 100 (estimate - theory) / theory, signed"
+                    units[f"{name}_theory"] = f"{unit}: " + getattr(meth, "theory_sources", {}).get(name, "theory value")
+                else:
+                    units[f"{name}_theory"] = f"{unit}: the surface's {q.description} (SPEC 14; theory only)"
         for name in sigma_names(model):
             units[f"{name}_sigma_pct"] = (
                 "%: relative 1-sigma of the estimate (Jacobian) for methods that report one; NaN otherwise or unbounded"
@@ -127,7 +160,7 @@ def column_units(study: Study) -> dict:
 def assemble(study: Study, done: dict) -> pd.DataFrame:
     """The tidy table from the points' rows (``done``: point key -> frame): points in grid
     order, 'true' before 'reconstructed', the swept keys after the point key."""
-    columns = result_columns(study_models(study))
+    columns = result_columns(study_models(study), study_methods(study))
     frames = []
     for p in study.points:
         df = done[p.key].reindex(columns=columns)

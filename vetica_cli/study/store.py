@@ -199,7 +199,7 @@ def remove_parts(pdir: Path) -> bool:
 
 def rows_frame(point: Point, rows: list[dict]) -> pd.DataFrame:
     """A point's rows as a frame with the columns of its surface model."""
-    return pd.DataFrame(rows, columns=result_columns([point.config.surface.surface_model]))
+    return pd.DataFrame(rows, columns=result_columns([point.config.surface.surface_model], [point.method]))
 
 
 def write_part(pdir: Path, point: Point, rows: list[dict], sim_print_step: float) -> Path:

@@ -14,7 +14,7 @@ import time
 from collections.abc import Callable
 from dataclasses import dataclass
 
-from ..extraction import DEFAULT_METHOD, ExtractionResult, extract
+from ..extraction import DEFAULT_METHOD, METHODS, ExtractionResult, extract
 from ..simulation.config import Config, from_dict
 from ..simulation.instrument import noise_free
 from ..simulation.simulate import Run, simulate
@@ -49,9 +49,9 @@ def nan_row(cfg: Config, source: str, method: str = DEFAULT_METHOD) -> dict:
     model = cfg.surface.surface_model
     th = model.theory(cfg.surface.params)
     row: dict = {"method": method, "force_source": source}
-    for name in model.quantities:
+    for name in {**model.quantities, **METHODS[method].quantities(model)}:  # the method's own too (observables)
         row[name] = math.nan
-        row[f"{name}_theory"] = float(th[name])
+        row[f"{name}_theory"] = float(th[name]) if name in th else math.nan
         row[f"{name}_err_pct"] = math.nan
     for name in sigma_names(model):
         row[f"{name}_sigma_pct"] = math.nan
@@ -79,6 +79,8 @@ def fill_row(row: dict, res: ExtractionResult, fitted: tuple[str, ...]) -> None:
         sigma = _float(e.sigma if e is not None else None)
         row[f"{name}_sigma_pct"] = 100.0 * sigma if math.isfinite(sigma) else math.nan
     row["unidentified"] = ",".join(k for k in fitted if k in res.estimates and res.estimates[k].identifiable is False)
+    for name, v in res.references.items():  # theory-only values (ExtractionMethod.references)
+        row[f"{name}_theory"] = _float(v)
     row["taps"] = int(res.taps if res.taps is not None else -1)
     for name, entry in MATERIAL_INPUTS.items():  # the record's contact: the material columns' inputs
         row[name] = _float(((res.material or {}).get(entry) or {}).get("value"))
