@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import pandas as pd
 
+from .. import surfaces
 from ..errors import InputError
 from ..extraction import DEFAULT_METHOD, SOURCES
 from .acceptance import fig_acceptance_vs
@@ -88,11 +89,17 @@ def sweep_figures(df: pd.DataFrame, meta: dict) -> tuple[list, list]:
     methods = sorted(set(df["method"].astype(str))) if "method" in df.columns else [DEFAULT_METHOD]
     text_keys = {k for k in swept if k in df.columns and not pd.api.types.is_numeric_dtype(df[k])}
     figs, notes = [], []
+    model_cols = [q for m in surfaces.MODELS.values() for q in m.quantities if q in df.columns]
     for method in methods:
         dm = df[df["method"].astype(str) == method] if len(methods) > 1 else df
         sw = SweepData(df=dm, swept=swept, base=base_config(meta), method=method)
+        # a method that reports its own numbers, not the model's (observables, dmt-fit): no figures of the model's
+        own = bool(model_cols) and not dm[model_cols].notna().to_numpy().any() and not dm.empty
         for name, builder, args in select_sweep_figures(swept):
             label = name if len(methods) == 1 else f"{name}_{method}"
+            if own and builder in MODEL_QUANTITY_FIGURES:
+                notes.append(f"{label} skipped: {method} reports no estimate of the surface model's quantities")
+                continue
             if builder == "errors_vs" and args[0] in text_keys:
                 notes.append(f"{label} skipped: {args[0]} takes text values, which are series, not an axis")
                 continue
@@ -109,6 +116,7 @@ def sweep_figures(df: pd.DataFrame, meta: dict) -> tuple[list, list]:
     return figs, notes
 
 
+MODEL_QUANTITY_FIGURES = ("errors_vs_cd", "values_vs_cd", "errors_vs", "acceptance_vs", "depth_error_map")
 BUILDERS = {
     "errors_vs_cd": fig_errors_vs_cd,
     "values_vs_cd": fig_values_vs_cd,
