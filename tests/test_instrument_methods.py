@@ -205,3 +205,12 @@ def test_scan_writes_tan_delta_and_dmt_maps(tmp_path):
         )
     fig = fig_instrument(ScanGeometry.of(df, meta), df, "inst_scan")
     assert fig is not None and len([a for a in fig.axes if a.images]) >= 5  # tau_c, tan d, E*, k_DMT (+ truths)
+
+
+def test_advise_refuses_a_method_that_does_not_estimate_the_material(tmp_path):
+    """advise ranks settings by the tau_c, k0, k_inf, cd errors; the instrument's numbers have
+    none of them: one line, exit 2, before any simulation and with nothing written."""
+    out = tmp_path / "a.png"
+    res = CliRunner().invoke(app, ["advise", "--k-inf", "4", "--k0", "64", "--cd", "1e-4", "--methods", "dmt-fit",
+                                   "-o", str(out)])  # fmt: skip
+    assert res.exit_code == 2 and "does not estimate tau_c, k0, k_inf, cd" in res.output and not out.exists()

@@ -303,6 +303,11 @@ def advise(material: Material, overrides: dict | None = None, knobs: dict | None
     for m in methods:
         if m not in METHODS:
             raise InputError(f"--methods: {m!r} is not a method; choose from: {', '.join(METHODS)}")
+        own = METHODS[m].quantities(surfaces.get("sls"))
+        if not set(LIMITS) <= set(own):  # the instrument's numbers (observables, dmt-fit) do not estimate them
+            able = [k for k, me in METHODS.items() if set(LIMITS) <= set(me.quantities(surfaces.get("sls")))]
+            raise InputError(f"--methods: {m!r} does not estimate {', '.join(LIMITS)} (the material advise checks); "
+                             f"choose from: {', '.join(able)}")  # fmt: skip
     if force not in SOURCES:
         raise InputError(f"--force {force!r} not allowed; choose one of: {', '.join(SOURCES)}")
     values = knob_values(knobs)
