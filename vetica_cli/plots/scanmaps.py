@@ -103,6 +103,8 @@ def own_quantities(g: pd.DataFrame) -> list[str]:
 
 # the instrument's maps beside VETICA's (issue 20): (method, quantity) drawn when the table has them
 INSTRUMENT_MAPS = (("vetica", "tau_c"), ("observables", "tan_delta_am"), ("dmt-fit", "e_dmt"), ("dmt-fit", "k_dmt"))
+TRUTH_TITLES = {"tan_delta_am": r"truth: the surface's $\tan\delta$ at $f_{drive}$",
+                "k_dmt": r"truth: the surface's $k'$ at $\pi/t_c$"}  # fmt: skip
 
 
 def _outline(ax, geo: ScanGeometry) -> None:
@@ -133,7 +135,8 @@ def _value_norm(*arrays) -> Normalize:
     if not len(v):
         return Normalize(0, 1)
     lo, hi = np.percentile(v, [2, 98])
-    lo, hi = min(lo, np.nanmin(arrays[-1])), max(hi, np.nanmax(arrays[-1]))
+    if np.isfinite(arrays[-1]).any():
+        lo, hi = min(lo, np.nanmin(arrays[-1])), max(hi, np.nanmax(arrays[-1]))
     if lo > 0 and hi / lo > 3.0:
         return LogNorm(lo, hi)
     if hi <= lo:
@@ -205,7 +208,7 @@ def fig_instrument(geo: ScanGeometry, rows: pd.DataFrame, title: str) -> Figure 
         norm = _value_norm(val, truth) if np.isfinite(truth).any() else _value_norm(val, val)
         _image(axes[0, j], fig, geo, val, f"{tex} ({m})", unit, "viridis", norm)
         if np.isfinite(truth).any():
-            _image(axes[1, j], fig, geo, truth, f"{tex} truth", unit, "viridis", norm)
+            _image(axes[1, j], fig, geo, truth, TRUTH_TITLES.get(q, f"{tex} truth"), unit, "viridis", norm)
         else:
             axes[1, j].set_axis_off()
             axes[1, j].text(0.5, 0.5, f"no truth for {tex}\n(spring surfaces have no modulus)", ha="center",
