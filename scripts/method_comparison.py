@@ -1,4 +1,4 @@
-"""Evidence for issue 6 item 4: VETICA against the whole-cycle inversion
+"""VETICA against the whole-cycle inversion
 (``extract.method full``), without and with detector position noise.
 
 Reads the tables of four sweeps (run them first, ~15 min on 2 cores):
@@ -7,7 +7,7 @@ Reads the tables of four sweeps (run them first, ~15 min on 2 cores):
     vetica sweep configs/method_stiffness_ratio.yaml      # ratio x cd x noise x method, PS 0.5 ns
     vetica sweep configs/method_noise_reconstructed.yaml  # noisy reconstructed force, a few points
     vetica sweep configs/method_low_cd.yaml               # cd below the thesis range, 0.125 ns
-    vetica sweep configs/method_pull.yaml                 # cd x surface pull on/off x method (issue 10)
+    vetica sweep configs/method_pull.yaml                 # cd x surface pull on/off x method
 
 and prints the Markdown tables of ``results/method_comparison.md``, writing the
 summary tables they are built from (``results/method_comparison_summary.parquet``, one row per setting, noise

@@ -28,11 +28,11 @@ ROOT = Path(__file__).resolve().parent.parent
 RES = ROOT / "results"
 FIG = RES / "figures"
 
-# the thesis's chapter-4 studies (issue 9's "all study configs together" are the first seven)
+# the thesis's chapter-4 studies (the "seven thesis studies" whose total wall time the docs quote)
 THESIS = ["dashpot", "dashpot_vdw_off", "stiffness_ratio", "setpoint", "frequency", "print_step", "paddle_stiffness"]
 EXTRA = ["stiffness_ratio_vdw_off", "surface_position", "wiechert_arm2_cd"]
 METHODS = ["method_dashpot", "method_stiffness_ratio", "method_noise_reconstructed", "method_low_cd", "method_pull"]
-# measurements behind results/README's "Thesis findings: causes" (issue 9)
+# measurements behind results/README's "Thesis findings: causes"
 FINDINGS = ["findings_table5", "findings_tau_c_edge", "findings_setpoint", "findings_ediss_pull"]
 STUDIES = THESIS + EXTRA + METHODS + FINDINGS
 

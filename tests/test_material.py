@@ -1,4 +1,4 @@
-"""Material units (issue 10 item 3; thesis 4.6.2, eqs. 90-92, table 6).
+"""Material units (thesis 4.6.2, eqs. 90-92, table 6).
 
 References: the DMT/Hertz relation of thesis eq. 90 evaluated forward (a force made
 from a chosen sample modulus must give that modulus back, rtol 1e-12), the limits

@@ -1,5 +1,5 @@
-"""Force reconstruction by spectral inversion of the paddle signal (SPEC 6,
-thesis eqs. 17-20).
+"""Force reconstruction by spectral inversion of the paddle signal (thesis
+eqs. 17-20).
 
 References: the paddle equation of motion ``m2 zp'' + c2 zp' + k2 zp = Fts``
 (thesis eq. 16) evaluated analytically on a chosen trajectory, and the

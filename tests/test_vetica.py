@@ -1,9 +1,9 @@
-"""VETICA stages 1a, 1b, 2 (SPEC 7, thesis 3.3 and 4.3) and the worked example.
+"""VETICA stages 1a, 1b, 2 (thesis 3.3 and 4.3) and the worked example.
 
 References: the closed-form SLS constants (thesis eqs. 68, 75-76, 81-83), the
 closed-form exponential convolution checked by quadrature, the SLS Maxwell-arm
 equation integrated directly, and the thesis worked example (tables 2-4) with
-the bounds of issue 3 (tau_c, Kg, k0 <= 2 %; k_inf, cd <= 5 %).
+the bounds set for it (tau_c, Kg, k0 <= 2 %; k_inf, cd <= 5 %).
 """
 
 import math
@@ -164,12 +164,12 @@ def vdw_on():
     return run.frame(), run.metadata()
 
 
-BOUNDS = {"tau_c": 2.0, "k_g": 2.0, "k0": 2.0, "k_inf": 5.0, "cd": 5.0}  # issue 3, in %
+BOUNDS = {"tau_c": 2.0, "k_g": 2.0, "k0": 2.0, "k_inf": 5.0, "cd": 5.0}  # the target bounds, in %
 
 
 @pytest.mark.parametrize("force", ["true", "reconstructed"])
 def test_worked_example_within_issue_bounds(vdw_off, force):
-    """Issue 3: tau_c, Kg, k0 <= 2 %; k_inf, cd <= 5 % with the true and the
+    """Target bounds: tau_c, Kg, k0 <= 2 %; k_inf, cd <= 5 % with the true and the
     reconstructed force (vdW off; measured 0.06, 0.13-0.29, 0.09-0.26, 1.42, 1.32 %)."""
     df, meta = vdw_off
     res = extract(df, meta, force=force)

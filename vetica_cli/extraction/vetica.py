@@ -1,5 +1,5 @@
 """VETICA: the SLS surface's k0, k_inf, cd from time, tip position and force
-(thesis 3.3 and 4.3; SPEC section 7).  Registered as extraction method ``vetica``.
+(thesis 3.3 and 4.3).  Registered as extraction method ``vetica``.
 
 Inputs are plain arrays of one record of consecutive taps: ``t`` [s],
 ``z_tip`` [m] (up positive, undeformed surface at ``z_tip = a0``), ``f``

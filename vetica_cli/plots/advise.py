@@ -1,4 +1,4 @@
-"""The map of ``vetica advise``: the score of every setting (issue 10 item 4).
+"""The map of ``vetica advise``: the score of every setting.
 
 One panel per (paddle stiffness k2, print step); in each, drive frequency f1 across and
 set point up, each cell coloured by the score (green: every method recovers the

@@ -37,7 +37,7 @@ from .style import (
 def fig_errors_vs_cd(sw: SweepData) -> Figure | None:
     """Errors of tau_c, Kg, k0, k_inf, cd against cd, log axes, acceptance regime shaded (thesis figs. 43-46).
 
-    Error = 100 |extracted - theory| / theory (SPEC 7).  With cd the only
+    Error = 100 |extracted - theory| / theory.  With cd the only
     axis, one panel per force source holds the five quantities (fig. 46
     layout); with more axes, one panel per quantity holds a line per
     setting of the other keys.

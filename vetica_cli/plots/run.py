@@ -92,7 +92,7 @@ def find_transitions(z: np.ndarray, x: np.ndarray, f: np.ndarray, a0: float, spp
     uses.  With fewer than two taps in the record (``spp`` samples per drive
     period tell), ``find_taps`` declines or splits a tap at its paddle
     ringing; then the simulator's own contact state is used: in contact the tip and
-    the surface move together at the gap ``a0`` (SPEC 3), so the edges of
+    the surface move together at the gap ``a0``, so the edges of
     ``z_tip - x_surface <= a0 (1 + 1e-6)`` are the transitions (noise-free
     records only).
     """

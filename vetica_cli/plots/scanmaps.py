@@ -1,4 +1,4 @@
-"""Scan figures (``vetica plot MAP``, issue 12): images of a scan table -- true height,
+"""Scan figures (``vetica plot MAP``): images of a scan table -- true height,
 measured topography, phase and E_diss; each extracted property beside its truth and its
 signed error, per method (and force source) -- with the domain outlines of the sample
 and colour bars in physical units; a line profile across a domain edge; and, for a

@@ -1,5 +1,5 @@
 """Spectral operations on a recorded window: the tip-sample force from the paddle
-signal by spectral inversion (SPEC 6) and the spectral derivative (thesis 5.3.1),
+signal by spectral inversion and the spectral derivative (thesis 5.3.1),
 both with one Bernoulli end correction.
 
 The torsional paddle is driven only by the tip-sample force (thesis eq. 16),
