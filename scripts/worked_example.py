@@ -1,4 +1,4 @@
-"""Numbers for results/worked_example.md (thesis tables 2-4 reproduced).
+"""Numbers for results/thesis/worked_example.md (thesis tables 2-4 reproduced).
 
 Simulates the worked example (defaults) with the van der Waals pull on the
 surface on and off, extracts it with the true and the reconstructed force,

@@ -72,7 +72,7 @@ def test_prestress_from_the_record_matches_the_arms_stress(runs, vdw):
 
 def test_stage2_with_exact_stage1_inputs_recovers_kr(runs):
     """Thesis stage 2 fed the exact tau_c and Kg leaves Kr +17 % off under the surface pull
-    (results/worked_example.md); with the pre-stress term from the record Kr is within 0.3 %
+    (results/thesis/worked_example.md); with the pre-stress term from the record Kr is within 0.3 %
     (measured: -0.013 % with the simulator's own stress; the record's formula misses the
     first approach's creep, about 1 % of sigma0)."""
     _, meta, s = runs[True]

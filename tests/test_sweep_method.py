@@ -201,7 +201,7 @@ def test_tiny_sweep_with_both_methods_end_to_end(tmp_path):
     16:1), through the command line.  Reference: SLS theory of the configured surface.
     Tolerances: the whole-cycle inversion with the true force recovers k0, k_inf and
     cd to < 1 % (the target; measured ~0.03 % on this point); VETICA's
-    acceptance regime ends near cd = 1e-4 kg/s at 16:1 (results/dashpot.parquet), so
+    acceptance regime ends near cd = 1e-4 kg/s at 16:1 (results/thesis/dashpot.parquet), so
     only finiteness is asked of it here."""
     cfg = tmp_path / "both.yaml"
     cfg.write_text(

@@ -56,7 +56,7 @@ def test_sls_elements_invert_the_theory_constants():
 def test_thesis_table4_recomputed_from_its_own_stage1_values():
     """Thesis tables 2-4: tau_c 7.6152e-6, Kg 131.79, Kr 4.0869 give k0 = 127.70 and
     cd = 3.016e-5 through eqs. 81-83, not the printed 127.91 and 2.99e-5 (table 4 is
-    internally inconsistent; results/worked_example.md)."""
+    internally inconsistent; results/thesis/worked_example.md)."""
     e = sls_elements(7.6152e-6, 131.79, 4.0869)
     assert e["k0"] == pytest.approx(127.70, abs=0.005)
     assert e["cd"] == pytest.approx(3.016e-5, rel=1e-3)
