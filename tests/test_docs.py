@@ -66,7 +66,8 @@ def test_no_reference_to_documents_outside_the_repository():
             text = (ROOT / path).read_text()
         except UnicodeDecodeError:
             continue
-        bad += [f"{path}:{i}: {line.strip()[:80]}" for i, line in enumerate(text.splitlines(), 1) if OUTSIDE.search(line)]
+        lines = enumerate(text.splitlines(), 1)
+        bad += [f"{path}:{i}: {line.strip()[:80]}" for i, line in lines if OUTSIDE.search(line)]
     assert not bad, "references to documents outside the repository:\n" + "\n".join(bad)
 
 

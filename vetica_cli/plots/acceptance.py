@@ -128,7 +128,8 @@ def _interval_panel(ax_r, sw: SweepData, groups, colors) -> None:
                 )
                 continue
             his.append(rng.hi)
-            lo, hi = (rng.lo, rng.hi) if rng.hi > rng.lo else (rng.lo / h2**0.25, rng.hi * h2**0.25)  # a point: a sliver
+            # exactly the stated range; a single accepted point: a sliver around it
+            lo, hi = (rng.lo, rng.hi) if rng.hi > rng.lo else (rng.lo / h2**0.25, rng.hi * h2**0.25)
             hs[src] = ax_r.barh(
                 yv,
                 hi - lo,
