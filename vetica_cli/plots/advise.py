@@ -59,7 +59,7 @@ def advice_figure(adv: Advice):
         f"vetica advise: $k_\\infty$ {m.k_inf:.3g} N/m, $k_0$ {m.k0:.3g} N/m, $c_d$ {m.cd:.3g} kg/s; "
         f"{' and '.join(adv.methods)}, {adv.force} force\n"
         f"score = min over methods of min(1 - |error|/limit): $\\tau_c$ {ACCEPT_ERR_PCT:g} %, "
-        f"$k_0, k_\\infty, c_d$ {PARAM_LIMIT_PCT:g} % (outlined: recovered; grey: no score, the cell says why)",
+        f"$k_0, k_\\infty, c_d$ {PARAM_LIMIT_PCT:g} %\n(outlined: recovered; grey: no score, the cell says why)",
         fontsize=9,
     )
     if image is not None:
