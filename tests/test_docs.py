@@ -24,7 +24,13 @@ PENDING = {"vetica_cli/study/advise.py", "vetica_cli/study/grid.py"}
 # results folders that other work of this round adds; remove each once it is in the repository
 COMING = {"results/cross_model/README.md", "results/real_data/README.md", "results/instrument_methods/README.md",
           "results/noise/README.md"}
-LINK = re.compile(r"\]\(([^)#\s]+)(?:#[^)\s]*)?\)")
+LINK = re.compile(r"\]\(([^)#\s]*)(?:#([^)\s]*))?\)")
+HEADING = re.compile(r"^#+ (.*)$", re.M)
+
+
+def slug(heading: str) -> str:
+    """The anchor GitHub gives a Markdown heading."""
+    return re.sub(r"[^\w\- ]", "", heading.strip().lower()).replace(" ", "-")
 
 
 def tracked() -> list[str]:
@@ -72,15 +78,19 @@ def test_no_reference_to_documents_outside_the_repository():
 
 
 def test_relative_links_in_markdown_resolve():
-    """Every relative link of every tracked Markdown file points at a file or folder that exists."""
+    """Every relative link of every tracked Markdown file points at a file or folder that exists,
+    and a link to a heading (``page.md#anchor``) at a heading of that page."""
     broken = []
     for path in tracked():
         if not path.endswith(".md"):
             continue
-        for target in LINK.findall((ROOT / path).read_text()):
+        for target, anchor in LINK.findall((ROOT / path).read_text()):
             if re.match(r"^[a-z]+:", target):
                 continue
-            resolved = Path(os.path.normpath((ROOT / path).parent / target))
+            resolved = Path(os.path.normpath((ROOT / path).parent / target)) if target else ROOT / path
             if not resolved.exists() and str(resolved.relative_to(ROOT)) not in COMING:
                 broken.append(f"{path}: {target}")
+            elif anchor and resolved.suffix == ".md" and resolved.exists():
+                if anchor not in {slug(h) for h in HEADING.findall(resolved.read_text())}:
+                    broken.append(f"{path}: {target}#{anchor}")
     assert not broken, "broken links:\n" + "\n".join(broken)
