@@ -1,4 +1,4 @@
-"""The hybrid integrator against all-fine Verlet on the thesis's study grid (issue 9 item 2).
+"""The hybrid integrator against all-fine Verlet on the thesis's study grid.
 
     python scripts/hybrid_vs_verlet.py              # every 12th simulation of the 7 studies, 3 switch gaps (~3 min)
     python scripts/hybrid_vs_verlet.py --every 4    # denser
@@ -6,7 +6,7 @@
 For a sample of the distinct simulations of the seven thesis study configs it runs the point
 with ``numerics.integrator: verlet`` (every step a fine Verlet step) and with ``hybrid`` at
 switch gaps 0.5, 1 and 2 nm (the default), both to the periodic orbit, and prints the largest
-relative difference of each observable the issue names (peak force, E_diss, contact time,
+relative difference of each observable that matters to the extraction (peak force, E_diss, contact time,
 amplitude, phase) plus the penetration, with the point where it occurs, and the kernel time
 of each integrator (median).  The longest far step is 2**13 fine steps (0.2 us at dt 0.025 ns,
 1 % of the 50 kHz period; ``engine.KernelSetup.ladder_max``).

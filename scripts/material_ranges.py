@@ -2,7 +2,7 @@
 and viscosity 700 Pa s .. 70 GPa s over its study, 700 Pa s .. 70 MPa s over the
 acceptance regime.
 
-    python scripts/material_ranges.py [FOLDER_OR_TABLES ...] [--all]     # default: results/
+    python scripts/material_ranges.py [FOLDER_OR_TABLES ...] [--all]     # default: every table under results/
 
 For every study table (``*.parquet`` with ``status`` and ``force_source``) it prints the
 range of ``E_dmt`` (the DMT modulus from each point's peak force and penetration, thesis
@@ -85,13 +85,13 @@ def tables(args: list[str]) -> list[Path]:
     paths = []
     for a in args or [str(ROOT / "results")]:
         p = Path(a)
-        paths += sorted(p.glob("*.parquet")) if p.is_dir() else [p]
+        paths += sorted(p.rglob("*.parquet")) if p.is_dir() else [p]
     return paths
 
 
 def main(argv=None) -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("paths", nargs="*", help="study tables or folders (default: results/)")
+    ap.add_argument("paths", nargs="*", help="study tables or folders, searched recursively (default: results/)")
     ap.add_argument("--all", action="store_true", help="every point, not only those in the thesis's ranges")
     args = ap.parse_args(argv)
     every, every_acc = [], []

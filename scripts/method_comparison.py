@@ -1,4 +1,4 @@
-"""Evidence for issue 6 item 4: VETICA against the whole-cycle inversion
+"""VETICA against the whole-cycle inversion
 (``extract.method full``), without and with detector position noise.
 
 Reads the tables of four sweeps (run them first, ~15 min on 2 cores):
@@ -7,11 +7,11 @@ Reads the tables of four sweeps (run them first, ~15 min on 2 cores):
     vetica sweep configs/method_stiffness_ratio.yaml      # ratio x cd x noise x method, PS 0.5 ns
     vetica sweep configs/method_noise_reconstructed.yaml  # noisy reconstructed force, a few points
     vetica sweep configs/method_low_cd.yaml               # cd below the thesis range, 0.125 ns
-    vetica sweep configs/method_pull.yaml                 # cd x surface pull on/off x method (issue 10)
+    vetica sweep configs/method_pull.yaml                 # cd x surface pull on/off x method
 
-and prints the Markdown tables of ``results/method_comparison.md``, writing the
-summary tables they are built from (``results/method_comparison_summary.parquet``, one row per setting, noise
-level, force source and method; ``results/method_comparison_noisy_reconstructed.parquet``):
+and prints the Markdown tables of ``results/methods/method_comparison.md``, writing the
+summary tables they are built from (``results/methods/method_comparison_summary.parquet``, one row per setting, noise
+level, force source and method; ``results/methods/method_comparison_noisy_reconstructed.parquet``):
 
     python scripts/method_comparison.py [--measure-reconstruction]
 
@@ -44,7 +44,7 @@ from vetica_cli.io import read_table, write_table
 from vetica_cli.study.acceptance import ACCEPT_ERR_PCT
 
 ROOT = Path(__file__).resolve().parents[1]
-RESULTS = ROOT / "results"
+RESULTS = ROOT / "results" / "methods"
 LIMIT = ACCEPT_ERR_PCT  # % (thesis fig. 52)
 CD = "surface.cd"
 NOISE = "numerics.position_noise"

@@ -5,9 +5,10 @@
     python scripts/regenerate_results.py --list          # what it would run
 
 Each study runs as its own process, ``vetica sweep configs/<study>.yaml -o
-results/<study>.parquet --no-resume --jobs 2`` (a fresh start, two worker processes, as the
-README's wall times are quoted), then ``vetica plot`` draws its figures into
-``results/figures/``.  The wall time of every sweep goes to ``results/timings.json`` (with
+results/<kind>/<study>.parquet --no-resume --jobs 2`` (a fresh start, two worker processes, as the
+docs' wall times are quoted), then ``vetica plot`` draws its figures into
+``results/<kind>/figures/``; :func:`folder` says which kind a study is (thesis studies, method
+comparisons, findings, wiechert).  The wall time of every sweep goes to ``results/timings.json`` (with
 the machine's core count and load average at the start, so a reader can judge the figure).
 The committed PNGs are re-saved with a 256-colour palette (Pillow, no dithering) to keep the
 repository small; ``vetica plot`` writes the full-colour originals.
@@ -26,15 +27,30 @@ from pathlib import Path
 
 ROOT = Path(__file__).resolve().parent.parent
 RES = ROOT / "results"
-FIG = RES / "figures"
 
-# the thesis's chapter-4 studies (issue 9's "all study configs together" are the first seven)
+# the thesis's chapter-4 studies (the "seven thesis studies" whose total wall time the docs quote)
 THESIS = ["dashpot", "dashpot_vdw_off", "stiffness_ratio", "setpoint", "frequency", "print_step", "paddle_stiffness"]
 EXTRA = ["stiffness_ratio_vdw_off", "surface_position", "wiechert_arm2_cd"]
 METHODS = ["method_dashpot", "method_stiffness_ratio", "method_noise_reconstructed", "method_low_cd", "method_pull"]
-# measurements behind results/README's "Thesis findings: causes" (issue 9)
+# measurements behind results/thesis/comparison.md's "Thesis findings: causes"
 FINDINGS = ["findings_table5", "findings_tau_c_edge", "findings_setpoint", "findings_ediss_pull"]
 STUDIES = THESIS + EXTRA + METHODS + FINDINGS
+
+
+def folder(name: str) -> Path:
+    """The folder of results/ that holds a study's table, config and (under figures/) its figures."""
+    if name in METHODS:
+        return RES / "methods"
+    if name in FINDINGS:
+        return RES / "findings"
+    if name.startswith("wiechert"):
+        return RES / "wiechert"
+    return RES / "thesis"
+
+
+def table(name: str) -> Path:
+    """A study's committed table, ``results/<kind>/<name>.parquet``."""
+    return folder(name) / f"{name}.parquet"
 
 
 def vetica(*args: str) -> None:
@@ -42,11 +58,11 @@ def vetica(*args: str) -> None:
 
 
 def run_study(name: str) -> float:
-    out = RES / f"{name}.parquet"
+    out = table(name)
     t0 = time.perf_counter()
     vetica("sweep", f"configs/{name}.yaml", "-o", str(out), "--no-resume", "--jobs", "2", "-q")
     wall = time.perf_counter() - t0
-    vetica("plot", str(out), "-o", str(FIG))
+    vetica("plot", str(out), "-o", str(folder(name) / "figures"))
     return wall
 
 
@@ -54,13 +70,13 @@ def worked_example() -> None:
     """The per-run figures of the worked example (thesis figs. 33, 28, 62), three periods."""
     out = Path("/tmp/worked_example.parquet")
     vetica("simulate", "-o", str(out), "--set", "numerics.record_cycles=3")
-    vetica("plot", str(out), "-o", str(FIG))
+    vetica("plot", str(out), "-o", str(RES / "thesis" / "figures"))
 
 
 def quantize() -> None:
     from PIL import Image
 
-    for p in glob.glob(str(FIG / "*.png")):
+    for p in glob.glob(str(RES / "*" / "figures" / "*.png")):
         Image.open(p).convert("RGB").quantize(256, dither=0).save(p, optimize=True)
 
 
@@ -76,7 +92,6 @@ def main() -> None:
     if args.list:
         print("\n".join(todo))
         return
-    FIG.mkdir(parents=True, exist_ok=True)
     path = RES / "timings.json"
     timings = json.loads(path.read_text()) if path.is_file() else {}
     for name in todo:

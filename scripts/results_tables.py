@@ -1,8 +1,8 @@
-"""Summary tables quoted in results/README.md, computed from the study tables.
+"""Summary tables quoted in results/thesis/comparison.md, computed from the study tables.
 
     python scripts/results_tables.py            # markdown on stdout, ~5 s
 
-Reads results/<study>.parquet (written by `vetica sweep configs/<study>.yaml`).
+Reads results/<kind>/<study>.parquet (regenerate_results.table; written by `vetica sweep configs/<study>.yaml`).
 Errors are summarised by their magnitude (tables from v0.2 on store them signed).
 The acceptance regime is the one `vetica sweep` and `vetica plot` use
 (vetica_cli.study.acceptance.regime: status ok and |tau_c error| < 30 %, thesis fig. 52).
@@ -32,13 +32,14 @@ STUDIES = [
     "frequency",
 ]
 from regenerate_results import THESIS as THESIS7  # noqa: E402  (the seven thesis study configs)
+from regenerate_results import table  # noqa: E402  (where each study's table lives)
 CD = "surface.cd"
 Q = ["tau_c", "k_g", "k0", "k_inf", "cd"]
 QL = {"tau_c": "τc", "k_g": "Kg", "k0": "k0", "k_inf": "k_inf", "cd": "cd"}
 
 
 def load(name: str) -> pd.DataFrame:
-    df = pd.read_parquet(RES / f"{name}.parquet")
+    df = pd.read_parquet(table(name))
     df["force_source"] = df["force_source"].astype(str)
     df["status"] = df["status"].astype(str)
     return df
@@ -378,7 +379,7 @@ def not_steady_table() -> str:
 
 
 def findings_tables() -> str:
-    """The measurements behind results/README's "Thesis findings: causes" (configs/findings_*.yaml)."""
+    """The measurements behind results/thesis/comparison.md's "Thesis findings: causes" (configs/findings_*.yaml)."""
     parts = []
     t = load("findings_table5")
     t = t[t.force_source == "true"]

@@ -1,4 +1,4 @@
-"""How the steady state is reached over the thesis's study grid (issue 9's targets).
+"""How the steady state is reached over the thesis's study grid.
 
     python scripts/steady_grid.py                 # every simulation of the 7 thesis studies + a cd range
     python scripts/steady_grid.py --quick         # the cd range only

@@ -1,4 +1,4 @@
-"""Numbers for results/worked_example.md (thesis tables 2-4 reproduced).
+"""Numbers for results/thesis/worked_example.md (thesis tables 2-4 reproduced).
 
 Simulates the worked example (defaults) with the van der Waals pull on the
 surface on and off, extracts it with the true and the reconstructed force,
@@ -33,7 +33,7 @@ from vetica_cli.signals.taps import find_taps, first_contact_minimum
 from vetica_cli.simulation.config import load
 from vetica_cli.simulation.simulate import simulate
 
-# thesis tables 2-4 (SPEC 9); tau_r from thesis eq. 76 with its own numbers
+# thesis tables 2-4; tau_r from thesis eq. 76 with its own numbers
 THESIS = {"tau_c": 7.6152e-6, "k_g": 131.79, "k_r": 4.0869, "k0": 127.91, "k_inf": 4.0869, "cd": 2.99e-5}
 THESIS["tau_r"] = THESIS["tau_c"] * THESIS["k_r"] / THESIS["k_g"]
 ROWS = (("tau_c", "τc [s]"), ("k_g", "Kg [N/m]"), ("k_r", "Kr [N/m]"), ("tau_r", "τr [s]"),
@@ -87,7 +87,7 @@ def main():
                 cells.append(f"{v:.5g} ({pct(v, th[key]):+.2f})")
         p("| " + " | ".join(cells) + " |")
     p("")
-    # --- VETICA with the pre-stress (issue 10 item 2) and on records as measured (item 1)
+    # --- VETICA with the pre-stress, and on records as measured
     p("## VETICA with the Maxwell arm's pre-stress at contact (`--method vetica-prestress`), error %, signed\n")
     p("The pre-stress comes from the adhesion at the contact minimum when the surface feels the pull, from the "
       "unfinished creep alone when it does not (`prestress: auto`, from the metadata's `vdw_on_surface`).\n")

@@ -1,5 +1,5 @@
 """An SLS tapping record made without vetica's simulator: the tip moves on a prescribed
-cosine, the surface is the massless Zener SLS of SPEC 3 with the van der Waals pull acting
+cosine, the surface is the massless Zener SLS (thesis 3.2) with the van der Waals pull acting
 on the tip only (``vdw_on_surface: false``), and every segment of the surface's motion is
 integrated in closed form (no time step):
 
@@ -13,7 +13,7 @@ integrated in closed form (no time step):
 
 Contact and separation instants are found by root finding to 1e-15 s, the periodic
 state by iterating whole periods until the dashpot repeats.  A record "from a simulator
-other than ours" for the measured-data tests (issue 10 item 1): it shares no code with
+other than ours" for the measured-data tests: it shares no code with
 ``vetica_cli`` and has no probe dynamics.
 """
 

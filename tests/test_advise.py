@@ -1,4 +1,4 @@
-"""`vetica advise` (issue 10 item 4): material input, the knob grid, the print-step
+"""`vetica advise`: material input, the knob grid, the print-step
 subsampling, the margin and ranking, the JSON settings as config keys, and one-line
 errors with exit status 2.
 

@@ -1,5 +1,5 @@
 """Every bad input fails fast: exit status 2, one line on stderr starting ``error:``, no
-traceback, nothing on stdout and nothing written -- for the cases the issue lists (each
+traceback, nothing on stdout and nothing written -- for the cases a new user met (each
 named below) and for malformed configs, option values and input files that hypothesis
 generates.
 
@@ -97,7 +97,7 @@ def test_the_valid_record_extracts(record):
         assert r.exit_code == 0, r.output
 
 
-# --------------------------------------------------------------------- the issue's cases and those found, named
+# --------------------------------------------------------------------- the cases met by a new user and those found, named
 
 CASES = [
     # (what, argv builder taking (folder, record), fragments of the message)

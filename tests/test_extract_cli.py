@@ -1,5 +1,5 @@
 """`vetica extract`: table and JSON output, measured data without metadata, and
-one-line errors with exit status 2 for bad input (issue 3)."""
+one-line errors with exit status 2 for bad input."""
 
 import json
 
@@ -143,8 +143,8 @@ def test_missing_file_is_rejected(tmp_path):
 
 
 def test_method_full_prints_fit_uncertainty_and_json_with_identifiability(run_file):
-    """--method full (issue 6): same output formats, plus 1-sigma and identifiability;
-    recovers the worked example's k0, k_inf, cd within 1 % (issue 6 done-when; this
+    """--method full: same output formats, plus 1-sigma and identifiability;
+    recovers the worked example's k0, k_inf, cd within 1 % (this
     coarse 0.5 ns, 3-period record still carries the information)."""
     res = invoke(run_file, "--method", "full", "--force", "true")
     assert res.exit_code == 0, res.output

@@ -1,4 +1,4 @@
-"""Whole-cycle model inversion, ``--method full`` (issue 6).
+"""Whole-cycle model inversion, ``--method full``.
 
 References: finite differences of the kernel itself (its tangent-linear
 Jacobian), the simulator's own force and dashpot state (the prescribed-
@@ -166,7 +166,7 @@ def test_prescribed_surface_reproduces_the_simulator_at_the_true_parameters(work
 
 @pytest.mark.parametrize("force", ["true", "reconstructed"])
 def test_full_method_recovers_the_worked_example_within_1_percent(worked, force):
-    """Issue 6 done-when: k0, k_inf, cd within 1 % of the run's truth (measured: 0.02 %),
+    """Target: k0, k_inf, cd within 1 % of the run's truth (measured: 0.02 %),
     every parameter identifiable, the same keys as VETICA's extract()."""
     df, meta = worked
     res = extract(df, meta, force=force, method="full")

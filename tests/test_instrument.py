@@ -1,4 +1,4 @@
-"""Instrument realism on the recorded signals: detector noise and bandwidth (issue 6)."""
+"""Instrument realism on the recorded signals: detector noise and bandwidth."""
 
 import math
 

@@ -1,4 +1,4 @@
-"""Material units (issue 10 item 3; thesis 4.6.2, eqs. 90-92, table 6).
+"""Material units (thesis 4.6.2, eqs. 90-92, table 6).
 
 References: the DMT/Hertz relation of thesis eq. 90 evaluated forward (a force made
 from a chosen sample modulus must give that modulus back, rtol 1e-12), the limits
@@ -141,7 +141,7 @@ def test_extract_reports_material_from_the_record_and_theory(run):
     # penetration: the tip's depth below Z1 is the surface's below its undeformed level plus the lift of the
     # first contact, X1 = Z1 - a0 (in contact X = z_tip - a0), to rounding; the method takes the adhesion lift
     # -Fc/Kg off (the surface feels the pull), which leaves X1 - Fa/Kg, the first approach's creep k0 Xd1/Kg
-    # (20 pm in results/worked_example.md), plus Fa(a0) times the error of 1/Kg: within 25 pm
+    # (20 pm in results/thesis/worked_example.md), plus Fa(a0) times the error of 1/Kg: within 25 pm
     x1 = run.observables["z1"] - 0.2e-9
     steady = run.frame()[lambda d: d.segment == "steady"]
     f = steady.f_ts.to_numpy()

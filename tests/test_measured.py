@@ -1,9 +1,9 @@
-"""Extraction on records as an instrument gives them (issue 10 item 1, the VETICA side):
+"""Extraction on records as an instrument gives them (the VETICA side):
 only ``t``, ``z_tip`` and ``f_ts`` (or ``z_paddle`` with the paddle's constants), no
 approach segment, no metadata, any whole number of periods, windows that start anywhere.
 
 References: thesis eq. 84 (Z1 = a0 when the surface does not feel the pull; with the
-pull the surface is lifted by Fa(a0)/Kg as contact starts, SPEC 3), the SLS theory
+pull the surface is lifted by Fa(a0)/Kg as contact starts), the SLS theory
 values of the simulated surface, a record from an independent closed-form SLS simulator
 (tests/sls_reference.py: prescribed tip, no shared code), and the same extraction on
 the record with its approach segment and metadata.  Bounds are stated per test.
@@ -61,7 +61,7 @@ def test_z1_by_eq84_without_the_pull_is_a0_exactly_as_the_approach_shows(runs):
 
 
 def test_z1_with_the_pull_is_a0_plus_the_adhesion_over_the_glassy_stiffness(runs):
-    """The lift Fa(a0)/Kg (SPEC 3, theory 63 pm) is measured from the record with the
+    """The lift Fa(a0)/Kg (theory 63 pm) is measured from the record with the
     thesis's initial slope (+4 % on Kg here, thesis 4.3.2): within 5 % of the lift."""
     df, _ = runs[True]
     s = stripped(df)

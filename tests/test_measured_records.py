@@ -1,10 +1,10 @@
-"""Records as an instrument has them (issue 10, item 1, the whole-cycle fit): t, z_tip and
+"""Records as an instrument has them (the whole-cycle fit): t, z_tip and
 f_ts (or z_paddle), whole drive periods, no approach segment, no metadata.
 
 Reference: the true surface of the simulated runs the records are stripped from (the
 thesis worked example, tables 2-4: k0 128 N/m, k_inf 4 N/m, cd 3e-5 kg/s, H R = 0.2e-18 J
 x 10 nm = 2e-27 J m, a0 0.2 nm), with the van der Waals pull on the surface on and off;
-the issue's target is 1 % on k0, k_inf and cd.  VETICA is held to its own result on the
+the target is 1 % on k0, k_inf and cd.  VETICA is held to its own result on the
 full record: stripping the approach and the metadata changes nothing when Z1 is given.
 """
 

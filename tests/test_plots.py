@@ -1,9 +1,9 @@
 """vetica plot: figures for a simulate run and for sweep tables of each study kind.
 
-Sweep tables here are synthetic: the schema ``vetica sweep`` writes (issue 4:
-one row per point and force source, swept keys by dotted name, value /
+Sweep tables here are synthetic: the schema ``vetica sweep`` writes
+(one row per point and force source, swept keys by dotted name, value /
 theory / error columns, observables, status) filled with physics-shaped
-numbers (SLS theory values from SPEC 7; error, dissipation and time curves
+numbers (SLS theory values, thesis eqs. 43-44, 68, 75-76; error, dissipation and time curves
 shaped like thesis ch. 4), so the figures can be exercised before real
 tables exist.  Reference numbers of the run tests carry their source.
 """
@@ -44,7 +44,7 @@ STUDIES = {  # study -> swept keys and their grids (small versions of configs/*.
     "paddle_stiffness": {"probe.k2": [200.0, 400.0, 600.0, 800.0, 1000.0, 1200.0]},
 }
 
-BASE = {  # thesis worked-example system (SPEC 9) with ratio 16:1 and PS 0.5 ns (thesis fig. 43)
+BASE = {  # thesis worked-example system with ratio 16:1 and PS 0.5 ns (thesis fig. 43)
     "probe": {"f1": 50e3, "f2": 750e3, "k1": 10.0, "k2": 700.0, "q1": 100.0, "q2": 1000.0, "tip_radius": 10e-9},
     "operation": {"free_amplitude": 100e-9, "setpoint": 0.7, "base_height": None},
     "surface": {"k_inf": 4.0, "k0": 64.0, "cd": 3e-5, "hamaker": 0.2e-18, "a0": 0.2e-9, "vdw_on_surface": True},
@@ -53,7 +53,7 @@ BASE = {  # thesis worked-example system (SPEC 9) with ratio 16:1 and PS 0.5 ns 
 
 
 def _point(p: dict) -> dict:
-    """Theory values (SPEC 7) and plausible extracted values / observables for one point."""
+    """Theory values and plausible extracted values / observables for one point."""
     k_inf = 4.0
     k0 = p.get("surface.stiffness_ratio", 16.0) * k_inf
     cd = p.get("surface.cd", 5e-4)
@@ -305,7 +305,7 @@ def test_plot_rejects_corrupt_and_non_vetica_files_with_one_line(tmp_path):
 
 @pytest.fixture(scope="module")
 def run_file(tmp_path_factory):
-    """Worked example (SPEC 9) at PS 0.5 ns, 3 recorded periods: ~3 s of kernel time."""
+    """Worked example at PS 0.5 ns, 3 recorded periods: ~3 s of kernel time."""
     cfg = load(None, {"numerics.print_step": 0.5e-9, "numerics.record_cycles": 3})
     path = tmp_path_factory.mktemp("run") / "run.parquet"
     write_run(simulate(cfg), path)
@@ -349,11 +349,11 @@ def test_transitions_are_the_force_minima_at_the_simulator_contact_edges(run_fil
     run = load_run(df, meta)
     on, off = transitions(run)
     assert len(on) == len(off) >= 2  # 3 recorded periods; taps cut by the record's ends are dropped
-    # each transition sits at a force minimum close to -Fa(a0) = -H R / (6 a0^2) (SPEC 3); sampled at
+    # each transition sits at a force minimum close to -Fa(a0) = -H R / (6 a0^2); sampled at
     # 0.5 ns the minimum can be missed by a little: 15 %
     fa0 = 0.2e-18 * 10e-9 / (6 * 0.2e-9**2)
     assert np.allclose(run.f[np.r_[on, off]], -fa0, rtol=0.15)
-    # SPEC 3: the force minima mark contact and separation, i.e. the edges of the simulator's own
+    # massless SLS: the force minima mark contact and separation, i.e. the edges of the simulator's own
     # contact state (gap = a0); the two must agree to one sample
     c = (run.z - run.x) <= run.a0 * (1 + 1e-6)
     assert np.all(c[on]) and not np.any(c[on - 2]) and np.all(c[off - 1]) and not np.any(c[off + 1])
@@ -400,7 +400,7 @@ def test_spectral_velocity_of_the_run_agrees_with_finite_differences(run_file):
 
 
 def test_tables_comparing_methods_get_one_titled_figure_set_per_method():
-    """A sweep over extract.method (issue 6): the figures are drawn per method,
+    """A sweep over extract.method: the figures are drawn per method,
     named and titled after it, instead of mixing both methods in one series."""
     from vetica_cli.plots.study import sweep_figures
 

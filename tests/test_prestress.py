@@ -1,7 +1,7 @@
-"""VETICA with the Maxwell arm's pre-stress at contact (issue 10 item 2; method
+"""VETICA with the Maxwell arm's pre-stress at contact (method
 ``vetica-prestress``, vetica_cli/extraction/vetica_prestress.py).
 
-References: the SLS in contact (SPEC 3: X = z_tip - a0, cd Xd' = k0 (X - Xd)) whose
+References: the SLS in contact (massless SLS: X = z_tip - a0, cd Xd' = k0 (X - Xd)) whose
 force is equation (1) of the module docstring exactly -- checked against the
 simulator's recorded force and its own surface and dashpot positions; the pre-stress
 formula against the simulator's k0 (X - Xd) at the contact sample; the SLS theory
@@ -72,8 +72,8 @@ def test_prestress_from_the_record_matches_the_arms_stress(runs, vdw):
 
 def test_stage2_with_exact_stage1_inputs_recovers_kr(runs):
     """Thesis stage 2 fed the exact tau_c and Kg leaves Kr +17 % off under the surface pull
-    (results/worked_example.md); with the pre-stress term from the record Kr is within 0.3 %
-    (issue 10: -0.013 % with the simulator's own stress; the record's formula misses the
+    (results/thesis/worked_example.md); with the pre-stress term from the record Kr is within 0.3 %
+    (measured: -0.013 % with the simulator's own stress; the record's formula misses the
     first approach's creep, about 1 % of sigma0)."""
     _, meta, s = runs[True]
     z1 = meta["observables"]["z1"]

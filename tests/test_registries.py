@@ -1,6 +1,6 @@
 """Every registered surface model and extraction method follows the convention of its
 registry (vetica_cli/surfaces/base.py, vetica_cli/extraction/base.py), and the Wiechert
-surface -- a model with a non-scalar config key, its list of arms (SPEC 11) -- plugs in
+surface -- a model with a non-scalar config key, its list of arms -- plugs in
 through the registry alone: config, arm keys, sweeps, table schema, simulation.
 
 References: the SLS worked example (thesis tables 2-4) for the theory values; the
@@ -96,8 +96,8 @@ def test_sls_section_reads_as_in_version_0_1():
 
 
 def test_wiechert_model_specialises_to_its_arms():
-    """A model with a list of arms (SPEC 11) follows the convention for any number of arms:
-    parameters k_inf, k_1, cd_1, ..., theory Kg = k_inf + sum k_i (the issue's example:
+    """A model with a list of arms follows the convention for any number of arms:
+    parameters k_inf, k_1, cd_1, ..., theory Kg = k_inf + sum k_i (the two-arm example:
     4 + 64 + 32 = 100 N/m), tau_i = cd_i/k_i, and from_arms inverts kernel_arms."""
     generic = surfaces.get("wiechert")
     params = generic.parse({"arms": [{"k": 1, "cd": 2}, {"k": 3, "cd": 4}, {"k": 5, "cd": 6}]})

@@ -1,4 +1,4 @@
-"""`vetica scan` (issue 12): the config schema and its errors, the sample map, the physics of
+"""`vetica scan`: the config schema and its errors, the sample map, the physics of
 scanning against independent references, the two-domain map, resume after a kill, Dask on
 a LocalCluster, failed pixels, and the figures.
 
@@ -97,7 +97,8 @@ def numeric_equal(a: pd.DataFrame, b: pd.DataFrame) -> None:
 
 
 def test_the_issue_schema_is_accepted_as_written():
-    """The contract of issue 12, verbatim: both features, keys not given are the background's."""
+    """The scan config's documented schema (docs/commands/scan.md), verbatim: both features,
+    keys not given are the background's."""
     raw = yaml.safe_load(
         textwrap.dedent("""
         scan:
@@ -386,7 +387,7 @@ def fails_on_soft(df, meta, force, method="vetica"):
 
 def test_a_failing_extraction_becomes_failed_rows_and_the_table_explains_itself(tmp_path):
     """A pixel whose extraction raises is a row with status 'failed' and the error; the other
-    pixels run on; the columns of the issue are there, and their units in the metadata."""
+    pixels run on; the documented columns are there, and their units in the metadata."""
     cfg = build(line_config(nx=4, pixel_time=0.2e-3, methods=("vetica", "full")))
     res = run_scan(cfg, tmp_path / "m.parquet", jobs=1, progress=False, task=LineTask(extract=fails_on_soft))
     t, meta = read_table(tmp_path / "m.parquet")

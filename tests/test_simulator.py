@@ -1,8 +1,8 @@
-"""The THC + SLS simulator held to physics (SPEC sections 2-5).
+"""The THC + SLS simulator held to physics (probe, surface, feedback and record models).
 
 References are stated per test: closed-form driven damped oscillator, energy
 conservation of the discrete equations, convergence in dt, continuity of the
-force law (SPEC 3), and the thesis's worked example (tables 2-4).
+force law, and the thesis's worked example (tables 2-4).
 """
 
 import math
@@ -57,7 +57,7 @@ def test_free_oscillation_has_free_amplitude_and_90_degree_phase():
 
 
 def test_energy_balance_per_steady_cycle(worked):
-    """Drive work - cantilever damping - paddle damping = sample dissipation (SPEC 5), 1 %.
+    """Drive work - cantilever damping - paddle damping = sample dissipation, 1 %.
     Exactly, the difference is the change of the probe's energy over the window."""
     e = worked.energy
     lhs = e["drive_work"] - e["cantilever_damping"] - e["paddle_damping"]
@@ -83,7 +83,7 @@ def test_halving_dt_changes_steady_observables_little(worked):
 def test_force_has_no_jump_at_contact_or_separation():
     """Sampled at every step over a steady period, Fts changes by less than
     1 % of Fa(a0) (0.08 nN) from one step to the next, transitions included
-    (SPEC 3: Fts is continuous at both transitions; a jump would be ~Fa(a0))."""
+    (massless surface: Fts is continuous at both transitions; a jump would be ~Fa(a0))."""
     cfg = load(None, {"numerics.print_step": 0.025e-9, "numerics.record_cycles": 1})
     run = simulate(cfg)
     f = run.steady[:, COLUMNS.index("f_ts")]
@@ -96,7 +96,7 @@ def test_force_has_no_jump_at_contact_or_separation():
 
 def test_first_approach_contact_gives_undeformed_surface_reference(worked):
     """Z1 = a0 + X at first contact; the surface is pulled up by at least
-    Fa(a0)/Kg and at most Fa(a0)/k_inf (SPEC 3)."""
+    Fa(a0)/Kg and at most Fa(a0)/k_inf."""
     z1 = worked.observables["z1"]
     assert 0.2e-9 + FA0 / 132 * 0.99 <= z1 <= 0.2e-9 + FA0 / 4
     # the approach window holds the first contact in its middle
@@ -114,7 +114,7 @@ def test_recorded_window_spans_whole_drive_periods(worked):
 
 
 def test_vdw_off_surface_keeps_force_continuous_and_z1_at_a0():
-    """Without the surface pull (SPEC 3 switch): Fts continuous (jumps < 1 % of
+    """Without the surface pull (the vdw_on_surface switch): Fts continuous (jumps < 1 % of
     Fa(a0)), minimum -Fa(a0), and the undisturbed surface at X = 0 so Z1 = a0
     (thesis eq. 84: Z1 = 0.2 nm) to within the approach sampling (~1e-12 m)."""
     cfg = load(None, {"surface.vdw_on_surface": False, "numerics.print_step": 0.025e-9, "numerics.record_cycles": 1})

@@ -1,5 +1,5 @@
-"""Force reconstruction by spectral inversion of the paddle signal (SPEC 6,
-thesis eqs. 17-20).
+"""Force reconstruction by spectral inversion of the paddle signal (thesis
+eqs. 17-20).
 
 References: the paddle equation of motion ``m2 zp'' + c2 zp' + k2 zp = Fts``
 (thesis eq. 16) evaluated analytically on a chosen trajectory, and the
@@ -109,7 +109,7 @@ def test_bad_input_is_a_one_line_input_error(bad, match):
 @pytest.fixture(scope="module")
 def worked():
     """Worked example (thesis tables 2-4), vdW pull on the surface off (the setting
-    of the worked-example bounds; see results/worked_example.md)."""
+    of the worked-example bounds; see results/thesis/worked_example.md)."""
     run = simulate(load(None, {"surface.vdw_on_surface": False}))
     return run.frame()
 

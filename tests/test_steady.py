@@ -1,4 +1,4 @@
-"""The steady state is solved, not waited for (issue 9): the periodic-orbit solver against
+"""The steady state is solved, not waited for: the periodic-orbit solver against
 time stepping, the proof of periodicity, the limits of the dashpot, the hybrid integrator
 against all-fine Verlet, and the energy balance on the solved state."""
 
@@ -56,7 +56,7 @@ def test_slow_surfaces_are_proven_periodic(cd):
 
 
 def test_transient_of_a_slow_surface_is_not_called_steady():
-    """Issue 9's false steady state: at 32:1, cd = 10 kg/s with the pull off the contact
+    """A false steady state of the earlier time-stepped transient: at 32:1, cd = 10 kg/s with the pull off the contact
     position drifts less than tol_z per period long before the surface has crept (tau_c ~ 2.7 s).
     A 12 ms transient is reported max_time, and its penetration falls short of the orbit's
     (version 0.1 recorded 0.69 nm where the periodic state has ~1.7 nm)."""

@@ -14,7 +14,7 @@ SYSTEM = {"surface.k0": 64.0, "surface.cd": 4e-4, "numerics.record_cycles": 4}
 @pytest.mark.parametrize("ps", [0.025e-9, 0.5e-9, 2.0e-9, 4.75e-9])
 def test_measured_events_lie_within_one_print_step_of_the_true_ones(ps):
     """The force is smallest at contact and at separation (-Fa(a0)) and rises on both sides
-    (SPEC 3), so the sampled minimum is one of the two samples either side of the event: its
+   , so the sampled minimum is one of the two samples either side of the event: its
     time is within one print step of the true event, and its position within the tip's travel
     over one print step (bounded by the largest tip speed in the record).  At PS = dt the
     measured surface is within one integration step of the true one."""

@@ -422,7 +422,7 @@ def test_study_configs_expand(name):
 
 
 def test_dashpot_study_meets_the_issue_minimum():
-    """Issue 4: cd 1e-5 .. 1e3 kg/s, at least 4 points a decade, ratio 16:1."""
+    """The thesis's dashpot grid: cd 1e-5 .. 1e3 kg/s, at least 4 points a decade, ratio 16:1."""
     st = load_study(CONFIGS / "dashpot.yaml")
     cds = sorted(p.config.surface.cd for p in st.points)
     assert cds[0] == 1e-5 and cds[-1] == 1e3

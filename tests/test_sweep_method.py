@@ -1,4 +1,4 @@
-"""The extraction method as a sweep axis (issue 6 item 3): ``extract.method`` in the
+"""The extraction method as a sweep axis: ``extract.method`` in the
 sweep grammar, one simulation shared by the points that differ only in method or
 in the instrument keys, and a small end-to-end sweep with both methods.
 
@@ -200,8 +200,8 @@ def test_tiny_sweep_with_both_methods_end_to_end(tmp_path):
     """Real simulation and both real extractions on one cheap point (cd = 1e-4 kg/s,
     16:1), through the command line.  Reference: SLS theory of the configured surface.
     Tolerances: the whole-cycle inversion with the true force recovers k0, k_inf and
-    cd to < 1 % (the issue's target; measured ~0.03 % on this point); VETICA's
-    acceptance regime ends near cd = 1e-4 kg/s at 16:1 (results/dashpot.parquet), so
+    cd to < 1 % (the target; measured ~0.03 % on this point); VETICA's
+    acceptance regime ends near cd = 1e-4 kg/s at 16:1 (results/thesis/dashpot.parquet), so
     only finiteness is asked of it here."""
     cfg = tmp_path / "both.yaml"
     cfg.write_text(

@@ -1,9 +1,9 @@
-"""VETICA stages 1a, 1b, 2 (SPEC 7, thesis 3.3 and 4.3) and the worked example.
+"""VETICA stages 1a, 1b, 2 (thesis 3.3 and 4.3) and the worked example.
 
 References: the closed-form SLS constants (thesis eqs. 68, 75-76, 81-83), the
 closed-form exponential convolution checked by quadrature, the SLS Maxwell-arm
 equation integrated directly, and the thesis worked example (tables 2-4) with
-the bounds of issue 3 (tau_c, Kg, k0 <= 2 %; k_inf, cd <= 5 %).
+the bounds set for it (tau_c, Kg, k0 <= 2 %; k_inf, cd <= 5 %).
 """
 
 import math
@@ -56,7 +56,7 @@ def test_sls_elements_invert_the_theory_constants():
 def test_thesis_table4_recomputed_from_its_own_stage1_values():
     """Thesis tables 2-4: tau_c 7.6152e-6, Kg 131.79, Kr 4.0869 give k0 = 127.70 and
     cd = 3.016e-5 through eqs. 81-83, not the printed 127.91 and 2.99e-5 (table 4 is
-    internally inconsistent; results/worked_example.md)."""
+    internally inconsistent; results/thesis/worked_example.md)."""
     e = sls_elements(7.6152e-6, 131.79, 4.0869)
     assert e["k0"] == pytest.approx(127.70, abs=0.005)
     assert e["cd"] == pytest.approx(3.016e-5, rel=1e-3)
@@ -164,12 +164,12 @@ def vdw_on():
     return run.frame(), run.metadata()
 
 
-BOUNDS = {"tau_c": 2.0, "k_g": 2.0, "k0": 2.0, "k_inf": 5.0, "cd": 5.0}  # issue 3, in %
+BOUNDS = {"tau_c": 2.0, "k_g": 2.0, "k0": 2.0, "k_inf": 5.0, "cd": 5.0}  # the target bounds, in %
 
 
 @pytest.mark.parametrize("force", ["true", "reconstructed"])
 def test_worked_example_within_issue_bounds(vdw_off, force):
-    """Issue 3: tau_c, Kg, k0 <= 2 %; k_inf, cd <= 5 % with the true and the
+    """Target bounds: tau_c, Kg, k0 <= 2 %; k_inf, cd <= 5 % with the true and the
     reconstructed force (vdW off; measured 0.06, 0.13-0.29, 0.09-0.26, 1.42, 1.32 %)."""
     df, meta = vdw_off
     res = extract(df, meta, force=force)

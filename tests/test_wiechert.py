@@ -1,4 +1,4 @@
-"""The Wiechert (generalized Maxwell) surface held to physics (SPEC 11, thesis 5.3.2).
+"""The Wiechert (generalized Maxwell) surface held to physics (thesis 5.3.2).
 
 References, per test: the closed-form creep and relaxation of a linear viscoelastic
 solid of k_inf in parallel with Maxwell arms -- relaxation modulus
@@ -30,7 +30,7 @@ from vetica_cli.simulation.config import load
 from vetica_cli.simulation.simulate import derive, kernel_setup, simulate
 
 K_INF = 4.0
-ARMS = [(64.0, 3.0e-5), (32.0, 1.0e-3)]  # the issue's example: tau = 0.47 us and 31 us
+ARMS = [(64.0, 3.0e-5), (32.0, 1.0e-3)]  # the two-arm example (configs/wiechert.yaml): tau = 0.47 us and 31 us
 K = np.array([a[0] for a in ARMS])
 CD = np.array([a[1] for a in ARMS])
 KG = K_INF + K.sum()
@@ -140,7 +140,7 @@ def test_constant_indentation_relaxes_as_the_relaxation_modulus():
 
 
 def test_one_arm_wiechert_reproduces_the_sls_bit_for_bit():
-    """A Wiechert surface with the arm (k0, cd) is the SLS (SPEC 11): the same kernel arrays,
+    """A Wiechert surface with the arm (k0, cd) is the SLS: the same kernel arrays,
     so every recorded sample, the energy balance and the observables are identical; its
     theory values are the SLS's (Kg, Kr, tau_1 = tau_r)."""
     sls = simulate(load(None, {**CHEAP, "surface.k0": 64.0, "surface.cd": 1e-4}))
@@ -183,7 +183,7 @@ def test_two_arm_energy_balance_closes_and_arms_add_up(two_arms):
     dissipation (1 %; with the probe's energy change, 1e-4); the dashpots dissipate what the
     tip loses (1e-3; massless surface, periodic orbit); the per-arm dissipations are each
     positive and sum to the total (1e-12); each arm carries no mean force on the orbit
-    (mean stretch <X - Xd_i> below the orbit tolerance, 1e-13 m; SPEC 10)."""
+    (mean stretch <X - Xd_i> below the orbit tolerance, 1e-13 m)."""
     e = two_arms.energy
     lhs = e["drive_work"] - e["cantilever_damping"] - e["paddle_damping"]
     assert lhs == pytest.approx(e["sample_dissipation"], rel=0.01)

@@ -8,7 +8,7 @@ families:
   the damping implicit in the velocity half step, folded so that the next
   tip position is one fused multiply-add after the force (see
   :func:`verlet_row`);
-* **surface at step h** (thesis 3.2, SPEC 3 and 11): the massless surface of
+* **surface at step h** (thesis 3.2): the massless surface of
   ``k_inf`` in parallel with N Maxwell arms ``(k_i, cd_i)``.  In contact every
   arm relaxes towards ``X`` with ``tau_i = cd_i/k_i``, integrated exactly for
   ``X`` moving linearly over the step (from ``X0`` to ``X1``)::
@@ -27,7 +27,7 @@ families:
   with ``E = exp(M h)`` and ``G = int_0^h exp(M s) ds b`` from one augmented
   matrix exponential (no cancellation when ``h << tau``).  One arm gives the
   SLS: ``E = exp(-h/tau_c)``, ``G = (1 - E)/k_inf``;
-* **far step** (exact linear propagation, issue 9): the exact flow of each
+* **far step** (exact linear propagation): the exact flow of each
   damped oscillator over ``H`` (the drive enters through its particular
   solution), for a ladder of step lengths ``H = n dt``.
 """

@@ -3,7 +3,7 @@
 Plain floats and arrays (no config objects): the simulation layer unpacks a
 config into :class:`KernelSetup` and calls :func:`run`.
 
-Steady state (SPEC 10, issue 9).  The "steady state zero reference
+Steady state.  The "steady state zero reference
 equilibrium" of the thesis is the periodic orbit of the controlled system:
 the state -- both oscillators and every dashpot -- repeats after one drive
 period, at the base height where the amplitude equals the set point.  With
@@ -710,7 +710,7 @@ def transient(kern, s, ctrl, spec, periods_left, fixed_base) -> Window:
 
 
 def run(kern: Kernel, spec: RunSpec) -> RunResult:
-    """Approach, steady state (orbit or transient, SPEC 10) and the recorded window.
+    """Approach, steady state (orbit or transient) and the recorded window.
 
     ``stop_reason``: ``steady`` (the recorded window is proven periodic), ``steady
     (transient fallback)`` (the orbit solver failed or left the approach's branch and

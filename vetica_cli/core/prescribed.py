@@ -1,7 +1,7 @@
 """Massless Zener SLS surface driven by a prescribed (measured) tip trajectory.
 
-The inverse problem of ``vetica extract --method full`` (issue 6): the tip
-positions ``z_tip`` of a record are given, the surface of SPEC section 3
+The inverse problem of ``vetica extract --method full``: the tip
+positions ``z_tip`` of a record are given, the massless SLS surface
 (thesis 3.2, appendix C) responds, and the tip-sample force follows.  The
 updates are the simulator's own (:mod:`.sls`), applied once per sample of
 the record (time step ``h`` = the print step) instead of once per
@@ -296,7 +296,7 @@ def surface_force(
 
 
 # =====================================================================================
-# N Maxwell arms (Wiechert surface, SPEC 11): the same updates with the arms coupled
+# N Maxwell arms (Wiechert surface): the same updates with the arms coupled
 # through the massless surface out of contact.
 # =====================================================================================
 #
@@ -415,7 +415,7 @@ def arms_force(
     """Tip-sample force of the N-arm surface under the prescribed tip positions ``z``.
 
     As :func:`surface_force` (same sampling, far blocks, sub-steps and outputs) for the
-    Wiechert surface of SPEC 11; coefficients from :func:`arm_coefficients` (index 0:
+    Wiechert surface (N Maxwell arms); coefficients from :func:`arm_coefficients` (index 0:
     the sample interval, 1: a far block, 2: a sub-step); ``xd0`` (N,) the dashpot
     positions before the first sample [m].  Differentiates along the first ``ndir`` of
     :func:`arm_directions`.  Returns ``(xd (N,), x, contact, dxd (N, D), n_written,

@@ -8,7 +8,7 @@ Probe (thesis eqs. 13-16, decoupled THC point-mass model)::
     m2 zp'' = -k2 zp - c2 zp' + Fts                       torsional paddle+tip [N]
     z_tip   = Zb + zc + zp                                                     [m]
 
-Surface (thesis 3.2, SPEC 3 and 11): ``k_inf`` in parallel with N Maxwell
+Surface (thesis 3.2): ``k_inf`` in parallel with N Maxwell
 arms ``(k_i, cd_i)`` (one arm = the Zener SLS), van der Waals attraction
 ``Fa(d) = H R/(6 d^2)`` (thesis eq. 3) at gap ``d = z_tip - X``.  Contact when
 ``d <= a0``: ``X = z_tip - a0``, every arm relaxes towards ``X`` (exact
@@ -410,7 +410,7 @@ def fine_steps_one_arm(s, n_end, zb_step, p, a, emi, buf, r, o, energy, far_ok):
     the same order, so the same numbers bit for bit (tested), but the arm's dashpot lives
     in registers instead of length-1 arrays -- 28 % less time per fine step (measured on
     the worked example's steady orbit, all-fine Verlet: 7.35 against 10.3 ns, medians of
-    7).  The SLS fast path issue 11 asks for: the general N-arm loop alone is slower."""
+    7).  The SLS keeps this fast path because the general N-arm loop alone is slower."""
     hdt = 0.5 * p[P_DT]
     dt = p[P_DT]
     czz, czv, czf, czd = p[P_CZZ], p[P_CZV], p[P_CZF], p[P_CZD]

@@ -163,7 +163,7 @@ def tap_contact(z: np.ndarray, f: np.ndarray, z1: float, kg: float | None = None
     """Peak force [N] and penetration [m] of a record, medians over its complete taps: per
     tap the largest force and the depth of the lowest tip position below the undeformed
     surface.  The tip meets the surface at ``Z1``; when the surface feels the pull it was
-    lifted there by the adhesion against its glassy stiffness (SPEC 3), so for a given
+    lifted there by the adhesion against its glassy stiffness, so for a given
     ``kg`` [N/m] the lift ``-Fc/Kg`` (``Fc`` the force at the contact minima) is taken off
     the depth below ``Z1``; ``kg`` None: no lift (the surface does not feel the pull, or it
     is not known).  nan when the record has no complete tap."""

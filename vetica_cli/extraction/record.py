@@ -2,7 +2,7 @@
 
 Input: a table with at least ``t`` [s], ``z_tip`` [m] and ``f_ts`` [N] (the
 true force) or ``z_paddle`` [m] (from which the force is reconstructed by
-spectral inversion, SPEC 6), optionally a ``segment`` column ('approach' =
+spectral inversion), optionally a ``segment`` column ('approach' =
 the window around the first contact, 'steady' = the taps to analyse), and the
 ``vetica`` metadata dict written by ``vetica simulate`` ({} for measured
 data: then the probe's ``k2, f2, q2`` and ``Z1`` come as keyword arguments).

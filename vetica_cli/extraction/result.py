@@ -19,7 +19,7 @@ def finite_or_none(v) -> float | None:
 
 def error_pct(value: float | None, theory: float | None) -> float | None:
     """Signed error of an extracted value against its theory value [%]:
-    ``100 (value - theory) / theory`` (positive = overestimate; SPEC 7 states its
+    ``100 (value - theory) / theory`` (positive = overestimate; the thesis's figures plot its
     magnitude); None when either is unknown."""
     if value is None or not theory:
         return None

@@ -1,5 +1,5 @@
 """VETICA: the SLS surface's k0, k_inf, cd from time, tip position and force
-(thesis 3.3 and 4.3; SPEC section 7).  Registered as extraction method ``vetica``.
+(thesis 3.3 and 4.3).  Registered as extraction method ``vetica``.
 
 Inputs are plain arrays of one record of consecutive taps: ``t`` [s],
 ``z_tip`` [m] (up positive, undeformed surface at ``z_tip = a0``), ``f``
@@ -135,6 +135,16 @@ def fit_sum_of_sines(u: np.ndarray, z: np.ndarray, terms: int = 3, max_points: i
     duration; a few starting frequency sets (amplitudes and phases from a
     linear fit at those frequencies) are tried and the lowest residual kept.
     ``rms`` is over all samples.
+
+    The Jacobian carries one trailing zero column (a parameter the residuals do not
+    depend on, held at 0).  scipy's MINPACK port behind ``method="lm"`` (scipy 1.17)
+    reads one element past the end of its Jacobian array when its pivoting QR re-norms
+    the last column (valgrind: an invalid read of 8 bytes just after the m x n block
+    that ``qrfac`` factors), so the fit's last bits depended on whatever lay in memory
+    there: reruns of the same record differed by ~1e-14 in Kr, and the first call of a
+    process often differed from the later ones.  A zero column is never pivoted and
+    never re-normed, so nothing outside the array is read and the fit is a function of
+    its inputs alone.
     """
     from scipy.optimize import least_squares  # lazy: the CLI starts without scipy.optimize
 
@@ -148,12 +158,14 @@ def fit_sum_of_sines(u: np.ndarray, z: np.ndarray, terms: int = 3, max_points: i
     y = (z[::step] - zm) / zs
 
     cache = {}
+    zero = np.zeros((len(x), 1))  # the trailing zero column (docstring)
 
     def _eval(params):  # MINPACK asks for value and Jacobian at the same point: compute once
         key = params.tobytes()
         if key not in cache:
             cache.clear()
-            cache[key] = _sines_model(params, x, terms)
+            value, jac = _sines_model(params[:-1], x, terms)
+            cache[key] = value, np.hstack([jac, zero])
         return cache[key]
 
     def resid(params):
@@ -164,7 +176,7 @@ def fit_sum_of_sines(u: np.ndarray, z: np.ndarray, terms: int = 3, max_points: i
 
     best = None
     for freqs in STARTS:
-        p0 = _linear_start(x, y, np.pi * np.array(freqs[:terms]))
+        p0 = np.append(_linear_start(x, y, np.pi * np.array(freqs[:terms])), 0.0)
         try:  # short run from each start, then the best one to convergence
             sol = least_squares(resid, p0, jac=jac, method="lm", max_nfev=SCOUT_NFEV)
         except (ValueError, np.linalg.LinAlgError):  # pragma: no cover - degenerate start
@@ -174,7 +186,7 @@ def fit_sum_of_sines(u: np.ndarray, z: np.ndarray, terms: int = 3, max_points: i
     if best is None:
         raise InputError(f"sum-of-sines fit failed on a contact of {len(u)} samples")
     best = least_squares(resid, best.x, jac=jac, method="lm", max_nfev=NFEV)
-    fit = _physical(best.x, terms, u[0], span, zm, zs)
+    fit = _physical(best.x[:-1], terms, u[0], span, zm, zs)
     fit.rms = float(np.sqrt(np.mean((fit(u) - z) ** 2)))
     return fit
 

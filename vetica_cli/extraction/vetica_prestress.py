@@ -1,4 +1,4 @@
-"""VETICA with the Maxwell arm's pre-stress at contact (issue 10 item 2).  Registered as
+"""VETICA with the Maxwell arm's pre-stress at contact.  Registered as
 extraction method ``vetica-prestress``; the thesis's method stays ``vetica``.
 
 The thesis's stage 2 writes the contact force as the Boltzmann superposition of the
@@ -8,7 +8,7 @@ contact starts.  It is not: as the tip touches down, the arm already holds a for
     sigma0 = k0 (X - Xd) at contact                                         [N]
 
 from the adhesion that lifts the surface (when the surface feels the van der Waals
-pull, SPEC 3) and from the creep the surface has not finished since the last tap.
+pull) and from the creep the surface has not finished since the last tap.
 In contact ``X = z_tip - a0`` and the arm relaxes with ``tau_r = cd/k0``::
 
     d sigma/dt = k0 dX/dt - sigma / tau_r
@@ -40,7 +40,7 @@ point (``Kg`` enters ``tau_r = tau_c Kr/Kg``, ``sigma0`` and the correction):
     minimum and the position of that minimum below Z1.  With the surface lifted by
     ``Fa(a0) = -Fc`` against both springs and the rubbery spring stretched by
     ``Zc - Z1``: ``sigma0 = -Fc (1 - Kr/Kg) - Kr (Zc - Z1)`` (the surface feels the
-    pull, SPEC 3);
+    pull);
   - ``creep``: the surface does not feel the pull (thesis's assumption); only the
     unfinished creep stresses the arm: ``sigma0 = -Kr (Zc - Z1)``;
   - ``fit``: ``sigma0`` of each tap is a second least-squares parameter (no

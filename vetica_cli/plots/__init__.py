@@ -18,9 +18,12 @@ kHz, ns); the tables stay SI.  Conventions shared by every sweep figure:
 true force = solid line, filled marker; reconstructed force = dashed line,
 open marker; ``not_steady`` points are drawn with a grey cross over the
 marker and do not count for the acceptance regime; ``no_estimate`` points (the
-extraction gave no value; why is in the table's ``error``) show as triangles on the
-top edge where a value is missing and are counted in the note; ``failed`` points are
-excluded and counted in the note at the bottom of the figure.
+extraction gave no value; why is in the table's ``error``) show, where a value is
+missing, as the quantity's own marker in a band above the data (one row per quantity) and
+are counted in the note of the figures of estimates; ``failed`` points are excluded and
+counted in the note at the bottom of the figure.  A shaded acceptance regime spans exactly
+the stated cd range; a legend that would cover data is moved beside its axes
+(:func:`.style.legends_off_data`).
 
 Modules: :mod:`.style` (conventions and helpers), :mod:`.run` (run figures),
 :mod:`.data` (the sweep rows the study figures draw), :mod:`.study` (which

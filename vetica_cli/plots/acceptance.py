@@ -23,6 +23,7 @@ from .style import (
     err_axes,
     extra_handles,
     new_figure,
+    reserve_missing_rows,
     series,
 )
 
@@ -33,10 +34,14 @@ def _half_step(cd: np.ndarray) -> float:
 
 
 def shade_regime(ax, rng, cd_values, color="tab:green", label=None):
+    """The regime exactly as stated, from its lowest to its highest accepted cd (a single
+    accepted point: a line at it)."""
     if rng is None:
         return
-    h = _half_step(np.asarray(cd_values, float))
-    ax.axvspan(rng.lo / h, rng.hi * h, color=color, alpha=0.12, lw=0, label=label)
+    if rng.hi > rng.lo:
+        ax.axvspan(rng.lo, rng.hi, color=color, alpha=0.12, lw=0, label=label)
+    else:
+        ax.axvline(rng.lo, color=color, alpha=0.5, lw=3, label=label)
 
 
 def regime_text(rng: Regime | None) -> str:
@@ -92,10 +97,12 @@ def _error_panel(ax_e, sw: SweepData, groups, colors) -> None:
                 glab if src == sources[0] else None,
                 floor=ERR_FLOOR,
                 show_missing=True,
+                missing_row=sources.index(src),
             )
     ax_e.axhline(ACCEPT_ERR_PCT, color="k", ls=":", lw=1.2)
     ax_e.text(0.01, ACCEPT_ERR_PCT, f" {PCT}", transform=ax_e.get_yaxis_transform(), va="bottom", fontsize=8)
     err_axes(ax_e)
+    reserve_missing_rows(ax_e, flags, len(sources))
     ax_e.set_ylabel(axis_label("τc error", "%"))
     ax_e.set_title("(a) τc error (solid: true force, dashed: reconstructed)", fontsize=10, loc="left")
     h, _ = ax_e.get_legend_handles_labels()
@@ -121,7 +128,8 @@ def _interval_panel(ax_r, sw: SweepData, groups, colors) -> None:
                 )
                 continue
             his.append(rng.hi)
-            lo, hi = rng.lo / h2, rng.hi * h2
+            # exactly the stated range; a single accepted point: a sliver around it
+            lo, hi = (rng.lo, rng.hi) if rng.hi > rng.lo else (rng.lo / h2**0.25, rng.hi * h2**0.25)
             hs[src] = ax_r.barh(
                 yv,
                 hi - lo,

@@ -138,7 +138,12 @@ def statuses(d: pd.DataFrame) -> np.ndarray:
     return d["status"].astype(str).to_numpy()
 
 
-def status_note(d: pd.DataFrame, swept: list, extra: str = "", regime: bool = False, marked: bool = True) -> str:
+def status_note(
+    d: pd.DataFrame, swept: list, extra: str = "", regime: bool = False, marked: bool = True, estimates: bool = True
+) -> str:
+    """The figure's note on excluded and marked points.  ``estimates=False`` for figures of the
+    run's observables (E_diss, depths, times), which every steady point has whether or not the
+    extraction gave an estimate: they do not mention the ``no_estimate`` points."""
     pts = d.drop_duplicates(subset=swept + ["status"])
     n_f = int((pts["status"].astype(str) == "failed").sum())
     n_ns = int((pts["status"].astype(str) == "not_steady").sum())
@@ -146,7 +151,7 @@ def status_note(d: pd.DataFrame, swept: list, extra: str = "", regime: bool = Fa
     parts = []
     if n_f:
         parts.append(f"{n_f} failed point(s) excluded")
-    if n_ne:
+    if n_ne and estimates:
         parts.append(f"{n_ne} steady point(s) without an estimate (reason in the table's error column)")
     if n_ns and marked:
         parts.append(

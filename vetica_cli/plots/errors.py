@@ -29,6 +29,7 @@ from .style import (
     outside_legend,
     plain_log_labels,
     quantity_style,
+    reserve_missing_rows,
     series,
     set_axis,
 )
@@ -37,7 +38,7 @@ from .style import (
 def fig_errors_vs_cd(sw: SweepData) -> Figure | None:
     """Errors of tau_c, Kg, k0, k_inf, cd against cd, log axes, acceptance regime shaded (thesis figs. 43-46).
 
-    Error = 100 |extracted - theory| / theory (SPEC 7).  With cd the only
+    Error = 100 |extracted - theory| / theory.  With cd the only
     axis, one panel per force source holds the five quantities (fig. 46
     layout); with more axes, one panel per quantity holds a line per
     setting of the other keys.
@@ -69,6 +70,8 @@ def _errors_per_source(sw: SweepData) -> Figure:
     flags = set()
     fig = new_figure(6.2 * len(sources) + 0.6, 5.6)
     axes = np.atleast_1d(fig.subplots(1, len(sources), sharey=True))
+    ran = sw.df[sw.df["status"].astype(str) != "failed"]
+    missing = [q for q in sw.quantities if ran[q].isna().any()]  # one row of no-value markers each
     for ax, src in zip(axes, sources):
         d = sw.rows(src)
         rng = regime(d)
@@ -87,14 +90,17 @@ def _errors_per_source(sw: SweepData) -> Figure:
                 qlab,
                 floor=ERR_FLOOR,
                 show_missing=True,
+                missing_row=missing.index(q) if q in missing else 0,
             )
         ax.axhline(ACCEPT_ERR_PCT, color="k", ls=":", lw=1)
         ax.set_title(f"{SOURCE_LABEL[src]} ({'solid' if src == 'true' else 'dashed'})\n{regime_text(rng)}", fontsize=10)
+    for ax in axes:
         err_axes(ax)
+    reserve_missing_rows(axes, flags, len(missing))
     axes[0].set_ylabel(axis_label("error |extracted - theory| / theory", "%"))
     handles, _labels = axes[-1].get_legend_handles_labels()
     handles += extra_handles(flags)
-    axes[-1].legend(handles=handles, fontsize=8, loc="upper left")
+    axes[-1].legend(handles=handles, fontsize=8, loc="upper left", bbox_to_anchor=(1.01, 1.0), borderaxespad=0.0)
     return fig
 
 
@@ -122,6 +128,7 @@ def _errors_per_quantity(sw: SweepData) -> Figure:
                     None,
                     floor=ERR_FLOOR,
                     show_missing=True,
+                    missing_row=sources.index(src),
                 )
         if q == "tau_c":
             ax.axhline(ACCEPT_ERR_PCT, color="k", ls=":", lw=1.2)
@@ -130,6 +137,7 @@ def _errors_per_quantity(sw: SweepData) -> Figure:
         ax.set_title(f"error of {qlab}", fontsize=10)
         ax.set_ylabel(axis_label("error", "%"))
         err_axes(ax)
+        reserve_missing_rows(ax, flags, len(sources))
     legend_panel(axes[-1], groups, colors, sources, flags)
     return fig
 
@@ -160,12 +168,14 @@ def fig_values_vs_cd(sw: SweepData) -> Figure | None:
                 SOURCE_FILLED[src],
                 "VETICA, " + SOURCE_LABEL[src],
                 show_missing=True,
+                missing_row=0 if src == "true" else 1,
             )
         ax.set_xscale("log")
         vals = np.concatenate([th[f"{q}_theory"].to_numpy(float), t[q].to_numpy(float)]) * scale
         vals = vals[np.isfinite(vals) & (vals > 0)]
         if len(vals) and vals.max() / vals.min() > 30:
             ax.set_yscale("log")
+        reserve_missing_rows(ax, flags, 2)
         ax.set_xlabel(axis_label("dashpot $c_d$", "kg/s"))
         ax.set_ylabel(axis_label(qlab, unit))
         ax.set_title(qlab, fontsize=10)

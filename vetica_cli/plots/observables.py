@@ -75,7 +75,7 @@ def fig_observable_vs_cd(sw: SweepData, obs: str, thesis: str) -> Figure | None:
     }[obs]
     same = ", ".join(axis_meta(k)[0] for k in dropped)
     extra = f"identical for every {same} (one line drawn)" if dropped else ""
-    add_note(fig, status_note(pts, [CD] + keep, extra))
+    add_note(fig, status_note(pts, [CD] + keep, extra, estimates=False))
     set_title(fig, sw, f"{what} (cf. thesis fig. {thesis})")
     return fig
 
@@ -156,7 +156,7 @@ def _twin_plot(sw: SweepData, key: str, left: str, right: str, styles, title: st
             else f"the steady points of {over}"
         )
         extra = f"lines: mean over {which}; bands: their min-max range"
-    add_note(fig, status_note(pts, sw.swept, extra, marked=not averaged))
+    add_note(fig, status_note(pts, sw.swept, extra, marked=not averaged, estimates=False))
     set_title(fig, sw, title)
     return fig
 
@@ -207,7 +207,7 @@ def fig_observable_vs(sw: SweepData, key: str, obs: str, thesis: str) -> Figure 
     h += extra_handles(flags)
     if h:
         outside_legend(ax, h)
-    add_note(fig, status_note(pts, sw.swept))
+    add_note(fig, status_note(pts, sw.swept, estimates=False))
     set_title(fig, sw, f"{name} against {axis_meta(key)[0]} (cf. thesis fig. {thesis})")
     return fig
 
@@ -254,6 +254,6 @@ def fig_surface_position_vs_ps(sw: SweepData, thesis: str) -> Figure | None:
         ax.legend(fontsize=8, loc="upper left")
     add_note(fig, status_note(sw.points(), sw.swept, "true event: the integration step at which the tip met or "
                               "left the surface; measured: the force minimum of each recorded tap (mean over taps)",
-                              marked=False))  # fmt: skip
+                              marked=False, estimates=False))  # fmt: skip
     set_title(fig, sw, f"Surface position as the record places it, against the print step (cf. thesis figs. {thesis})")
     return fig

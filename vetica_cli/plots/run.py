@@ -92,7 +92,7 @@ def find_transitions(z: np.ndarray, x: np.ndarray, f: np.ndarray, a0: float, spp
     uses.  With fewer than two taps in the record (``spp`` samples per drive
     period tell), ``find_taps`` declines or splits a tap at its paddle
     ringing; then the simulator's own contact state is used: in contact the tip and
-    the surface move together at the gap ``a0`` (SPEC 3), so the edges of
+    the surface move together at the gap ``a0``, so the edges of
     ``z_tip - x_surface <= a0 (1 + 1e-6)`` are the transitions (noise-free
     records only).
     """
@@ -204,6 +204,7 @@ def fig_trajectories(run: RunData) -> Figure:
     ax_all.plot(t_us[::k], z_nm[::k], color="tab:blue", lw=0.9, label="tip $z_{tip}$")
     ax_all.plot(t_us[::k], x_nm[::k], color="tab:red", ls="--", lw=1.2, label="surface $X$")
     ax_all.set_ylabel(axis_label("position above the undeformed surface", "nm"))
+    ax_all.set_xlabel(axis_label("time since the start of the recorded steady window", "µs"))
     ax_all.set_title("(a) all recorded steady drive periods", fontsize=10, loc="left")
     ax_all.legend(loc="upper right", fontsize=8)
     # (b) zoom on the surface over at most three taps: the creep between taps
@@ -298,7 +299,7 @@ def fig_force_distance(run: RunData, f_rec: np.ndarray | None) -> Figure:
         text.append(f"$E_{{diss}}$ (run, integrated at dt) = {e_kernel:.4g} eV/cycle")
     _mark_transitions(ax, run, sl, z_nm, f_nn)
     ax.axhline(0, color="0.5", lw=0.6)
-    ax.axvline(0, color="0.5", lw=0.6, ls=":")
+    ax.axvline(0, color="0.5", lw=0.6, ls=":", label="undeformed surface ($z_{tip}$ = 0)")
     ax.set_xlim(xlo, xhi)
     ax.set_xlabel(axis_label("tip position $z_{tip}$ above the undeformed surface", "nm"))
     ax.set_ylabel(axis_label("tip-sample force $F_{ts}$ (repulsive > 0)", "nN"))
@@ -328,14 +329,14 @@ def _mark_transitions(ax, run: RunData, sl: np.ndarray, z_nm: np.ndarray, f_nn: 
     i_on = np.flatnonzero(np.isin(sl, on))
     i_off = np.flatnonzero(np.isin(sl, off))
     marks = [
-        (i_on[0] if len(i_on) else None, "D1 contact", "x"),
-        (int(np.argmax(f_nn)), "D2 peak force", "^"),
-        (i_off[0] if len(i_off) else None, "D3 separation", "+"),
+        (i_on[0] if len(i_on) else None, "D1: contact (force minimum before the repulsion)", "x"),
+        (int(np.argmax(f_nn)), "D2: peak force", "^"),
+        (i_off[0] if len(i_off) else None, "D3: separation (force minimum after it)", "+"),
     ]
     for i, lab, m in marks:
         if i is None:
             continue
-        ax.plot(z_nm[i], f_nn[i], m, color="k", ms=10, mew=2, ls="none", label=f"{lab}: {z_nm[i]:.3g} nm")
+        ax.plot(z_nm[i], f_nn[i], m, color="k", ms=10, mew=2, ls="none", label=f"{lab}, $z_{{tip}}$ {z_nm[i]:.3g} nm")
 
 
 def fig_reconstruction(run: RunData, f_rec: np.ndarray) -> Figure:

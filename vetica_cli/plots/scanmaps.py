@@ -1,4 +1,4 @@
-"""Scan figures (``vetica plot MAP``, issue 12): images of a scan table -- true height,
+"""Scan figures (``vetica plot MAP``): images of a scan table -- true height,
 measured topography, phase and E_diss; each extracted property beside its truth and its
 signed error, per method (and force source) -- with the domain outlines of the sample
 and colour bars in physical units; a line profile across a domain edge; and, for a
@@ -20,7 +20,7 @@ import pandas as pd
 from matplotlib import colormaps, patheffects
 from matplotlib.colors import LogNorm, Normalize
 from matplotlib.figure import Figure
-from matplotlib.ticker import FixedLocator, FuncFormatter, NullLocator
+from matplotlib.ticker import FixedLocator, FuncFormatter, MaxNLocator, NullLocator
 
 from .. import surfaces
 from ..errors import InputError
@@ -79,6 +79,34 @@ class ScanGeometry:
     def extent(self) -> list:
         return [0.0, self.size[0] * 1e6, 0.0, self.size[1] * 1e6]
 
+    @property
+    def aspect(self) -> float:
+        """Width over height of the scan area."""
+        return self.size[0] / self.size[1]
+
+    def layout(self, panels: int, across: int) -> tuple[int, int, float, float]:
+        """``(rows, columns, width, height)`` of a figure of ``panels`` maps, normally ``across``
+        to a row: a wide area (more than 1.6 times as wide as high) gets one map per row at
+        the full width, so that no map is a sliver; the height follows the area's shape."""
+        if self.aspect > 1.6:
+            rows, cols, width = panels, 1, 11.0
+            panel_h = max(1.1, (width - 2.5) / self.aspect) + 0.9
+        else:
+            rows, cols = math.ceil(panels / across), across
+            width = 4.3 * cols + 0.5
+            panel_w = 4.3 - 1.6
+            panel_h = min(9.0, panel_w / self.aspect) + 1.0
+        return rows, cols, width, panel_h * rows + 0.8
+
+    def true_line(self, y: float, n: int = 2001) -> tuple[np.ndarray, np.ndarray]:
+        """``(x [m], domain)`` along the line at ``y`` on a fine grid: where each feature truly
+        begins and ends, painted in order as the scan paints its pixel centres."""
+        xs = np.linspace(0.0, self.size[0], n)
+        dom = np.zeros(n, dtype=int)
+        for k, f in enumerate(self.features, 1):
+            dom[f.contains(xs, np.full(n, y))] = k
+        return xs, dom
+
     def domain_name(self, d: int) -> str:
         return self.domains[d] if d < len(self.domains) else f"domain {d}"
 
@@ -125,6 +153,8 @@ def _image(ax, fig, geo, arr, title, unit, cmap, norm=None, extend="neither"):
     ax.set_title(title, fontsize=10)
     ax.set_xlabel("x (fast axis) [µm]")
     ax.set_ylabel("y [µm]")
+    ax.xaxis.set_major_locator(MaxNLocator(nbins=5))
+    ax.yaxis.set_major_locator(MaxNLocator(nbins=5 if geo.aspect < 3 else 3))
     cm.colorbar(im, ax=ax, label=f"[{unit}]" if unit else "", extend=extend, shrink=0.85)
 
 
@@ -147,8 +177,9 @@ def _value_norm(*arrays) -> Normalize:
 def fig_images(geo: ScanGeometry, rows: pd.DataFrame, title: str) -> Figure:
     """True height, topography, phase and E_diss of one pass."""
     px = one_per_pixel(rows)
-    fig = new_figure(10.5, 8.0)
-    axes = fig.subplots(2, 2)
+    nrow, ncol, w, h = geo.layout(len(PIXEL_IMAGES), 2)
+    fig = new_figure(w, h)
+    axes = np.atleast_1d(fig.subplots(nrow, ncol))
     for ax, (col, (name, unit, scale, cmap)) in zip(axes.ravel(), PIXEL_IMAGES.items()):
         arr = grid(px, col, (geo.ny, geo.nx)) * scale
         norm = None
@@ -164,8 +195,9 @@ def fig_images(geo: ScanGeometry, rows: pd.DataFrame, title: str) -> Figure:
 def fig_properties(geo: ScanGeometry, g: pd.DataFrame, title: str) -> Figure:
     """Each extracted property of one pass, method and force source: value, truth, signed error."""
     qs = own_quantities(g) or [q for q in summary_names(g) if g[q].notna().any() or g[f"{q}_theory"].notna().any()]
-    fig = new_figure(13.0, 3.1 * len(qs) + 0.6)
-    axes = np.atleast_2d(fig.subplots(len(qs), 3))
+    nrow, ncol, w, h = geo.layout(3 * len(qs), 3)
+    fig = new_figure(w, h)
+    axes = np.asarray(fig.subplots(nrow, ncol)).reshape(len(qs), 3)
     ok = g[g["status"] != "failed"]
     shape = (geo.ny, geo.nx)
     for row, q in zip(axes, qs):
@@ -226,11 +258,18 @@ def profile_line(geo: ScanGeometry) -> int:
     return int(min(max(math.floor(yc / geo.size[1] * geo.ny), 0), geo.ny - 1))
 
 
-def _shade_domains(ax, x, dom, pitch) -> None:
-    """Grey bands over the pixels of a line that are not background."""
+def _shade_domains(ax, xs_um, dom) -> None:
+    """Grey bands where the line truly crosses a feature (:meth:`ScanGeometry.true_line`)."""
     edges = np.flatnonzero(np.diff(np.concatenate([[0], (dom != 0).astype(int), [0]])))
     for a, b in zip(edges[::2], edges[1::2]):
-        ax.axvspan(x[a] - 0.5 * pitch, x[b - 1] + 0.5 * pitch, color="0.9", zorder=0)
+        ax.axvspan(xs_um[a], xs_um[b - 1], color="0.9", zorder=0)
+
+
+def _truth_along(xs_um, dom, rows: pd.DataFrame, col: str, scale: float):
+    """The true ``col`` along the fine line: each domain's value (median over its pixels of the
+    table) wherever the line crosses it, so the steps sit at the true edges."""
+    per = rows.groupby("domain")[col].median()
+    return xs_um, per.reindex(dom).to_numpy(float) * scale
 
 
 def _pass_colors(ps) -> dict:
@@ -252,19 +291,21 @@ def fig_profile(geo: ScanGeometry, df: pd.DataFrame, iy: int) -> Figure:
     fig = new_figure(9.5, 2.3 * (len(qs) + 1) + 0.8)
     axes = fig.subplots(len(qs) + 1, 1, sharex=True)
     ref = one_per_pixel(line).sort_values("ix")
-    x = ref["x"].to_numpy(float) * 1e6
-    pitch = geo.size[0] / geo.nx * 1e6
+    every = one_per_pixel(df)
+    y_line = geo.size[1] * (iy + 0.5) / geo.ny
+    xs, dom = geo.true_line(y_line)
+    xs_um = xs * 1e6
     for ax in axes:
-        _shade_domains(ax, x, ref["domain"].to_numpy(int), pitch)
-    axes[0].step(x, ref["height_true"] * 1e9, where="mid", color="k", lw=1.2, label="true height")
+        _shade_domains(ax, xs_um, dom)
+    axes[0].plot(*_truth_along(xs_um, dom, every, "height_true", 1e9), color="k", lw=1.2, label="true height")
     for p in ps:
         px = one_per_pixel(pass_rows(line, p)).sort_values("ix")
         axes[0].plot(px["x"] * 1e6, px["topography"] * 1e9, "o-", ms=3, lw=1, color=colors[p], label=pass_label(p))
-    axes[0].set_ylabel("height [nm]")
+    axes[0].set_ylabel(axis_label("height", "nm"))
     axes[0].legend(fontsize=7, ncol=min(4, len(ps) + 1), loc="best", title="topography", title_fontsize=7)
     for ax, q in zip(axes[1:], qs):
         tex, unit, scale = quantity_info(q)
-        ax.step(x, ref[f"{q}_theory"] * scale, where="mid", color="k", lw=1.2, label="truth")
+        ax.plot(*_truth_along(xs_um, dom, every, f"{q}_theory", scale), color="k", lw=1.2, label="truth")
         for p in ps:
             pr = pass_rows(line, p)
             for j, m in enumerate(methods):
@@ -279,8 +320,9 @@ def fig_profile(geo: ScanGeometry, df: pd.DataFrame, iy: int) -> Figure:
         ax.set_ylabel(axis_label(tex, unit))
         ax.legend(fontsize=7, ncol=len(methods) + 1, loc="best")
     axes[-1].set_xlabel("x (fast axis, scan direction →) [µm]")
-    y = geo.size[1] * (iy + 0.5) / geo.ny
-    fig.suptitle(f"line {iy} (y = {y * 1e6:.3g} µm); grey bands: features; colours: passes", fontsize=10)
+    fig.suptitle(f"Profile along line {iy} (y = {y_line * 1e6:.3g} µm): true values (black) against the measured "
+                 "(colours: passes; line style: method);\ngrey bands: where the line crosses a feature (true edges)",
+                 fontsize=10)  # fmt: skip
     return fig
 
 

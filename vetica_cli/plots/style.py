@@ -96,8 +96,61 @@ def save_png(fig: Figure, target: Path) -> Path:
     with atomic_path(target) as tmp:
         FigureCanvasAgg(fig)
         _lean_log_axes(fig)
+        legends_off_data(fig)
         fig.savefig(tmp, format="png", dpi=130)
     return target
+
+
+def covered_points(ax, legend) -> int:
+    """How many data points of ``ax`` lie inside ``legend``'s box on the canvas: the vertices of
+    its lines (densified along each segment), their markers, and scatter points.  Lines drawn
+    across the axes in axes coordinates (``axhline``, ``axvline``: reference lines) do not count;
+    markers placed in axes coordinates (the no-value rows along the top edge) do."""
+    from matplotlib.collections import PathCollection
+
+    box = legend.get_window_extent()
+    n = 0
+    for art in ax.lines:
+        drawn_line = art.get_linestyle() not in ("None", "none", " ", "")
+        if not art.get_visible() or (drawn_line and art.get_transform() != ax.transData):
+            continue
+        xy = np.asarray(art.get_xydata(), float)
+        if drawn_line and len(xy) > 1:
+            t = np.linspace(0.0, 1.0, 9)[:-1]
+            seg = xy[:-1, None, :] + (xy[1:, None, :] - xy[:-1, None, :]) * t[None, :, None]
+            xy = np.concatenate([seg.reshape(-1, 2), xy[-1:]])
+        n += _inside(art.get_transform(), xy, box)
+    for art in ax.collections:
+        if isinstance(art, PathCollection) and art.get_visible():
+            n += _inside(art.get_offset_transform(), np.asarray(art.get_offsets(), float), box)
+    return n
+
+
+def _inside(transform, xy: np.ndarray, box) -> int:
+    xy = xy[np.all(np.isfinite(xy), axis=1)] if len(xy) else xy
+    if not len(xy):
+        return 0
+    px = transform.transform(xy)
+    return int(((px[:, 0] >= box.x0) & (px[:, 0] <= box.x1) & (px[:, 1] >= box.y0) & (px[:, 1] <= box.y1)).sum())
+
+
+def legends_off_data(fig: Figure) -> None:
+    """A legend placed inside the axes that covers data points is moved to the right of its axes
+    (where the layout makes room for it); nothing else moves."""
+    fig.canvas.draw()
+    moved = False
+    for ax in fig.axes:
+        leg = ax.get_legend()
+        if leg is None or not ax.get_visible() or not ax.axison:
+            continue
+        if covered_points(ax, leg):
+            handles, labels = leg.legend_handles, [t.get_text() for t in leg.get_texts()]
+            title = leg.get_title().get_text() or None
+            ax.legend(handles, labels, title=title, fontsize=8, loc="upper left", bbox_to_anchor=(1.01, 1.0),
+                      borderaxespad=0.0)  # fmt: skip
+            moved = True
+    if moved:
+        fig.canvas.draw()
 
 
 def _lean_log_axes(fig: Figure) -> None:
@@ -229,13 +282,15 @@ def colors_for(n: int):
     return [cmap(0.05 + 0.85 * i / max(1, n - 1)) for i in range(n)]
 
 
-def series(ax, x, y, status, color, ls, marker, filled, label, floor=None, show_missing=False) -> set:
+def series(ax, x, y, status, color, ls, marker, filled, label, floor=None, show_missing=False, missing_row=0) -> set:
     """Line through the usable points; not-steady points get a grey cross over the marker.
 
     With ``show_missing``, points that ran (not failed) but have no value
     (the extraction returned none, e.g. no measurable creep for tau_c) are
-    drawn as triangles on the top edge of the axes.  Returns the set of
-    special markers drawn ({'not_steady', 'no_value'}) for the legend.
+    drawn in the series' own colour and marker in a row along the top edge of
+    the axes (row ``missing_row`` from the top, so that the rows of several
+    quantities do not hide each other).  Returns the set of special markers
+    drawn ({'not_steady', 'no_value'}) for the legend.
     """
     x = np.asarray(x, float)
     y = np.asarray(y, float)
@@ -266,17 +321,43 @@ def series(ax, x, y, status, color, ls, marker, filled, label, floor=None, show_
     if show_missing and missing.any():
         ax.plot(
             x[missing],
-            np.full(missing.sum(), 0.985),
-            "^",
+            np.full(missing.sum(), 1.0 - MISSING_ROW * (missing_row + 0.5)),
+            marker,
             transform=ax.get_xaxis_transform(),
             color=color,
             mfc=color if filled else "white",
-            ms=8,
+            ms=6,
             ls="none",
             clip_on=False,
         )
         flags.add("no_value")
     return flags
+
+
+MISSING_ROW = 0.045  # height of one row of no-value markers [fraction of the axes]
+
+
+def reserve_missing_rows(axes, flags: set, rows: int) -> None:
+    """Raise the top of the y axis of ``axes`` (one axes or several sharing y) so that ``rows``
+    rows of no-value markers (:func:`series`) sit above every data point, in a band separated
+    by a thin line; nothing when none was drawn."""
+    if "no_value" not in flags or rows < 1:
+        return
+    axes = list(np.atleast_1d(axes))
+    frac = MISSING_ROW * rows + 0.01
+    lo, hi = axes[0].get_ylim()
+    if axes[0].get_yscale() == "log" and lo > 0:
+        top = math.exp(math.log(lo) + (math.log(hi) - math.log(lo)) / (1.0 - frac))
+    else:
+        top = lo + (hi - lo) / (1.0 - frac)
+    for ax in axes:
+        ticks = [t for t in ax.get_yticks() if lo <= t <= hi * (1 + 1e-9)]  # no tick inside the band
+        minor = [t for t in ax.get_yticks(minor=True) if lo <= t <= hi * (1 + 1e-9)]
+        ax.set_yticks(ticks)
+        ax.set_yticks(minor, minor=True)
+        ax.set_ylim(lo, top)
+        ax.axhline(hi, color="0.6", lw=0.6)
+        ax.text(0.005, 1.0 - frac / 2, "no value", transform=ax.transAxes, fontsize=6, color="0.4", va="center")
 
 
 def extra_handles(flags: set) -> list:
@@ -287,7 +368,8 @@ def extra_handles(flags: set) -> list:
     if "not_steady" in flags:
         h.append(Line2D([], [], marker="x", color="0.35", ms=9, mew=1.6, ls="none", label="not steady (hit max_time)"))
     if "no_value" in flags:
-        h.append(Line2D([], [], marker="^", color="0.35", ms=8, ls="none", label="no value extracted (top edge)"))
+        h.append(Line2D([], [], marker="^", color="0.35", ms=8, ls="none",
+                        label="no value extracted: the quantity's marker\nin the band along the top edge"))  # fmt: skip
     return h
 
 

@@ -1,4 +1,4 @@
-"""Virtual imaging (issue 12, SPEC 12): a sample map and a raster scan of it, one pixel after
+"""Virtual imaging: a sample map and a raster scan of it, one pixel after
 the other as a tapping-mode AFM scans, with the surface extracted on every pixel.
 
 :mod:`.sample` (geometry, painting the raster), :mod:`.config` (the scan config),

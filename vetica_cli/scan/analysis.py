@@ -1,4 +1,4 @@
-"""What a scan table says about the sample (issue 12, item 4): per-domain statistics of every
+"""What a scan table says about the sample: per-domain statistics of every
 extracted quantity against its truth, the apparent height of each domain against its true
 height (material contrast in topography), and the width of the edge artefact.
 

@@ -1,5 +1,5 @@
 """A scan config: the single-point sections (``probe``, ``operation``, ``numerics``,
-``extract``) plus ``scan`` and ``sample`` (issue 12; the schema is a contract)::
+``extract``) plus ``scan`` and ``sample`` (the schema is a contract)::
 
     scan:
       pixels: [64, 64]          # nx, ny
@@ -59,7 +59,7 @@ STEADY = ("transient", "orbit")  # scan.steady: what each pixel's record is
 SCAN_DEFAULTS = {"pixels": [64, 64], "size": [2.0e-6, 2.0e-6], "pixel_time": 2.0e-3, "steady": "transient",
                  "methods": [DEFAULT_METHOD]}  # fmt: skip
 FORCES = ("reconstructed", "true", "both")  # extract.force of a scan (first = default)
-DEFAULT_FORCE = "reconstructed"  # what an instrument has (SPEC 6)
+DEFAULT_FORCE = "reconstructed"  # what an instrument has
 POINT_SECTIONS = ("probe", "operation", "numerics")  # single-point sections a scan takes as they are
 TOP_KEYS = (*POINT_SECTIONS, EXTRACT_SECTION, "scan", "sample", *META_KEYS)
 MAX_PIXELS = 4096  # per axis

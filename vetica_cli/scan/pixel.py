@@ -1,4 +1,4 @@
-"""Driving the tapping kernel pixel by pixel along one scan line (SPEC 12, thesis 4.6.1).
+"""Driving the tapping kernel pixel by pixel along one scan line (thesis 4.6.1).
 
 **Coordinates.**  The kernel works relative to the local undeformed surface (gap
 ``d = z_tip - X``, ``X = 0`` undeformed).  With the absolute base height ``B`` the
@@ -10,7 +10,7 @@ step.  What carries over from pixel to pixel is the cantilever and paddle state
 and its ramp).
 
 **A massless local surface.**  Each pixel's surface is the massless SLS (or Wiechert)
-of SPEC 3 under the tip, with no lateral extent: under a new pixel it starts
+of the single-point model under the tip, with no lateral extent: under a new pixel it starts
 undeformed (``Xd_i = 0``), so the first tap on it gives that pixel's own ``Z1``.  This
 leaves out every lateral coupling of a real sample: the deformation field around
 the contact (a few contact radii, ``sqrt(R delta)`` ~ 3 nm here) that would reach a

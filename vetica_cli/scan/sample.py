@@ -1,5 +1,5 @@
 """The sample of a scan: a background surface with features painted over it, and the
-raster of pixel centres it is sampled on (SPEC 12).
+raster of pixel centres it is sampled on.
 
 Geometry (all SI, metres): the scan area is ``[0, size_x] x [0, size_y]`` with x the
 fast axis; pixel ``(ix, iy)`` has its centre at ``((ix + 1/2) size_x/nx, (iy + 1/2)

@@ -1,4 +1,4 @@
-"""The scan table: one row per pixel, method and force source, tidy (issue 12, item 3).
+"""The scan table: one row per pixel, method and force source, tidy.
 
 Columns: the pixel's place and truth (:data:`PIXEL_COLUMNS`), then the columns of a
 sweep row (:func:`vetica_cli.study.schema.result_columns`: ``method``,

@@ -1,5 +1,5 @@
 """Spectral operations on a recorded window: the tip-sample force from the paddle
-signal by spectral inversion (SPEC 6) and the spectral derivative (thesis 5.3.1),
+signal by spectral inversion and the spectral derivative (thesis 5.3.1),
 both with one Bernoulli end correction.
 
 The torsional paddle is driven only by the tip-sample force (thesis eq. 16),
@@ -41,7 +41,7 @@ holds): the simulated paddle signal is noise-free, and the force has slope
 discontinuities at contact and separation (its spectrum falls only as
 ``1/w^2``), which VETICA's stages 1a and 1b read at the nanosecond scale.
 Any lower cut-off smears those kinks over ~``1/fc``; see
-results/worked_example.md for the reconstruction and VETICA errors against
+results/thesis/worked_example.md for the reconstruction and VETICA errors against
 ``fc``.  For measured (noisy) data choose ``fc`` from the detector noise
 floor: noise is amplified by ``(w/w2)^2``.
 

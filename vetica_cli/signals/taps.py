@@ -1,7 +1,7 @@
 """Taps of a force record: contact and separation at the force minima (thesis 3.3.1,
-4.3.1, fig. 32; SPEC 3 and 7).
+4.3.1, fig. 32).
 
-In the massless Zener SLS of SPEC 3 the tip-sample force ``Fts`` is continuous at
+In the massless Zener SLS (thesis 3.2) the tip-sample force ``Fts`` is continuous at
 contact and at separation and smallest there (``-Fa(a0)``, the adhesion), so the
 force minima either side of each repulsive peak mark the tap's contact and
 separation, and the first adhesion well of the approach gives ``Z1``, the

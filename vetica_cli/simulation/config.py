@@ -4,7 +4,7 @@ Every default and every validation of the probe, operation and numerics
 sections lives here; the ``surface:`` section is validated by its surface model
 (:mod:`vetica_cli.surfaces`: ``surface.model``, default ``sls``, plus the
 model's keys) and the attraction keys common to every model.  Defaults are the
-thesis's worked example (thesis tables 2-4, SPEC section 9).  All values are SI.
+thesis's worked example (thesis tables 2-4).  All values are SI.
 
 A config error raises :class:`ConfigError` with one line naming the key, the
 value and what is allowed; the CLI turns it into exit status 2 before any work.

@@ -1,4 +1,4 @@
-"""The detector model (issue 6): what the instrument adds to the recorded signals
+"""The detector model: what the instrument adds to the recorded signals
 after the kernel -- a finite position-detector bandwidth and white noise.
 
 The amplitude controller inside the kernel sees the noise-free signal, so a run
@@ -48,7 +48,7 @@ def _lowpass(x: np.ndarray, fc: float, ts: float, periodic: bool) -> np.ndarray:
 
 
 def apply_instrument(run, cfg: Config) -> None:
-    """Detector realism on the recorded signals (issue 6): a finite position-detector
+    """Detector realism on the recorded signals: a finite position-detector
     bandwidth, then white Gaussian noise of the given RMS on the deflections
     (z_tip is rebuilt as z_base + z_cantilever + z_paddle) and on f_ts.
     x_surface and x_dashpot are the simulator's truth and stay noise-free.

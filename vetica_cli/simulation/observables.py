@@ -1,4 +1,4 @@
-"""Per-run observables (thesis ch. 4, SPEC section 5).
+"""Per-run observables (thesis ch. 4).
 
 All computed over the recorded steady window, which spans ``record_cycles``
 whole drive periods with the base held fixed.  Energies per drive cycle.

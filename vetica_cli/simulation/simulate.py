@@ -282,7 +282,7 @@ def run_info(rr: engine.RunResult, st: engine.KernelSetup, d: Derived) -> dict:
 
 
 def simulate(cfg: Config) -> Run:
-    """Run one point to its steady state and record it (SPEC sections 2-5, 10)."""
+    """Run one point to its steady state and record it (approach, steady state, recorded window)."""
     d = derive(cfg)
     st = kernel_setup(cfg, d)
     n = cfg.numerics

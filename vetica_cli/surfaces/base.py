@@ -12,7 +12,7 @@ a module and one import line in :mod:`vetica_cli.surfaces`;
 ``tests/test_registries.py`` checks every registered model against this
 convention.
 
-The van der Waals attraction is common to every model (thesis eq. 3, SPEC 3):
+The van der Waals attraction is common to every model (thesis eq. 3):
 its keys (:data:`COMMON_KEYS`) live in the same ``surface:`` section.
 """
 
@@ -73,11 +73,11 @@ class CommonKey:
     rule: Rule | None = None
 
 
-# surface keys shared by every model: van der Waals attraction Fa(d) = H R/(6 d^2) (thesis eq. 3, SPEC 3)
+# surface keys shared by every model: van der Waals attraction Fa(d) = H R/(6 d^2) (thesis eq. 3)
 COMMON_KEYS: dict[str, CommonKey] = {
     "hamaker": CommonKey(0.2e-18, "float", "J", (positive, "a Hamaker constant > 0 J")),  # H
     "a0": CommonKey(0.2e-9, "float", "m", (positive, "a distance > 0 m")),  # intermolecular distance
-    "vdw_on_surface": CommonKey(True, "bool", ""),  # the attraction also pulls the surface (SPEC 3)
+    "vdw_on_surface": CommonKey(True, "bool", ""),  # the attraction also pulls the surface
 }
 
 

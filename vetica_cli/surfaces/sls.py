@@ -1,4 +1,4 @@
-"""Zener standard linear solid (SLS): the surface of the thesis (3.2, appendix C; SPEC 3)."""
+"""Zener standard linear solid (SLS): the surface of the thesis (3.2, appendix C)."""
 
 from __future__ import annotations
 
@@ -19,24 +19,24 @@ def ratio_label(r: float) -> str:
 class SLS(SurfaceModel):
     """Zener SLS: spring ``k_inf`` in parallel with a Maxwell arm (spring ``k0`` in series
     with dashpot ``cd``); massless, so the tip's force always balances it (thesis 3.2,
-    appendix C; SPEC 3)::
+    appendix C)::
 
         F_on_surface = k_inf X + k0 (X - Xd)        [N]
         cd dXd/dt    = k0 (X - Xd)                  [N]
 
-    Characteristic constants (thesis eqs. 43-44, 68, 75-76; SPEC 7)::
+    Characteristic constants (thesis eqs. 43-44, 68, 75-76)::
 
         Kg    = k0 + k_inf                 glassy stiffness     [N/m]
         Kr    = k_inf                      rubbery stiffness    [N/m]
         tau_r = cd / k0                    relaxation time      [s]
         tau_c = cd Kg / (k0 k_inf)         retardation time     [s]   (tau_r = tau_c Kr / Kg)
 
-    Under a small harmonic displacement at angular frequency ``omega`` (SPEC 14;
-    :meth:`~.base.SurfaceModel.complex_stiffness`), ``x = omega tau_r``::
+    Under a small harmonic displacement at angular frequency ``omega`` (the
+    instrument-methods comparison; :meth:`~.base.SurfaceModel.complex_stiffness`), ``x = omega tau_r``::
 
         k'  = k_inf + k0 x^2/(1 + x^2)     k'' = k0 x/(1 + x^2)     tan delta = k''/k'
 
-    One Maxwell arm of the Wiechert surface (SPEC 11).  Defaults: the thesis's
+    One Maxwell arm of the Wiechert surface.  Defaults: the thesis's
     worked example (tables 2-4): ``k_inf`` 4 N/m, ``k0`` 128 N/m, ``cd`` 3e-5 kg/s.
     """
 
@@ -68,7 +68,7 @@ class SLS(SurfaceModel):
             label=r"stiffness ratio $k_0:k_\infty$", short=r"$k_0:k_\infty$", fmt=ratio_label,
         )
     }  # fmt: skip
-    theory_source = "SLS theory value (SPEC 7)"
+    theory_source = "SLS theory value"
 
     def theory(self, params: dict) -> dict[str, float]:
         """Characteristic constants (class docstring; thesis eqs. 68, 75-76)."""

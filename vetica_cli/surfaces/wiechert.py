@@ -1,5 +1,5 @@
 """Wiechert (generalized Maxwell) surface: ``k_inf`` in parallel with N Maxwell arms
-(thesis 5.3.2, future outlook; SPEC 11)."""
+(thesis 5.3.2, future outlook)."""
 
 from __future__ import annotations
 
@@ -29,7 +29,7 @@ def arm_keys(n_arms: int) -> tuple[str, ...]:
 @register
 class Wiechert(SurfaceModel):
     """Wiechert (generalized Maxwell) surface: spring ``k_inf`` in parallel with N Maxwell
-    arms ``(k_i, cd_i)``, massless like the SLS (thesis 5.3.2; SPEC 11)::
+    arms ``(k_i, cd_i)``, massless like the SLS (thesis 5.3.2)::
 
         F_on_surface = k_inf X + sum_i k_i (X - Xd_i)              [N]
         cd_i dXd_i/dt = k_i (X - Xd_i)                             [N]
@@ -52,7 +52,7 @@ class Wiechert(SurfaceModel):
         surface: {model: wiechert, k_inf: 4.0, arms: [{k: 64.0, cd: 3.0e-5}, {k: 32.0, cd: 1.0e-3}]}
 
     An arm's field is the key ``surface.arms.<i>.<k|cd>`` (``i`` from 1, as in the result
-    names ``k_1, cd_1``) in ``--set``, sweeps and error messages.  Defaults: the issue's
+    names ``k_1, cd_1``) in ``--set``, sweeps and error messages.  Defaults: the two-arm
     example above.  Parameters (fit and result order): ``k_inf, k_1, cd_1, ..., k_N, cd_N``.
     """
 
@@ -60,7 +60,7 @@ class Wiechert(SurfaceModel):
     name = "Wiechert"
     defaults: ClassVar[dict[str, Any]] = {"k_inf": 4.0, "arms": [{"k": 64.0, "cd": 3.0e-5}, {"k": 32.0, "cd": 1.0e-3}]}
     rules: ClassVar[dict[str, Rule]] = {"k_inf": (positive, "a stiffness > 0 N/m")}
-    theory_source = "Wiechert theory value (SPEC 11)"
+    theory_source = "Wiechert theory value"
     item_help = "surface.arms.<i>.k, surface.arms.<i>.cd (wiechert, arm i from 1)"
     parameter_axis_labels: ClassVar[dict[str, str]] = {}
 
@@ -169,7 +169,7 @@ class Wiechert(SurfaceModel):
 
     def theory(self, params: dict) -> dict[str, float]:
         """``Kg = k_inf + sum k_i``, ``Kr = k_inf``, ``tau_i = cd_i/k_i`` and the parameters
-        (class docstring; SPEC 11), in :attr:`quantities` order for these arms."""
+        (class docstring), in :attr:`quantities` order for these arms."""
         k_inf = float(params["k_inf"])
         arms = params["arms"]
         out = {"k_g": k_inf + sum(float(a["k"]) for a in arms), "k_r": k_inf}

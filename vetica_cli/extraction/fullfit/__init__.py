@@ -1,11 +1,11 @@
-"""Whole-cycle model inversion: ``vetica extract RUN --method full`` (issue 6).
+"""Whole-cycle model inversion: ``vetica extract RUN --method full``.
 
 VETICA (thesis 3.3) reads a few samples of each tap.  This method uses every
 sample of the recorded steady periods: the measured tip trajectory
-``z_tip(t)`` drives the massless Zener SLS surface of SPEC section 3 (thesis
+``z_tip(t)`` drives the massless Zener SLS surface (thesis
 3.2, appendix C: contact when the gap is <= a0, creep out of contact,
 separation when the surface would have to hold the tip with more than the
-adhesion) -- or the Wiechert surface of SPEC 11, ``k_inf`` and N Maxwell arms --
+adhesion) -- or the Wiechert surface, ``k_inf`` and N Maxwell arms --
 and bounded least squares finds ``k_inf, k0, cd`` (``k_inf, k_1, cd_1, ...,
 k_N, cd_N``; optionally ``H R``) for which the predicted force matches the
 measured one::

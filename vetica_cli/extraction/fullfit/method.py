@@ -223,7 +223,7 @@ def order_arms(theta, n_arms: int, truth_taus: list | None):
 
 @register
 class FullFit(ExtractionMethod):
-    """Whole-cycle inversion (issue 6): the SLS or Wiechert surface driven by the measured
+    """Whole-cycle inversion: the SLS or Wiechert surface driven by the measured
     tip trajectory, fitted to every sample of the record (:mod:`vetica_cli.extraction.fullfit`)."""
 
     key = "full"

@@ -2,8 +2,8 @@
 record (:class:`SurfaceFit`), its periodic dashpot state and its Jacobian.
 
 The measured tip trajectory drives the simulator's own surface update
-(:mod:`vetica_cli.core.prescribed`: the SLS of SPEC 3, or the Wiechert surface of
-SPEC 11 with N Maxwell arms) once per sample, with exact tangent-linear
+(:mod:`vetica_cli.core.prescribed`: the massless Zener SLS, or the Wiechert surface
+with N Maxwell arms) once per sample, with exact tangent-linear
 derivatives; see :mod:`vetica_cli.extraction.fullfit` for the choices (sub-steps
 near the surface, far-field blocks, periodic state, surface height).
 
