@@ -6,7 +6,7 @@ References: the conversion of thesis eqs. 90-92 (moduli -> springs -> moduli rou
 rtol 1e-12), a separate simulation at the coarser print step (the subsampled record
 must equal it within the orbit solver's tolerance, numerics.tol_orbit = 1e-13 m: both
 runs solve the same periodic orbit to it), the margin's definition (module
-docstring of vetica_cli/study/advise.py), and the config schema (every settings key
+docstring of vetica_cli/advise.py), and the config schema (every settings key
 must be accepted by `vetica simulate --set`).
 """
 
@@ -22,7 +22,7 @@ from vetica_cli.errors import ConfigError, InputError
 from vetica_cli.extraction.material import ContactModel, moduli
 from vetica_cli.simulation.config import load
 from vetica_cli.simulation.simulate import simulate
-from vetica_cli.study.advise import (
+from vetica_cli.advise import (
     KNOBS,
     SETTING_KEYS,
     advice_json,

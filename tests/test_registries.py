@@ -24,7 +24,7 @@ from vetica_cli.extraction.format import format_table, to_json
 from vetica_cli.simulation.config import Config, from_dict, load
 from vetica_cli.simulation.simulate import simulate
 from vetica_cli.study.grid import EXTRACT_KEYS, expand
-from vetica_cli.study.schema import result_columns
+from vetica_cli.rows.schema import result_columns
 
 MODELS = list(surfaces.MODELS.values())
 

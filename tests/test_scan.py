@@ -35,7 +35,8 @@ from vetica_cli.scan.line import LineTask
 from vetica_cli.scan.run import run_scan
 from vetica_cli.scan.sample import Raster, paint
 from vetica_cli.simulation.simulate import simulate
-from vetica_cli.study.store import parts_dir
+from vetica_cli.batch.lock import lock_path
+from vetica_cli.batch.parts import parts_dir
 
 ROOT = Path(__file__).resolve().parents[1]
 CONFIGS = ROOT / "configs"
@@ -357,12 +358,13 @@ def test_killed_scan_resumes_only_the_missing_lines_and_ends_with_the_same_table
     ref = run_scan(cfg, tmp_path / "b" / "m.parquet", jobs=1, progress=False, task=FAKE)
     numeric_equal(res.table, ref.table)
     numeric_equal(read_table(out)[0], read_table(tmp_path / "b" / "m.parquet")[0])
-    again = run_scan(cfg, out, jobs=1, progress=False, task=FAKE)
-    assert again.computed == [] and len(again.reused) == 5
+    assert not parts.exists() and not lock_path(out).exists()  # removed on success, as a sweep's
+    again = run_scan(cfg, out, jobs=1, progress=False, task=FAKE, keep_parts=True)
+    assert len(again.computed) == 5 and again.parts_kept
     # another pixel time adds a pass: the lines of the first are reused
     more = build(line_config(nx=3, ny=5, pixel_time=[0.2e-3, 0.3e-3]))
     both = run_scan(more, out, jobs=1, progress=False, task=FAKE)
-    assert set(both.reused) == set(again.reused) and len(both.computed) == 5
+    assert set(both.reused) == set(again.computed) and len(both.computed) == 5 and not parts.exists()
 
 
 def test_dask_backend_on_a_local_cluster_gives_the_serial_table(tmp_path):

@@ -27,10 +27,10 @@ from vetica_cli.io import read_table, write_table
 from vetica_cli.study import sweep as sweep_module
 from vetica_cli.study.acceptance import acceptance_regime, format_acceptance
 from vetica_cli.study.grid import load_grid
-from vetica_cli.study.lock import lock_path
-from vetica_cli.study.store import parts_dir
+from vetica_cli.batch.lock import lock_path
+from vetica_cli.batch.parts import parts_dir
 from vetica_cli.study.sweep import cores, default_output, run_sweep, summary, sweep_command
-from vetica_cli.study.task import PointTask, row_status
+from vetica_cli.rows.task import PointTask, row_status
 
 ROOT = Path(__file__).resolve().parents[1]
 runner = CliRunner()
@@ -80,7 +80,7 @@ def test_a_row_without_an_estimate_says_so_with_its_reason(tmp_path):
     assert "2 no_estimate" in text and "without an estimate" in text
     for entry in res.acceptance:
         assert entry["n_no_estimate"] == 1 and 1e-3 not in ([entry["cd_min"], entry["cd_max"]])
-    assert "no_estimate" in read_table(tmp_path / "t.parquet")[1]["units"]["status"]
+    assert "no_estimate" in read_table(tmp_path / "t.parquet")[1]["descriptions"]["status"]
 
 
 def test_a_not_steady_row_keeps_its_status_and_still_says_why_a_value_is_missing():
@@ -210,7 +210,7 @@ def test_shm_left_by_a_killed_process_group_is_removed_and_live_entries_kept(tmp
     """What kill -9 of a whole sweep process group leaves (loky semaphores, joblib memmapping
     folders named after the dead sweep's pid) is removed; entries of a live pid and other
     files are kept (measured: 10 entries left by killpg -9, 0 after the next sweep)."""
-    from vetica_cli.study.launch import remove_orphaned_shm
+    from vetica_cli.batch.launch import remove_orphaned_shm
 
     dead = subprocess.Popen([sys.executable, "-c", "pass"])
     dead.wait()
@@ -264,8 +264,8 @@ def test_corrupt_empty_stale_and_foreign_parts_are_counted_and_removed(tmp_path)
     again = run_sweep(st, out, jobs=1, progress=False, task=FAKE, log=logged.append)
     assert again.reused == [k[3]] and sorted(again.computed) == sorted(k[:3])
     note = (f"parts in {pdir}/: 1 reused; removed 2 corrupt (unreadable, empty or incomplete), "
-            "1 stale (made by other code, or for another setting of its point), "
-            "1 foreign (not a point of this study: an older config or another study), 1 half-written (a killed write)")  # fmt: skip
+            "1 stale (made by other code, or for another setting of its job), "
+            "1 foreign (not a job of this batch: an older config or another batch), 1 half-written (a killed write)")  # fmt: skip
     assert logged == [note] and again.notes == [note]
     numeric_equal(again.table, first.table)
     assert not pdir.exists() and not again.parts_kept

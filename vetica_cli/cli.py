@@ -96,6 +96,9 @@ def user_errors(fn):
         except USER_ERRORS as exc:
             typer.echo(f"error: {one_line(exc)}", err=True)
             raise typer.Exit(2) from None
+        except KeyboardInterrupt as exc:  # a batch says what it persisted; before, nothing is written yet
+            typer.echo(one_line(exc) or "interrupted before any output was written", err=True)
+            raise typer.Exit(getattr(exc, "exit_code", 130)) from None
 
     return wrapper
 
@@ -202,15 +205,11 @@ def sweep(
     removed after success.  A second sweep on the same output exits at once.
     """
     from .simulation.config import parse_set
-    from .study.sweep import SweepInterrupted, sweep_command
+    from .study.sweep import sweep_command
 
-    try:
-        text = sweep_command(config, output, parse_set(set_), dry_run=dry_run, jobs=jobs, yes=yes, backend=backend,
-                             scheduler=scheduler, resume=resume, progress=not quiet, keep_parts=keep_parts,
-                             log=lambda line: typer.echo(line, err=True))  # fmt: skip
-    except SweepInterrupted as exc:
-        typer.echo(str(exc), err=True)
-        raise typer.Exit(exc.exit_code) from None
+    text = sweep_command(config, output, parse_set(set_), dry_run=dry_run, jobs=jobs, yes=yes, backend=backend,
+                         scheduler=scheduler, resume=resume, progress=not quiet, keep_parts=keep_parts,
+                         log=lambda line: typer.echo(line, err=True))  # fmt: skip
     typer.echo(text)
 
 
@@ -219,7 +218,7 @@ def sweep(
 def scan(
     config: Path = typer.Argument(..., help="Scan YAML: probe/operation/numerics/extract plus 'scan:' and 'sample:'."),
     output: Optional[Path] = typer.Option(
-        None, "-o", "--output", help="Parquet table to write (default: results/<config name>.parquet)."
+        None, "-o", "--output", help="Parquet table to write (default: sweeps/<config name>.parquet, git-ignored)."
     ),
     jobs: int = typer.Option(2, "--jobs", "-j", help="Parallel workers (processes), one core each; a line per job."),
     backend: str = typer.Option("loky", help="loky (local processes) or dask (a Dask cluster via joblib)."),
@@ -234,6 +233,7 @@ def scan(
     ),
     dry_run: bool = typer.Option(False, "--dry-run", help="Print the pixels, domains and a cost estimate, run nothing."),
     quiet: bool = typer.Option(False, "--quiet", "-q", help="No progress bar."),
+    keep_parts: bool = typer.Option(False, "--keep-parts", help="Keep <output>.parts/ after success."),
 ):
     """Image a heterogeneous sample as a tapping-mode AFM does: scan it line by line, pixel by
     pixel (the cantilever and the controller carry over, the surface under each pixel starts
@@ -241,17 +241,16 @@ def scan(
     row per pixel, method and force source: x, y, height_true, topography, amplitude,
     phase_deg, e_diss_ev, ..., each estimate with _theory and _err_pct, status, error) plus
     <name>.config.yaml and <name>.summary.md (per-domain medians against the truth, apparent
-    heights, edge-artefact widths).  A killed scan run again computes only the missing lines.
+    heights, edge-artefact widths).  A killed scan run again computes only the missing lines;
+    Ctrl-C, SIGTERM and SIGHUP stop it as they stop a sweep, a second scan on the same output
+    exits at once, and the parts folder is removed after success.
     """
-    from .scan.run import ScanInterrupted, scan_command
+    from .scan.run import scan_command
     from .simulation.config import parse_set
 
-    try:
-        text = scan_command(config, output, parse_set(set_), dry_run=dry_run, jobs=jobs, backend=backend,
-                            scheduler=scheduler, resume=resume, progress=not quiet)  # fmt: skip
-    except ScanInterrupted as exc:
-        typer.echo(str(exc), err=True)
-        raise typer.Exit(130) from None
+    text = scan_command(config, output, parse_set(set_), dry_run=dry_run, jobs=jobs, backend=backend,
+                        scheduler=scheduler, resume=resume, progress=not quiet, keep_parts=keep_parts,
+                        log=lambda line: typer.echo(line, err=True))  # fmt: skip
     typer.echo(text)
 
 
@@ -456,8 +455,8 @@ def advise(
     from .extraction.material import parse_contact
     from .plots.advise import write_advice_figure
     from .simulation.config import parse_set
-    from .study.advise import advice_json, contact_for, format_advice, material_from
-    from .study.advise import advise as run_advice
+    from .advise import advice_json, contact_for, format_advice, material_from
+    from .advise import advise as run_advice
 
     overrides = parse_set(set_)
     cm = contact_for(overrides, parse_contact(contact))
@@ -483,7 +482,11 @@ def advise(
 
 
 def main():  # pragma: no cover - console script entry
-    app()
+    try:
+        app()
+    except KeyboardInterrupt:  # Ctrl-C while the modules load: nothing has been written
+        sys.stderr.write("interrupted before any output was written\n")
+        sys.exit(130)
 
 
 if __name__ == "__main__":  # pragma: no cover

@@ -51,7 +51,7 @@ import yaml
 from ..errors import ConfigError
 from ..extraction import DEFAULT_METHOD, METHODS
 from ..simulation.config import Config, from_dict, read_yaml
-from ..study.grid import EXTRACT_SECTION, META_KEYS, extract_section
+from ..rows.extract import EXTRACT_SECTION, META_KEYS, extract_section
 from ..surfaces import COMMON_KEYS, DEFAULT_MODEL
 from .sample import SHAPES, Feature, Raster, Sample
 

@@ -13,10 +13,10 @@ from ..checks import number
 from ..extraction import METHODS, get
 from ..simulation.config import Numerics, Probe
 from ..simulation.instrument import INSTRUMENT_KEYS
-from .grid import EXTRACT_KEYS, Grid
-from .plan import plan
-from .schema import point_sources
-from .store import parts_dir
+from ..batch.parts import parts_dir
+from ..rows.extract import EXTRACT_KEYS, point_sources
+from ..rows.plan import group
+from .grid import Grid
 
 # Measured on the project machine (2 cores, `vetica bench`, worked example): a hybrid drive period
 # costs ~0.09 of the fine steps of a period at NS_PER_STEP each (the tip is within the switch gap of
@@ -30,7 +30,7 @@ RECORD_NS = 50.0
 ORBIT_PERIODS = 60
 
 # keys the kernel-time estimate reads (section.name -> default), and keys that never need a
-# simulation of their own (points differing only in them share one: study.plan)
+# simulation of their own (points differing only in them share one: rows.plan)
 COST_KEYS = {
     "probe.f1": Probe.f1,
     "numerics.dt": Numerics.dt,
@@ -157,11 +157,16 @@ def grid_cost(g: Grid) -> Cost:
 def study_core_seconds(study) -> float:
     """Estimated core-seconds of a resolved study (kernel per simulation, extraction per point)."""
     total = 0.0
-    for task in plan(study):
+    for task in group(study.points):
         total += kernel_seconds(task.points[0].config)
         for p in task.points:
             total += get(p.method).seconds_per_point * len(point_sources(p.force)) / 2
     return total
+
+
+def wall_estimate(core_s: float, jobs: int) -> float:
+    """Wall seconds of ``core_s`` core-seconds on ``jobs`` workers (the bar's first estimate)."""
+    return core_s / max(1, jobs)
 
 
 def duration(seconds: float) -> str:

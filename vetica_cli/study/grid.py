@@ -35,7 +35,7 @@ simulated; they may be swept or set in an ``extract:`` section of the base:
 * ``extract.method``: a registered extraction method (:mod:`vetica_cli.extraction`:
   ``vetica``, thesis 3.3, the default; ``full``, the whole-cycle model
   inversion).  Points that differ only in the method share one simulation
-  (see :mod:`vetica_cli.study.plan`).
+  (see :mod:`vetica_cli.rows.plan`).
 * ``extract.force``: ``both`` (the default: the simulator's true force and the
   force reconstructed from the paddle signal, one row each), ``true`` or
   ``reconstructed`` (one row).  E.g. with detector noise the reconstruction at
@@ -64,7 +64,7 @@ from typing import Any
 
 from .. import __version__
 from ..errors import ConfigError
-from ..extraction import DEFAULT_METHOD, METHODS, SOURCES
+from ..extraction import DEFAULT_METHOD, METHODS
 from ..extraction.material import CONTACT_KEYS, contact_model
 from ..simulation.config import (
     DERIVED,
@@ -77,15 +77,9 @@ from ..simulation.config import (
     resolve_derived,
     section_names,
 )
+from ..rows.extract import EXTRACT_KEYS, EXTRACT_SECTION, META_KEYS, check_extract_value, extract_section
 from ..surfaces import DEFAULT_MODEL, MODELS
 
-META_KEYS = ("name", "description")
-# extraction keys: not part of the simulated config; key -> (allowed values, default)
-EXTRACT_KEYS = {
-    "extract.method": (tuple(METHODS), DEFAULT_METHOD),
-    "extract.force": (("both", *SOURCES), "both"),
-}
-EXTRACT_SECTION = "extract"
 MATERIAL_SECTION = "material"  # contact model of the material columns (applied at assembly)
 RANGE_FORMS = ("logspace", "linspace")
 
@@ -105,16 +99,6 @@ def allowed_text() -> str:
     """The sweepable keys for an error message, item patterns included."""
     items = [m.item_help for m in MODELS.values() if m.item_help]
     return ", ".join(sweepable_keys() + items)
-
-
-def check_extract_value(key: str, value: Any, where: str) -> str:
-    """An extraction key's value, or a one-line ConfigError listing the allowed values."""
-    allowed = EXTRACT_KEYS[key][0]
-    if isinstance(value, bool):  # YAML 1.1 reads a bare `true` (extract.force) as a boolean
-        value = str(value).lower()
-    if not isinstance(value, str) or value not in allowed:
-        raise ConfigError(f"{where}: {value!r} is not allowed; expected one of: {', '.join(allowed)}")
-    return value
 
 
 @dataclass(frozen=True)
@@ -509,21 +493,6 @@ def _model_of(sections: dict) -> str:
     surface = sections.get("surface")
     model = surface.get("model") if isinstance(surface, dict) else None
     return model if isinstance(model, str) and model in MODELS else DEFAULT_MODEL
-
-
-def extract_section(body: Any) -> dict:
-    """The base ``extract:`` section, checked: {name: value} for keys of EXTRACT_KEYS."""
-    if body is None:
-        return {}
-    if not isinstance(body, dict):
-        raise ConfigError(f"section {EXTRACT_SECTION!r} must be a mapping, got {body!r}")
-    out = {}
-    for name, value in body.items():
-        key = f"{EXTRACT_SECTION}.{name}"
-        if key not in EXTRACT_KEYS:
-            raise ConfigError(f"unknown key {key!r}; allowed: {', '.join(EXTRACT_KEYS)}")
-        out[name] = check_extract_value(key, value, key)
-    return out
 
 
 def load_grid(path: str | Path, overrides: dict | None = None) -> Grid:

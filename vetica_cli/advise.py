@@ -16,7 +16,7 @@ ranks the settings by their margin:
 
 so a setting *recovers the material* (score > 0) when every method keeps the
 retardation time within the acceptance regime's 30 % (thesis fig. 52,
-:data:`vetica_cli.study.acceptance.ACCEPT_ERR_PCT`) and each element within 5 %, and
+:data:`vetica_cli.rows.schema.ACCEPT_ERR_PCT`) and each element within 5 %, and
 only a setting whose record is a proven periodic state counts.
 
 The cost: one simulation per (f1, set point, k2), recorded at the finest print step;
@@ -36,15 +36,15 @@ from dataclasses import dataclass, field
 import numpy as np
 import pandas as pd
 
-from .. import surfaces
-from ..errors import ConfigError, InputError
-from ..extraction import METHODS, SOURCES, extract, extract_many
-from ..extraction.material import ContactModel, contact_model, stiffness
-from ..simulation.config import from_dict, load
-from ..simulation.simulate import simulate
-from .acceptance import ACCEPT_ERR_PCT
-from .launch import make_launcher
-from .progress import Progress
+from . import surfaces
+from .errors import ConfigError, InputError
+from .extraction import METHODS, SOURCES, extract, extract_many
+from .extraction.material import ContactModel, contact_model, stiffness
+from .simulation.config import from_dict, load
+from .simulation.simulate import simulate
+from .batch.launch import make_launcher
+from .batch.progress import Progress
+from .rows.schema import ACCEPT_ERR_PCT
 
 F2_RATIO = 15.0  # f2 = 15 f1 (thesis 4.5.1)
 RECORD_CYCLES = 4  # drive periods recorded per setting (VETICA needs two complete taps in a row)
