@@ -12,6 +12,7 @@ must be accepted by `vetica simulate --set`).
 
 import json
 import math
+import time
 
 import numpy as np
 import pytest
@@ -141,6 +142,22 @@ def test_cli_bad_material_exits_2_with_one_line_and_writes_nothing(tmp_path):
                             "-o", str(png)])  # fmt: skip
     assert r.exit_code == 2 and "knob" in r.output
     assert not png.exists()
+
+
+def test_cli_outputs_are_checked_before_the_minutes_of_work(tmp_path):
+    """Issue 21: advise checked its outputs only after its study.  A figure or table path under
+    a file, or in a place that cannot be written, now exits 2 at once (well under the seconds
+    one simulation takes) with one line, leaving nothing."""
+    (tmp_path / "afile").write_text("x")
+    good = ["--k-inf", "4", "--k0", "64", "--cd", "3e-3"]
+    for args, fragment in ((["-o", str(tmp_path / "afile" / "a.png")], "a part of the path is a file"),
+                           (["-o", str(tmp_path / "a.png"), "--table", "/proc/vetica_t.parquet"], "/proc"),
+                           (["-o", str(tmp_path / "a.jpg")], ".png")):  # fmt: skip
+        t0 = time.perf_counter()
+        r = runner.invoke(app, ["advise", *good, *args])
+        assert r.exit_code == 2 and time.perf_counter() - t0 < 5, r.output
+        assert len(r.output.strip().splitlines()) == 1 and fragment in r.output, r.output
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["afile"]
 
 
 def test_cli_json_settings_go_straight_back_to_simulate(tmp_path):

@@ -20,6 +20,7 @@ ROOT = Path(__file__).resolve().parents[1]
 PKG = ROOT / "vetica_cli"
 # top to bottom; a component may import its own modules, any component of a lower layer and the foundation
 LAYERS = (
+    {"__main__"},
     {"cli"},
     {"plots"},
     {"scan", "study", "advise", "bench", "report"},

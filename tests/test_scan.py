@@ -210,6 +210,53 @@ def test_bad_scan_arguments_exit_2_with_one_line(tmp_path, args, message):
     assert not (tmp_path / "m.parquet").exists() and not (tmp_path / "m.parquet.parts").exists()
 
 
+def test_scan_output_paths_are_checked_before_any_work(tmp_path):
+    """Parity with the sweep (issue 21 item 1): -o under a file, in a place that cannot be
+    written (/proc refuses even root), or with a sidecar path taken by a folder: exit 2, one
+    line, before any simulation, nothing written."""
+    path = tmp_path / "scan.yaml"
+    path.write_text(yaml.safe_dump(line_config()))
+    (tmp_path / "afile").write_text("x")
+    (tmp_path / "m.summary.md").mkdir()
+    cases = [(tmp_path / "afile" / "m.parquet", "a part of the path is a file"),
+             (Path("/proc/vetica_scan_test.parquet"), "/proc"),
+             (tmp_path / "m.parquet", "m.summary.md")]  # fmt: skip
+    before = sorted(tmp_path.rglob("*"))
+    for out, message in cases:
+        res = runner.invoke(app, ["scan", str(path), "-q", "-o", str(out)])
+        assert res.exit_code == 2, res.output
+        assert len(res.stderr.strip().splitlines()) == 1 and message in res.stderr, res.stderr
+    assert sorted(tmp_path.rglob("*")) == before
+
+
+def test_scan_writes_to_the_git_ignored_folder_by_default(tmp_path, monkeypatch):
+    """Without -o a scan writes under sweeps/ (git-ignored), as a sweep does: never over a
+    committed table in results/."""
+    path = tmp_path / "edge.yaml"
+    path.write_text(yaml.safe_dump(line_config()))
+    monkeypatch.chdir(tmp_path)
+    res = runner.invoke(app, ["scan", str(path), "--dry-run"])
+    assert res.exit_code == 0, res.output
+    assert f"would write {Path('sweeps') / 'edge.parquet'}" in res.stdout
+    assert not (tmp_path / "sweeps").exists()
+
+
+@pytest.mark.skipif(sys.platform != "linux", reason="flock")
+def test_a_second_scan_on_the_same_output_exits_2_naming_the_first(tmp_path):
+    """The output lock a sweep holds, held by a scan: a second scan exits 2 with one line."""
+    from vetica_cli.batch.lock import output_lock
+
+    path = tmp_path / "scan.yaml"
+    path.write_text(yaml.safe_dump(line_config()))
+    out = tmp_path / "m.parquet"
+    with output_lock(out, "scan"):
+        res = runner.invoke(app, ["scan", str(path), "-q", "-o", str(out)])
+    assert res.exit_code == 2, res.output
+    line = res.stderr.strip()
+    assert "\n" not in line and f"being written by another scan (pid {os.getpid()} on " in line, line
+    assert not out.exists() and not parts_dir(out).exists()
+
+
 def test_set_overrides_reach_lists_and_features(tmp_path):
     path = tmp_path / "scan.yaml"
     path.write_text(yaml.safe_dump(line_config()))
@@ -365,6 +412,55 @@ def test_killed_scan_resumes_only_the_missing_lines_and_ends_with_the_same_table
     more = build(line_config(nx=3, ny=5, pixel_time=[0.2e-3, 0.3e-3]))
     both = run_scan(more, out, jobs=1, progress=False, task=FAKE)
     assert set(both.reused) == set(again.computed) and len(both.computed) == 5 and not parts.exists()
+
+
+SIGNAL_SCRIPT = textwrap.dedent(
+    """
+    import os, sys, time
+    sys.path.insert(0, {tests!r})
+    from test_scan import fake_extract, line_config
+    from vetica_cli.batch.run import BatchInterrupted, signals_as_interrupt
+    from vetica_cli.scan.config import build
+    from vetica_cli.scan.line import LineTask
+    from vetica_cli.scan.run import run_scan
+
+    def slow_extract(df, meta, force, method):
+        time.sleep(0.4)
+        return fake_extract(df, meta, force, method)
+
+    cfg = build(line_config(nx=3, ny=5, pixel_time=0.2e-3))
+    try:
+        with signals_as_interrupt():
+            run_scan(cfg, sys.argv[1], jobs=1, progress=False, task=LineTask(extract=slow_extract))
+    except BatchInterrupted as exc:
+        print(exc, file=sys.stderr)
+        sys.exit(exc.exit_code)
+    """
+)
+
+
+@pytest.mark.skipif(sys.platform != "linux", reason="signals")
+@pytest.mark.parametrize("sig, code", [(signal.SIGTERM, 143), (signal.SIGHUP, 129)])
+def test_sigterm_and_sighup_stop_a_scan_as_they_stop_a_sweep(tmp_path, sig, code):
+    """A scan under the batch layer's signal handling: exit 128 + signal, one line naming the
+    lines persisted, no lock file, no table; the rerun computes only the rest."""
+    script = tmp_path / "run.py"
+    script.write_text(SIGNAL_SCRIPT.format(tests=str(Path(__file__).parent)))
+    out = tmp_path / "m.parquet"
+    proc = subprocess.Popen([sys.executable, str(script), str(out)], stderr=subprocess.PIPE, text=True)
+    deadline = time.monotonic() + 180
+    while time.monotonic() < deadline and len(list(parts_dir(out).glob("*.parquet"))) < 1:
+        assert proc.poll() is None, "the scan ended before the signal"
+        time.sleep(0.05)
+    proc.send_signal(sig)
+    _, err = proc.communicate(timeout=60)
+    assert proc.returncode == code, err
+    lines = [ln for ln in err.splitlines() if ln.strip()]
+    assert len(lines) == 1 and lines[0].startswith(f"interrupted ({sig.name}): ") and "of 5 lines" in lines[0], err
+    assert not lock_path(out).exists() and not out.exists()
+    persisted = {p.stem for p in parts_dir(out).glob("*.parquet")}
+    res = run_scan(build(line_config(nx=3, ny=5, pixel_time=0.2e-3)), out, jobs=1, progress=False, task=FAKE)
+    assert set(res.reused) == persisted and len(res.computed) == 5 - len(persisted)
 
 
 def test_dask_backend_on_a_local_cluster_gives_the_serial_table(tmp_path):

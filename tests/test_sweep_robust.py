@@ -185,6 +185,26 @@ def test_sigterm_and_ctrl_c_stop_the_workers_and_say_what_is_persisted(tmp_path,
     assert out.is_file() and not parts_dir(out).exists() and not lock_path(out).exists()
 
 
+@pytest.mark.skipif(sys.platform != "linux", reason="signals")
+@pytest.mark.parametrize("delay", [0.3, 0.8, 1.5])
+def test_ctrl_c_in_the_first_seconds_ends_with_one_line_and_no_traceback(tmp_path, delay):
+    """Ctrl-C while the modules load, the study is checked or the workers start (issue 21:
+    a traceback in the first 0.4 s): exit 130 and one line, whatever the moment."""
+    cfg = tmp_path / "cheap.yaml"
+    cfg.write_text(CHEAP_STUDY.format(n=4))
+    proc = subprocess.Popen([sys.executable, "-m", "vetica_cli", "sweep", str(cfg), "-o", str(tmp_path / "o.parquet"),
+                             "-q"], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, cwd=ROOT,
+                            preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))  # fmt: skip
+    time.sleep(delay)
+    proc.send_signal(signal.SIGINT)
+    _, err = proc.communicate(timeout=120)
+    if proc.returncode == 0:
+        pytest.skip("the sweep ended before the signal")
+    lines = [ln for ln in err.splitlines() if ln.strip() and not ln.startswith("ran in this process")]
+    assert proc.returncode == 130 and len(lines) == 1 and "Traceback" not in err, err
+    assert lines[0].startswith(("interrupted before any output was written", "interrupted (SIGINT): ")), err
+
+
 @pytest.mark.skipif(sys.platform != "linux", reason="process tree and /dev/shm checks are Linux's")
 def test_workers_exit_within_seconds_when_the_sweep_is_killed(tmp_path):
     """kill -9 of the sweep process alone: its workers notice within a second (measured

@@ -41,6 +41,7 @@ from .errors import ConfigError, InputError
 from .extraction import METHODS, SOURCES, extract, extract_many
 from .extraction.material import ContactModel, contact_model, stiffness
 from .simulation.config import from_dict, load
+from .simulation.jit import compile_notice
 from .simulation.simulate import simulate
 from .batch.launch import make_launcher
 from .batch.progress import Progress
@@ -326,7 +327,8 @@ def advise(material: Material, overrides: dict | None = None, knobs: dict | None
                               "force": force})  # fmt: skip
     t0 = time.perf_counter()
     rows: list = [None] * len(items)
-    bar = Progress(len(items), 0, 0, enabled=progress, name="advise", unit="simulations")
+    bar = Progress(len(items), 0, 0, enabled=progress, name="advise", unit="simulations",
+                   notice=compile_notice() if progress else None)
     failed = 0
 
     def on_result(i, res):

@@ -137,9 +137,11 @@ def simulate(
     """
     from .report import run_summary
     from .simulation.config import parse_set
+    from .simulation.jit import compile_notice
     from .simulation.simulate import simulate_file
 
-    run = simulate_file(config, output, parse_set(set_))
+    notice = None if quiet else compile_notice()
+    run = simulate_file(config, output, parse_set(set_), notice=lambda: notice and typer.echo(notice, err=True))
     if not quiet:
         typer.echo(run_summary(run, output))
 
@@ -465,19 +467,20 @@ def advise(
                              _number("--tau-r", tau_r), _number("--depth", depth), cm)  # fmt: skip
     knobs = {"probe.f1": _numbers("--f1", f1), "operation.setpoint": _numbers("--setpoint", setpoint),
              "numerics.print_step": _numbers("--print-step", print_step), "probe.k2": _numbers("--k2", k2)}  # fmt: skip
-    from .errors import InputError
+    from .io import check_output_file, write_table
 
-    if output.suffix.lower() != ".png":
-        raise InputError(f"-o {str(output)!r}: the map is written as PNG; expected a .png path")
-    if table is not None and table.suffix.lower() != ".parquet":
-        raise InputError(f"--table {str(table)!r}: the table is written as Parquet; expected a .parquet path")
+    check_output_file(output, "-o", ".png")  # every output checked before the work (minutes)
+    if table is not None:
+        check_output_file(table, "--table", ".parquet")
     adv = run_advice(material, overrides, knobs, [m.strip() for m in methods.split(",") if m.strip()], force, jobs,
                      progress=not (quiet or json_out))  # fmt: skip
     figure = write_advice_figure(adv, output)
     if table is not None:
-        from .io import write_table
-
-        write_table(adv.table, table, advice_json(adv, figure))
+        try:
+            write_table(adv.table, table, advice_json(adv, figure))
+        except BaseException:  # nothing half-written: the figure goes with the table
+            Path(figure).unlink(missing_ok=True)
+            raise
     typer.echo(json.dumps(advice_json(adv, figure), allow_nan=False) if json_out else format_advice(adv, figure))
 
 

@@ -188,7 +188,7 @@ def run_batch(output: Path, jobs: list[Job], task: Callable, split: Callable[[Jo
                                   f"the {len(expected)} {what}")  # fmt: skip
     pdir = parts_dir(output)
     try:
-        with output_lock(output):
+        with output_lock(output, bar.name):
             done, report = scan_parts(pdir, expected, resume, fingerprint, check)
             if report.note():
                 note(report.note())

@@ -41,6 +41,7 @@ from ..batch.run import Bar, BatchInterrupted, Job, check_batch_output, default_
 from ..batch.run import signals_as_interrupt
 from ..io import write_table, write_text
 from ..rows.schema import STATUSES
+from ..simulation.jit import compile_notice
 from .analysis import summary_markdown
 from .config import ScanConfig, dump, load_scan
 from .line import LineItem, LineTask
@@ -251,5 +252,5 @@ def scan_command(config: str | Path, output: str | Path | None = None, overrides
     if dry_run:
         return dry_run_text(cfg, out, jobs)
     with signals_as_interrupt():
-        res = run_scan(cfg, out, jobs=jobs, log=log, **run_kw)
+        res = run_scan(cfg, out, jobs=jobs, log=log, notice=compile_notice(), **run_kw)
     return summary(res)

@@ -311,12 +311,15 @@ def simulate(cfg: Config) -> Run:
     return run
 
 
-def simulate_file(config=None, output="run.parquet", overrides: dict | None = None) -> Run:
+def simulate_file(config=None, output="run.parquet", overrides: dict | None = None, notice=None) -> Run:
     """``vetica simulate``: load a one-point YAML config (None = the defaults) with dotted
     ``overrides``, simulate it and write the run to ``output`` (Parquet with metadata).
-    The config and the output path are checked before the simulation starts."""
+    The config and the output path are checked before the simulation starts; ``notice()``
+    is called then (e.g. to say that numba compiles its kernels)."""
     cfg = load(config, overrides)
     check_output_file(output)
+    if notice is not None:
+        notice()
     run = simulate(cfg)
     write_run(run, output)
     return run

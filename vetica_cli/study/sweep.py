@@ -64,6 +64,7 @@ from ..rows.extract import point_sources
 from ..rows.plan import group
 from ..rows.schema import STATUSES, units_metadata
 from ..rows.task import PointTask
+from ..simulation.jit import compile_notice
 from .acceptance import ACCEPT_ERR_PCT, acceptance_regime, format_acceptance
 from .cost import Cost, dry_run_text, duration, grid_cost, study_core_seconds, wall_estimate
 from .grid import Study, load_grid
@@ -275,5 +276,5 @@ def sweep_command(
         log(f"checking the {cost.points} points of {g.name} ...")
     study = g.study()
     with signals_as_interrupt():
-        res = run_sweep(study, out, jobs=jobs, log=log, auto_serial=auto, **run_kw)
+        res = run_sweep(study, out, jobs=jobs, log=log, auto_serial=auto, notice=compile_notice(), **run_kw)
     return summary(res, study)
