@@ -127,7 +127,8 @@ def test_wiechert_section_and_arm_keys():
         r"surface.arms.1.k: 'x' is not allowed; expected a finite number": [{"k": "x", "cd": 1}],
         r"surface.arms.1: \{'k': 1\} has no 'cd'": [{"k": 1}],
         r"unknown key 'surface.arms.1.tau'; allowed in an arm: k, cd": [{"k": 1, "cd": 1, "tau": 1}],
-        r"surface.arms: \[\] is not allowed; expected a list of one or more arms": [],
+        r"surface.arms: \[\] is not allowed; expected a list of 1..8 arms": [],
+        r"surface.arms: \[.*\] is not allowed; expected a list of 1..8 arms": [{"k": 1, "cd": 1}] * 9,
     }  # fmt: skip
     for message, arms in bad.items():
         with pytest.raises(ConfigError, match=message):

@@ -21,6 +21,7 @@ import typer
 from typer.core import TyperGroup
 
 from . import __version__
+from .checks import MAX_ARMS, limit
 from .errors import USER_ERRORS
 from .extraction import DEFAULT_METHOD, METHODS
 
@@ -333,20 +334,20 @@ def extract(
     ),
     arms: Optional[int] = typer.Option(
         None, "--arms", help="--method full: Maxwell arms to fit (1 = SLS, 2+ = Wiechert); default: the file's surface, "
-        "else 1.", callback=checked("an integer >= 1", lambda v: v >= 1),
+        "else 1.", callback=checked(f"an integer in 1..{MAX_ARMS}", lambda v: 1 <= v <= MAX_ARMS),
     ),
     hamaker: Optional[float] = typer.Option(
         None, "--hamaker", help="--method full: Hamaker constant H, J (fixes H R; default: metadata, else H R fitted).",
-        callback=checked("a Hamaker constant > 0 J", lambda v: v > 0),
+        callback=checked(limit("surface.hamaker", "a Hamaker constant")[1], limit("surface.hamaker", "")[0]),
     ),
     tip_radius: Optional[float] = typer.Option(
         None, "--tip-radius", help="--method full: tip radius R, m (default: metadata, else 10 nm assumed).",
-        callback=checked("a radius > 0 m", lambda v: v > 0),
+        callback=checked(limit("probe.tip_radius", "a radius")[1], limit("probe.tip_radius", "")[0]),
     ),
     a0: Optional[float] = typer.Option(
         None, "--a0", help="Intermolecular distance a0, m (default: the metadata's): Z1 = a0 (thesis eq. 84) for a "
         "record without approach segment, z_tip measured from the undeformed surface; --method full fits with it "
-        "(else 0.2 nm assumed).", callback=checked("a distance > 0 m", lambda v: v > 0),
+        "(else 0.2 nm assumed).", callback=checked(limit("surface.a0", "a distance")[1], limit("surface.a0", "")[0]),
     ),
     vdw_on_surface: Optional[bool] = typer.Option(
         None, "--vdw-on-surface/--no-vdw-on-surface",

@@ -121,11 +121,16 @@ def grid_cost(g: Grid) -> Cost:
     # per factor: the distinct simulations it makes (its assignments without the sharing keys)
     sim_factors = []
     for f in g.factors:
+        keys = sorted({k for a in f[:1] for k in a if k not in SHARING_KEYS})  # a factor's keys are its first's
         distinct = {}
         for a in f:
-            sim = {k: v for k, v in a.items() if k not in SHARING_KEYS}
-            distinct.setdefault(repr(sorted(sim.items(), key=lambda kv: kv[0])), sim)
-        sim_factors.append(list(distinct.values()))
+            try:  # hashable values (numbers, names): a tuple is the cheap key of a million assignments
+                ident = tuple(a.get(k) for k in keys)
+                hash(ident)
+            except TypeError:  # e.g. a list of arms
+                ident = repr([a.get(k) for k in keys])
+            distinct.setdefault(ident, a)
+        sim_factors.append([{k: v for k, v in a.items() if k not in SHARING_KEYS} for a in distinct.values()])
     simulations = math.prod(len(f) for f in sim_factors)
     base_cost = {k: _base_value(g, k, d) for k, d in COST_KEYS.items()}
 
@@ -180,7 +185,7 @@ def duration(seconds: float) -> str:
     return f"{seconds / 86400:.1f} days"
 
 
-def dry_run_text(g: Grid, output: Path, jobs: int) -> str:
+def dry_run_text(g: Grid, output: Path, jobs: int, checked: int | None = None) -> str:
     """Points, simulations, a cost estimate (:func:`grid_cost`) and the first points."""
     c = grid_cost(g)
     per_method = ", ".join(f"{m.seconds_per_point:g} s a {k} point" for k, m in METHODS.items())
@@ -196,7 +201,7 @@ def dry_run_text(g: Grid, output: Path, jobs: int) -> str:
         lines.append(f"  point {i}: {g.point(i).label()}")
     if c.points > 5:
         lines.append(f"  ... {c.points - 5} more")
-    lines.append(
-        "checked: every swept value against the base config; each combination is checked when the sweep starts"
-    )
+    values = sum(len(f) for f in g.factors)
+    which = "every swept value" if checked is None or checked >= values else f"{checked} of the {values} swept values"
+    lines.append(f"checked: {which} against the base config; every point is checked when the sweep starts")
     return "\n".join(lines)

@@ -264,12 +264,12 @@ def sweep_command(
     g = load_grid(config, overrides)
     out = check_sweep_output(Path(output) if output is not None else default_output(config))
     check_launcher_options(run_kw.get("backend", "loky"), jobs, run_kw.get("scheduler"))
-    g.check_values()
+    checked = g.check_values()
     log = log or (lambda line: None)
     if run_kw.get("backend", "loky") == "loky" and jobs > cores():
         log(f"warning: --jobs {jobs} is more than the {cores()} cores here; the workers will share them")
     if dry_run:
-        return dry_run_text(g, out, jobs)
+        return dry_run_text(g, out, jobs, checked)
     cost = grid_cost(g)
     size_guard(cost, jobs, yes)
     if cost.points > 2000:

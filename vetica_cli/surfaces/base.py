@@ -27,7 +27,7 @@ from typing import Any, ClassVar
 
 import numpy as np
 
-from ..checks import Rule, check, coerce, positive
+from ..checks import Rule, check, coerce, limit, positive
 from ..errors import ConfigError
 
 DEFAULT_MODEL = "sls"  # the model of a surface section without a 'model' key (every v0.1 config)
@@ -74,8 +74,8 @@ class CommonKey:
 
 # surface keys shared by every model: van der Waals attraction Fa(d) = H R/(6 d^2) (thesis eq. 3, SPEC 3)
 COMMON_KEYS: dict[str, CommonKey] = {
-    "hamaker": CommonKey(0.2e-18, "float", "J", (positive, "a Hamaker constant > 0 J")),  # H
-    "a0": CommonKey(0.2e-9, "float", "m", (positive, "a distance > 0 m")),  # intermolecular distance
+    "hamaker": CommonKey(0.2e-18, "float", "J", limit("surface.hamaker", "a Hamaker constant")),  # H
+    "a0": CommonKey(0.2e-9, "float", "m", limit("surface.a0", "a distance")),  # intermolecular distance
     "vdw_on_surface": CommonKey(True, "bool", ""),  # the attraction also pulls the surface (SPEC 3)
 }
 

@@ -10,7 +10,7 @@ from typing import Any, ClassVar
 
 import numpy as np
 
-from ..checks import Rule, check, coerce, positive
+from ..checks import MAX_ARMS, Rule, check, coerce, positive
 from ..errors import ConfigError
 from .base import Quantity, SurfaceModel, register
 
@@ -88,9 +88,9 @@ class Wiechert(SurfaceModel):
     def parse_key(self, name: str, value: Any) -> Any:
         if name != "arms":
             return super().parse_key(name, value)
-        if not isinstance(value, list) or not value:
+        if not isinstance(value, list) or not value or len(value) > MAX_ARMS:
             raise ConfigError(
-                f"surface.arms: {value!r} is not allowed; expected a list of one or more arms {{k: N/m, cd: kg/s}}"
+                f"surface.arms: {value!r} is not allowed; expected a list of 1..{MAX_ARMS} arms {{k: N/m, cd: kg/s}}"
             )
         return [self._parse_arm(i, arm) for i, arm in enumerate(value, start=1)]
 
