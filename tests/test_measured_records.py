@@ -104,7 +104,7 @@ def test_csv_with_only_t_z_tip_f_ts_through_the_cli(pull_on, tmp_path):
     assert data["info"]["constants"]["hamaker_radius"]["source"] == "fitted"
     bad = CliRunner().invoke(app, ["extract", str(path), "--method", "full", "--a0", "-1"])
     assert bad.exit_code == 2 and len(bad.output.strip().splitlines()) == 1
-    assert "'--a0': -1.0 is not allowed; expected a distance > 0 m" in bad.output
+    assert "'--a0': -1.0 is not allowed; expected a distance in [1e-10, 1e-09] m" in bad.output
 
 
 def test_reconstructed_force_from_the_paddle_signal_without_metadata(pull_on):

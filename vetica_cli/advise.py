@@ -37,6 +37,7 @@ import numpy as np
 import pandas as pd
 
 from . import surfaces
+from .checks import finite, limit
 from .errors import ConfigError, InputError
 from .extraction import METHODS, SOURCES, extract, extract_many
 from .extraction.material import ContactModel, contact_model, stiffness
@@ -349,7 +350,9 @@ def contact_for(overrides: dict | None, contact: dict | None) -> ContactModel:
     """The contact model of a moduli input: table 6 with the probe's tip radius (``--set
     probe.tip_radius``) and ``--contact`` overrides."""
     radius = (overrides or {}).get("probe.tip_radius")
-    return contact_model(contact, None if radius is None else float(radius))
+    if radius is not None:
+        radius = finite("--set probe.tip_radius", radius, limit("probe.tip_radius", "a radius"))
+    return contact_model(contact, radius)
 
 
 def format_advice(adv: Advice, figure=None, top: int = 10) -> str:

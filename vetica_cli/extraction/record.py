@@ -114,6 +114,40 @@ def check_time(t: np.ndarray, where: str) -> None:
         raise InputError(f"time column 't' is not strictly increasing in {where}")
 
 
+# Plausible ranges of a tapping record in SI units: anything beyond is a record in other units
+# (nm, nN, us) or not a tapping record, refused with one line before any work
+MAX_TIME_STEP = 1e-4  # [s] a record sampled more coarsely (< 10 kHz) cannot resolve a tap (us at 50 kHz)
+MAX_POSITION = 1e-3  # [m] |z_tip|: tapping amplitudes and heights are nm to um
+MAX_FORCE = 1e-3  # [N] |f_ts|: tap forces are pN to uN
+JITTER = 1e-3  # relative deviation of a time step from the mean above which a record is not uniform
+
+
+def check_record(t: np.ndarray, z: np.ndarray, f: np.ndarray | None, meta: dict, where: str) -> None:
+    """InputError (one line) for a record that is not what an instrument in SI units records:
+    negative times, a time step over :data:`MAX_TIME_STEP`, a non-uniform time step (more than
+    :data:`JITTER` off the mean) unless the metadata declares ``time_sampling: nonuniform``,
+    positions beyond :data:`MAX_POSITION` or forces beyond :data:`MAX_FORCE` (lengths in nm,
+    forces in nN)."""
+    h = (t[-1] - t[0]) / (len(t) - 1)
+    if t[0] < 0:
+        raise InputError(f"time column 't' starts at {t[0]:.4g} s in {where}; expected times >= 0 s")
+    if h > MAX_TIME_STEP:
+        raise InputError(f"time column 't' steps {h:.4g} s in {where}; expected seconds with a step <= "
+                         f"{MAX_TIME_STEP:g} s (a tapping record samples at ns to us: is t in another unit?)")  # fmt: skip
+    if meta.get("time_sampling") != "nonuniform" and np.max(np.abs(np.diff(t) - h)) > JITTER * h:
+        raise InputError(f"time column 't' is not uniformly sampled in {where} (steps vary by more than {JITTER:g} of "
+                         "the mean); expected a constant step, or metadata time_sampling: nonuniform")  # fmt: skip
+    zmax = float(np.max(np.abs(z)))
+    if zmax > MAX_POSITION:
+        raise InputError(f"column 'z_tip' reaches {zmax:.4g} m in {where}; expected metres, |z_tip| <= "
+                         f"{MAX_POSITION:g} m (tapping records span nm to um: is it in nm?)")  # fmt: skip
+    if f is not None and len(f):
+        fmax = float(np.max(np.abs(f)))
+        if fmax > MAX_FORCE:
+            raise InputError(f"column 'f_ts' reaches {fmax:.4g} N in {where}; expected newtons, |f_ts| <= "
+                             f"{MAX_FORCE:g} N (tap forces are pN to uN: is it in nN?)")  # fmt: skip
+
+
 def resolve_force(df: pd.DataFrame, force: str) -> str:
     """Check the columns an extraction needs and resolve ``force='auto'`` (reconstructed
     when ``z_paddle`` is present); InputError names what is missing."""
@@ -334,6 +368,8 @@ def build_record(
     t = column(steady, "t", "the steady record")
     check_time(t, "the steady record")
     z = column(steady, "z_tip", "the steady record")
+    check_record(t, z, column(steady, "f_ts", "the steady record") if force == "true" else None, meta,
+                 "the steady record")
     if z1 is not None and not (math.isfinite(z1) and z.min() <= z1 <= z.max()):
         raise InputError(
             f"--z1 {z1!r} is not allowed for this record; expected a tip position within its z_tip range "
