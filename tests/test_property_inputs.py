@@ -71,6 +71,12 @@ NAMED = [
     ("advise: -o under a file", lambda d: ["advise", "--k-inf", "4", "--k0", "64", "--cd", "3e-3", "-o",
      d / "afile" / "a.png"], ["is a file"]),
     ("extract: --arms 50", lambda d: ["extract", d / "ok.csv", "--method", "full", "--arms", "50"], ["--arms"]),
+    ("extract: --option arms=50", lambda d: ["extract", d / "ok.csv", "--method", "full", "--option", "arms=50"],
+     ["--option arms", "1..8"]),
+    ("extract: an option the method does not take", lambda d: ["extract", d / "ok.csv", "--option", "arms=2"],
+     ["--option arms", "it takes: kg_points, kr_guess"]),
+    ("extract: an option and its flag", lambda d: ["extract", d / "ok.csv", "--method", "full", "--option",
+     "arms=2", "--arms", "1"], ["both given"]),
     ("extract: --tip-radius 1", lambda d: ["extract", d / "ok.csv", "--method", "full", "--tip-radius", "1"],
      ["--tip-radius"]),
 ]  # fmt: skip
@@ -226,3 +232,22 @@ def test_odd_records_are_refused_with_one_line(record, kind, size):  # noqa: F81
         z1 = record["z1"] * (1e9 if kind == "z in nm" else 1.0)
         assume(math.isfinite(z1))
         refused(["extract", d / "odd.csv", "--force", "true", "--z1", repr(z1)], d, column)
+
+
+def test_an_option_by_name_is_the_option_by_flag(record):  # noqa: F811
+    """``--option kg_points=12`` (the registry's declaration) gives what ``--kg-points 12`` gives."""
+    from typer.testing import CliRunner
+
+    from vetica_cli.cli import app
+
+    with folder() as d:
+        (d / "ok.csv").write_text(record["csv"])
+        common = ["extract", str(d / "ok.csv"), "--force", "true", "--z1", repr(record["z1"]), "--json"]
+        a = CliRunner().invoke(app, [*common, "--option", "kg_points=12"])
+        b = CliRunner().invoke(app, [*common, "--kg-points", "12"])
+        c = CliRunner().invoke(app, common)
+    assert a.exit_code == b.exit_code == c.exit_code == 0, a.output
+    import json
+
+    va, vb, vc = (json.loads(r.stdout) for r in (a, b, c))
+    assert va["k_g"]["value"] == vb["k_g"]["value"] != vc["k_g"]["value"]

@@ -209,3 +209,15 @@ def test_method_choices_come_from_the_registry():
     for key in METHODS:
         assert key in help_text
     assert inspect.getdoc(type(METHODS["vetica"]))
+
+
+def test_every_method_declares_its_settable_options_with_type_unit_and_help():
+    """The registry, not the CLI, holds each method's options (issue 22 item 4): every declared
+    option is one the method takes, typed, with help, and parses its default's kind."""
+    from vetica_cli.extraction import METHODS
+
+    for key, m in METHODS.items():
+        assert m.option_specs, key
+        for o in m.option_specs:
+            assert o.name in m.options_default and o.type in ("int", "float", "bool", "str") and o.help, (key, o)
+            assert isinstance(o.unit, str)

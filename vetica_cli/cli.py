@@ -362,6 +362,10 @@ def extract(
         None, "--prestress", help="vetica-prestress: auto (adhesion if the surface feels the pull, else creep), "
         "adhesion, creep or fit.",
     ),
+    option: Optional[List[str]] = typer.Option(
+        None, "--option", help="A method option, key=value (repeatable), as the method declares it (name, type, unit): "
+        "e.g. --option arms=2 --option state=free for --method full; an unknown one lists the method's options.",
+    ),
 ):  # fmt: skip
     """Extract k0, k_inf, cd (and tau_c, Kg, Kr, tau_r) from a run with VETICA
     or another registered method (--method; full fits the SLS or Wiechert surface
@@ -384,13 +388,20 @@ def extract(
     from .extraction.format import format_table, to_json
     from .extraction.material import parse_contact
 
-    given = {"arms": arms, "hamaker": hamaker, "tip_radius": tip_radius}
-    opts = {k: v for k, v in given.items() if v is not None}
-    if prestress is not None:
-        opts["prestress"] = prestress
-    res = extract_file(run, force=force, method=method, kg_points=kg_points, k2=k2, f2=f2, q2=q2, z1=z1, f1=f1,
-                       cutoff_hz=cutoff, a0=a0, vdw_on_surface=vdw_on_surface, contact=parse_contact(contact),
-                       **opts)  # fmt: skip
+    from .extraction import METHODS, RecordInputs
+    from .simulation.config import parse_set
+
+    inputs = RecordInputs.of(locals(), {"cutoff_hz": "cutoff"})
+    if method not in METHODS:
+        raise InputError(f"--method {method!r} is not allowed; choose one of: {', '.join(METHODS)}")
+    flags = {"arms": arms, "hamaker": hamaker, "tip_radius": tip_radius, "prestress": prestress}  # the options' own flags
+    opts = {"kg_points": kg_points, **{k: v for k, v in flags.items() if v is not None}}
+    given = METHODS[method].parse_options(parse_set(option, "--option"))
+    both = sorted(set(given) & {k for k, v in flags.items() if v is not None})
+    if both:
+        raise InputError(f"--option {both[0]} and --{both[0].replace('_', '-')} both given; give one of them")
+    res = extract_file(run, force=force, method=method, inputs=inputs, contact=parse_contact(contact),
+                       **{**opts, **given})  # fmt: skip
     typer.echo(json.dumps(to_json(res), allow_nan=False) if json_out else format_table(res, run))
 
 

@@ -30,7 +30,7 @@ from __future__ import annotations
 
 import math
 import time
-from dataclasses import dataclass, field
+from dataclasses import astuple, dataclass, field, fields, replace
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -328,6 +328,34 @@ def surface_of(params: dict) -> tuple[surfaces.SurfaceModel, dict | None]:
     return model, model.theory(surface)
 
 
+@dataclass(frozen=True)
+class RecordInputs:
+    """What a user states about a record beside the table (the record keywords, spelled here
+    once): the probe's paddle for data without metadata, Z1, the drive frequency, the force
+    reconstruction's low-pass, and the attraction constants for Z1 without an approach."""
+
+    k2: float | None = None  # [N/m] paddle stiffness
+    f2: float | None = None  # [Hz] paddle resonance
+    q2: float | None = None  # paddle quality factor
+    z1: float | None = None  # [m] undeformed-surface reference (tip position)
+    f1: float | None = None  # [Hz] drive frequency (labels the cut-off in harmonics)
+    cutoff_hz: float | None = None  # [Hz] low-pass of the force reconstruction (None: Nyquist)
+    taper: float = 0.0  # raised-cosine taper of the low-pass (fraction of the cut-off)
+    a0: float | None = None  # [m] intermolecular distance (Z1 = a0, thesis eq. 84)
+    vdw_on_surface: bool | None = None  # whether the surface feels the tip's pull
+
+    @classmethod
+    def of(cls, values: dict, aliases: dict | None = None) -> "RecordInputs":
+        """The record inputs among ``values`` (e.g. a command's options; ``aliases``: field ->
+        the name it has there, as the CLI's ``cutoff`` for ``cutoff_hz``)."""
+        aliases = aliases or {}
+        return cls(**{f.name: values[aliases.get(f.name, f.name)] for f in fields(cls)
+                      if aliases.get(f.name, f.name) in values and values[aliases.get(f.name, f.name)] is not None})  # fmt: skip
+
+
+RECORD_KEYS = tuple(f.name for f in fields(RecordInputs))  # the record keywords
+
+
 def build_record(
     df: pd.DataFrame,
     meta: dict | None = None,
@@ -336,15 +364,8 @@ def build_record(
     need_approach: bool = False,
     need_z1: bool = True,
     uniform: str | None = None,
-    k2: float | None = None,
-    f2: float | None = None,
-    q2: float | None = None,
-    z1: float | None = None,
-    f1: float | None = None,
-    cutoff_hz: float | None = None,
-    taper: float = 0.0,
-    a0: float | None = None,
-    vdw_on_surface: bool | None = None,
+    inputs: RecordInputs | None = None,
+    **keywords,
 ) -> Record:
     """Check a run table and prepare its steady record (module docstring).
 
@@ -358,8 +379,11 @@ def build_record(
     analyses the approach segment even when ``z1`` is given; without ``need_z1`` a record
     with no way to Z1 gets ``z1 = None`` instead of an error.  ``uniform``: the name
     of a method that needs a constant time step (checked before the force is
-    built).  ``f1`` (drive frequency, Hz) only labels the cut-off in harmonics.
+    built).  ``f1`` (drive frequency, Hz) only labels the cut-off in harmonics.  The
+    record keywords come as ``inputs`` (:class:`RecordInputs`) or as keywords.
     """
+    inputs = replace(inputs or RecordInputs(), **keywords)  # TypeError for an unknown keyword, as before
+    k2, f2, q2, z1, f1, cutoff_hz, taper, a0, vdw_on_surface = astuple(inputs)
     meta = meta or {}
     force = resolve_force(df, force)
     t_start = time.perf_counter()

@@ -365,17 +365,19 @@ def _check_cross(cfg: Config) -> None:
         )
 
 
-def parse_set(items: list[str] | None) -> dict[str, Any]:
-    """Parse ``--set section.key=value`` items; values are YAML scalars."""
+def parse_set(items: list[str] | None, option: str = "--set") -> dict[str, Any]:
+    """Parse ``--set section.key=value`` items (or another ``option``'s key=value items);
+    values are YAML scalars."""
     out: dict[str, Any] = {}
     for item in items or []:
         if "=" not in item:
-            raise ConfigError(f"--set {item!r} is not allowed; expected section.key=value")
+            raise ConfigError(f"{option} {item!r} is not allowed; expected " + ("section.key=value" if option == "--set"
+                              else "key=value"))  # fmt: skip
         key, raw = item.split("=", 1)
         try:
-            value = load_yaml(raw, f"--set {key.strip()}") if raw.strip() else None
+            value = load_yaml(raw, f"{option} {key.strip()}") if raw.strip() else None
         except yaml.YAMLError:
-            raise ConfigError(f"--set {item!r}: the value is not a valid YAML scalar") from None
+            raise ConfigError(f"{option} {item!r}: the value is not a valid YAML scalar") from None
         out[key.strip()] = number(value)
     return out
 
