@@ -208,6 +208,7 @@ def test_bad_advise_inputs_are_refused_before_any_simulation(data):
 @settings(max_examples=12, deadline=None)  # a CSV of the record is written and read per example (~0.7 s)
 @given(kind=st.sampled_from(["negative", "jitter", "time in us", "z in nm", "f in nN", "decreasing"]),
        size=st.floats(0.05, 0.5))
+@pytest.mark.slow
 def test_odd_records_are_refused_with_one_line(record, kind, size):  # noqa: F811
     """A record with negative or non-uniform (jittered) time, time in microseconds, lengths
     in nm or forces in nN: one line naming the column, before any extraction."""

@@ -306,6 +306,7 @@ def test_interior_and_edge_runs_on_a_known_grid():
 # --------------------------------------------------------------------- physics of scanning
 
 
+@pytest.mark.slow
 def test_height_step_of_one_material_reads_the_true_step_and_every_orbit_pixel_is_the_single_point_orbit(tmp_path):
     """Translation invariance: over one material the dynamics depend only on Zb - h, so at the
     periodic orbit the measured topography is the true height (reference: the true step,
@@ -379,6 +380,7 @@ RESUME_SCRIPT = textwrap.dedent(
 )
 
 
+@pytest.mark.slow
 def test_killed_scan_resumes_only_the_missing_lines_and_ends_with_the_same_table(tmp_path):
     """kill -9 a scan after some lines are persisted; the rerun computes only the missing lines;
     its table equals an uninterrupted run's (wall_s excluded)."""
@@ -439,6 +441,7 @@ SIGNAL_SCRIPT = textwrap.dedent(
 )
 
 
+@pytest.mark.slow
 @pytest.mark.skipif(sys.platform != "linux", reason="signals")
 @pytest.mark.parametrize("sig, code", [(signal.SIGTERM, 143), (signal.SIGHUP, 129)])
 def test_sigterm_and_sighup_stop_a_scan_as_they_stop_a_sweep(tmp_path, sig, code):
@@ -463,6 +466,7 @@ def test_sigterm_and_sighup_stop_a_scan_as_they_stop_a_sweep(tmp_path, sig, code
     assert set(res.reused) == persisted and len(res.computed) == 5 - len(persisted)
 
 
+@pytest.mark.slow
 def test_dask_backend_on_a_local_cluster_gives_the_serial_table(tmp_path):
     """The same line jobs through joblib's dask backend on a distributed.LocalCluster
     (in-process workers) give the table of the serial run, bit for bit."""

@@ -159,6 +159,7 @@ def _wait_gone(pids, limit):
     return time.monotonic() - t0
 
 
+@pytest.mark.slow
 @pytest.mark.skipif(sys.platform != "linux", reason="process tree and /dev/shm checks are Linux's")
 @pytest.mark.parametrize("sig, code", [(signal.SIGTERM, 143), (signal.SIGINT, 130)])
 def test_sigterm_and_ctrl_c_stop_the_workers_and_say_what_is_persisted(tmp_path, sig, code):
@@ -185,6 +186,7 @@ def test_sigterm_and_ctrl_c_stop_the_workers_and_say_what_is_persisted(tmp_path,
     assert out.is_file() and not parts_dir(out).exists() and not lock_path(out).exists()
 
 
+@pytest.mark.slow
 @pytest.mark.skipif(sys.platform != "linux", reason="signals")
 @pytest.mark.parametrize("delay", [0.3, 0.8, 1.5])
 def test_ctrl_c_in_the_first_seconds_ends_with_one_line_and_no_traceback(tmp_path, delay):
@@ -205,6 +207,7 @@ def test_ctrl_c_in_the_first_seconds_ends_with_one_line_and_no_traceback(tmp_pat
     assert lines[0].startswith(("interrupted before any output was written", "interrupted (SIGINT): ")), err
 
 
+@pytest.mark.slow
 @pytest.mark.skipif(sys.platform != "linux", reason="process tree and /dev/shm checks are Linux's")
 def test_workers_exit_within_seconds_when_the_sweep_is_killed(tmp_path):
     """kill -9 of the sweep process alone: its workers notice within a second (measured
@@ -245,6 +248,7 @@ def test_shm_left_by_a_killed_process_group_is_removed_and_live_entries_kept(tmp
     assert sorted(p.name for p in shm.iterdir()) == ["sem.loky-%d-live0001" % os.getpid(), "sem.other-1"]
 
 
+@pytest.mark.slow
 @pytest.mark.skipif(sys.platform != "linux", reason="flock")
 def test_a_second_sweep_on_the_same_output_exits_2_naming_the_first(tmp_path):
     """Two sweeps on one output: the second stops at once with one line naming the first
