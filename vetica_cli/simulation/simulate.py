@@ -47,7 +47,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from .. import __version__
-from ..core import engine, tapping
+from ..core import engine, session, tapping
 from ..io import check_output_file, segments_table, write_run
 from .config import Config, load
 from .instrument import apply_instrument
@@ -228,8 +228,7 @@ def _plain(v):
 
 def _mech_energy(st: engine.KernelSetup, s) -> float:
     """Kinetic + elastic energy of both probe oscillators [J]."""
-    T = tapping
-    return 0.5 * (st.m1 * s[T.S_VC] ** 2 + st.k1 * s[T.S_ZC] ** 2 + st.m2 * s[T.S_VP] ** 2 + st.k2 * s[T.S_ZP] ** 2)
+    return session.probe_energy(s, st.m1, st.k1, st.m2, st.k2)
 
 
 def run_info(rr: engine.RunResult, st: engine.KernelSetup, d: Derived) -> dict:
@@ -244,8 +243,8 @@ def run_info(rr: engine.RunResult, st: engine.KernelSetup, d: Derived) -> dict:
         "steps_per_period": d.steps_per_period,
         "t_first_contact": rr.info["t_first_contact"],
         "z_first_contact": rr.info["z_first_contact"],
-        "t_record_start": float(w.states[0][T.S_IDX]) * d.dt,
-        "t_end": float(w.states[-1][T.S_IDX]) * d.dt,
+        "t_record_start": session.step_index(w.states[0]) * d.dt,
+        "t_end": session.step_index(w.states[-1]) * d.dt,
         "periods_evaluated": rr.info["periods_evaluated"],
         "approach_periods": rr.info["approach_periods"],
         "w_drive": o[T.O_WDRIVE],
@@ -264,7 +263,7 @@ def run_info(rr: engine.RunResult, st: engine.KernelSetup, d: Derived) -> dict:
         "z_separation_last": o[T.O_ZSEP_LAST],
         "t_contact_last": o[T.O_TCONT_LAST],
         "t_separation_last": o[T.O_TSEP_LAST],
-        "zb_final": float(w.states[-1][T.S_ZB]),
+        "zb_final": session.base(w.states[-1]),
         # first harmonic of z_tip - Zb over the recorded window (the kernel's projection:
         # exact on far steps, trapezoidal on fine steps)
         "amplitude_h1": engine.amplitude(o, (len(w.states) - 1) * d.period),
