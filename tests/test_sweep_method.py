@@ -101,7 +101,7 @@ ALLOWED = ", ".join(METHODS)  # the registered methods, in registration order
         ({"extract": "full", "sweep": {"surface.cd": [1e-5]}}, None, "must be a mapping"),
         ({"sweep": {"surface.cd": [1e-5]}}, {"extract.method": "ful"}, "--set extract.method: 'ful' is not allowed"),
         ({"sweep": {"extract.method": ["full"]}}, {"extract.method": "vetica"}, "swept"),
-        ({"sweep": {"extract.method": ["full", "full"]}}, None, "same config"),
+        ({"sweep": {"extract.method": ["full", "full"]}}, None, "appears twice"),
         ({"sweep": {"extract.force": ["true", "measured"]}}, None,
          "sweep.extract.force: 'measured' is not allowed; expected one of: both, true, reconstructed"),
     ],
