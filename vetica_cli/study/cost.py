@@ -122,6 +122,9 @@ def grid_cost(g: Grid) -> Cost:
     sim_factors = []
     for f in g.factors:
         keys = sorted({k for a in f[:1] for k in a if k not in SHARING_KEYS})  # a factor's keys are its first's
+        if keys and len(keys) == len(f[0]):  # no sharing key: every assignment is its own simulation, unless repeated
+            sim_factors.append(f)
+            continue
         distinct = {}
         for a in f:
             try:  # hashable values (numbers, names): a tuple is the cheap key of a million assignments
@@ -152,7 +155,10 @@ def grid_cost(g: Grid) -> Cost:
         v = {**base_ext, **{k: x for k, x in assign.items() if k in EXTRACT_KEYS}}
         return get(v["extract.method"]).seconds_per_point * len(point_sources(v["extract.force"])) / 2
 
-    ext_factors = [[{k: x for k, x in a.items() if k in EXTRACT_KEYS} for a in f] for f in g.factors]
+    ext_factors = []
+    for f in g.factors:  # a factor's keys are its first assignment's; most factors hold no extraction key
+        keys = [k for k in f[0] if k in EXTRACT_KEYS]
+        ext_factors.append([{k: a[k] for k in keys} for a in f] if keys else [{}] * len(f))
     used = [any(f) for f in ext_factors]
     rest = math.prod(len(f) for f, u in zip(ext_factors, used) if not u)
     extract_s = rest * _sum_over([f for f, u in zip(ext_factors, used) if u], extract)

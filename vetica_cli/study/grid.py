@@ -280,13 +280,15 @@ def _factors(sweep: Any) -> tuple[list[str], list[list[dict]]]:
 def _no_repeats(factor: list[dict]) -> None:
     """ConfigError (one line) for a value given twice in one factor (e.g. ``extract.method:
     [vetica, vetica]``): its points would be duplicates."""
-    seen: set = set()
-    for assign in factor:
-        try:
-            ident = tuple(sorted(assign.items()))
-            hash(ident)
-        except TypeError:  # unhashable values (a list of arms): the point keys catch duplicates
+    keys = list(factor[0])
+    try:
+        idents = [a[keys[0]] for a in factor] if len(keys) == 1 else [tuple(a[k] for k in keys) for a in factor]
+        if len(set(idents)) == len(idents):
             return
+    except TypeError:  # unhashable values (a list of arms): the point keys catch duplicates
+        return
+    seen: set = set()
+    for assign, ident in zip(factor, idents):
         if ident in seen:
             what = ", ".join(f"{k}={v!r}" for k, v in assign.items())
             raise ConfigError(f"sweep: {what} appears twice; expected each value once")
