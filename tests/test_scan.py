@@ -499,6 +499,13 @@ def test_a_failing_extraction_becomes_failed_rows_and_the_table_explains_itself(
     for c in ("x", "y", "height_true", "topography", "amplitude", "phase_deg", "e_diss_ev", "peak_force",
               "max_penetration", "k0", "k0_theory", "k0_err_pct", "cd_err_pct", "status", "error"):  # fmt: skip
         assert c in t.columns and c in meta["units"], c
+    import pint  # the units parse with a unit library; the meanings are apart
+
+    ureg = pint.UnitRegistry()
+    assert set(meta["units"]) == set(meta["descriptions"]) >= set(t.columns)
+    for unit in meta["units"].values():
+        ureg.parse_units(unit)
+    assert ureg.parse_units(meta["units"]["topography"]) == ureg.parse_units("m")
     assert meta["table"] == "scan" and meta["config"]["scan"]["pixels"] == [4, 1]
     assert np.isfinite(bad["topography"]).all() and np.isfinite(bad["amplitude"]).all()  # the simulation is kept
     assert res.config_path.is_file() and res.summary_path.is_file()
