@@ -68,6 +68,8 @@ NAMED = [
      d / "m.parquet"], ["anchor"]),
     ("advise: a 1 m tip radius", lambda d: ["advise", "--k-inf", "4", "--k0", "64", "--cd", "3e-3", "--set",
      "probe.tip_radius=1", "-o", d / "a.png"], ["probe.tip_radius"]),
+    ("advise: a method twice", lambda d: ["advise", "--k-inf", "4", "--k0", "64", "--cd", "3e-3", "--methods",
+     "full,full", "-o", d / "a.png"], ["named twice"]),
     ("advise: -o under a file", lambda d: ["advise", "--k-inf", "4", "--k0", "64", "--cd", "3e-3", "-o",
      d / "afile" / "a.png"], ["is a file"]),
     ("extract: --arms 50", lambda d: ["extract", d / "ok.csv", "--method", "full", "--arms", "50"], ["--arms"]),

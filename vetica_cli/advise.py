@@ -285,6 +285,9 @@ def advise(material: Material, overrides: dict | None = None, knobs: dict | None
     for m in methods:
         if m not in METHODS:
             raise InputError(f"--methods: {m!r} is not a method; choose from: {', '.join(METHODS)}")
+    twice = sorted({m for m in methods if methods.count(m) > 1})
+    if twice:
+        raise InputError(f"--methods: {', '.join(twice)} named twice; expected each method once")
     if force not in SOURCES:
         raise InputError(f"--force {force!r} not allowed; choose one of: {', '.join(SOURCES)}")
     values = knob_values(knobs)
