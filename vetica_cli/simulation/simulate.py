@@ -68,8 +68,11 @@ def columns(n_arms: int) -> list[str]:
 def units(n_arms: int) -> dict:
     u = {"t": "s", "z_tip": "m", "z_cantilever": "m", "z_paddle": "m", "z_base": "m", "f_ts": "N", "x_surface": "m"}
     u.update({c: "m" for c in columns(n_arms)[7:]})
-    u["segment"] = "approach = first-approach window (Z1); steady = recorded steady-state drive periods"
+    u["segment"] = ""  # a label, no unit (what it means: SEGMENT_MEANING, metadata 'descriptions')
     return u
+
+
+SEGMENT_MEANING = "approach = first-approach window (Z1); steady = recorded steady-state drive periods"
 
 
 @dataclass
@@ -200,7 +203,8 @@ class Run:
     def metadata(self) -> dict:
         return {
             "params": self.params,
-            "units": units(self.n_arms),
+            "units": units(self.n_arms),  # each a unit a unit library parses ('' for none)
+            "descriptions": {"segment": SEGMENT_MEANING},
             "version": __version__,
             "stop_reason": self.stop_reason,
             "observables": self.observables,
