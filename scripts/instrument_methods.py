@@ -1,4 +1,4 @@
-"""Evidence for issue 20: the instrument's numbers (``observables``: tan d_AM, E_diss, virial
+"""Evidence: the instrument's numbers (``observables``: tan d_AM, E_diss, virial
 from amplitude and phase; ``dmt-fit``: per-tap DMT modulus, unloading stiffness, adhesion,
 loop dissipation, deformation) beside VETICA, VETICA with pre-stress and the whole-cycle fit.
 

@@ -169,7 +169,7 @@ def measure_reconstruction() -> str:
     from vetica_cli.signals.spectral import reconstruct_force, reconstruction_error
     from vetica_cli.simulation.config import load
     from vetica_cli.simulation.simulate import simulate
-    from vetica_cli.study.plan import point_run
+    from vetica_cli.rows.plan import point_run
 
     base = {"surface.k_inf": 4.0, "surface.k0": 64.0, "surface.cd": 1e-3, "numerics.dt": 0.025e-9,
             "numerics.print_step": 0.125e-9, "numerics.kp": 0.05, "numerics.ki": 0.03,

@@ -46,11 +46,11 @@ CD_RANGE = np.logspace(-7, 4, 12)
 def thesis_simulations() -> list[tuple[str, str, object]]:
     """(study, point label, config) of every distinct simulation of the seven thesis study configs."""
     from vetica_cli.study.grid import load_study
-    from vetica_cli.study.plan import plan
+    from vetica_cli.rows.plan import group
 
     out = []
     for name in THESIS:
-        for task in plan(load_study(ROOT / "configs" / f"{name}.yaml")):
+        for task in group(load_study(ROOT / "configs" / f"{name}.yaml").points):
             p = task.points[0]
             out.append((name, p.label(), p.config))
     return out

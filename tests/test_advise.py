@@ -1,19 +1,18 @@
-"""`vetica advise`: material input, the knob grid, the print-step
-subsampling, the margin and ranking, the JSON settings as config keys, and one-line
-errors with exit status 2.
+"""`vetica advise`: material input, the knob grid, the print-step policy
+shared with the sweep (one simulation per setting), the margin and ranking, the JSON
+settings as config keys, and one-line errors with exit status 2.
 
 References: the conversion of thesis eqs. 90-92 (moduli -> springs -> moduli round trip,
-rtol 1e-12), a separate simulation at the coarser print step (the subsampled record
-must equal it within the orbit solver's tolerance, numerics.tol_orbit = 1e-13 m: both
-runs solve the same periodic orbit to it), the margin's definition (module
-docstring of vetica_cli/study/advise.py), and the config schema (every settings key
-must be accepted by `vetica simulate --set`).
+rtol 1e-12), a separate `simulate` of a setting (its record is the advice's, bit for bit:
+the same config, the same code path), the margin's definition (module docstring of
+vetica_cli/advise.py), and the config schema (every settings key must be accepted by
+`vetica simulate --set`).
 """
 
 import json
 import math
+import time
 
-import numpy as np
 import pytest
 from typer.testing import CliRunner
 
@@ -21,8 +20,7 @@ from vetica_cli.cli import app
 from vetica_cli.errors import ConfigError, InputError
 from vetica_cli.extraction.material import ContactModel, moduli
 from vetica_cli.simulation.config import load
-from vetica_cli.simulation.simulate import simulate
-from vetica_cli.study.advise import (
+from vetica_cli.advise import (
     KNOBS,
     SETTING_KEYS,
     advice_json,
@@ -31,7 +29,6 @@ from vetica_cli.study.advise import (
     knob_values,
     margin,
     material_from,
-    subsample_record,
 )
 
 runner = CliRunner()
@@ -77,24 +74,18 @@ def test_knobs_default_within_the_thesis_ranges_and_are_checked():
         assert all(knob.lo <= v <= knob.hi for v in vals[key]), key
     with pytest.raises(ConfigError, match="probe.f1: 200000 is not allowed; expected values within"):
         knob_values({"probe.f1": [50e3, 200e3]})
-    with pytest.raises(ConfigError, match="whole multiples of the finest"):
-        knob_values({"numerics.print_step": [0.5e-9, 0.75e-9]})
+    assert knob_values({"numerics.print_step": [0.5e-9, 0.75e-9]})["numerics.print_step"] == (0.5e-9, 0.75e-9)
     assert knob_values({"operation.setpoint": [0.7, 0.4, 0.7]})["operation.setpoint"] == (0.4, 0.7)
 
 
-def test_subsampled_record_equals_a_run_at_the_coarser_print_step():
-    base = {"numerics.record_cycles": 2}
-    fine = simulate(load(None, {**base, "numerics.print_step": 0.5e-9})).frame()
-    coarse = simulate(load(None, {**base, "numerics.print_step": 2e-9})).frame()
-    sub = subsample_record(fine, 4)
-    assert len(sub) == len(coarse)
-    assert list(sub["segment"]) == list(coarse["segment"])
-    assert np.allclose(sub["t"], coarse["t"], rtol=1e-12, atol=0)
-    tol = 1e-13  # [m] numerics.tol_orbit
-    for c in ("z_tip", "z_paddle", "x_surface", "x_dashpot"):
-        assert np.max(np.abs(sub[c].to_numpy() - coarse[c].to_numpy())) < tol, c
-    # the force: the surface's stiffness times that (Kg = 132 N/m)
-    assert np.max(np.abs(sub["f_ts"].to_numpy() - coarse["f_ts"].to_numpy())) < 132.0 * tol
+def test_each_print_step_is_its_own_simulation_as_in_a_sweep():
+    """One print-step policy (vetica_cli.rows.plan): settings that differ in the print step are
+    separate simulations; the advice's task on a setting gives what `simulate` of it gives."""
+    from vetica_cli.advise import Setting
+    from vetica_cli.rows.plan import group
+
+    cfgs = [load(None, {"numerics.record_cycles": 2, "numerics.print_step": ps}) for ps in (0.5e-9, 1e-9)]
+    assert [len(t.points) for t in group([Setting(c) for c in cfgs])] == [1, 1]
 
 
 @pytest.fixture(scope="module")
@@ -109,7 +100,7 @@ def small_advice():
 def test_advice_rows_scores_and_settings(small_advice):
     adv = small_advice
     t = adv.table
-    assert len(t) == 2 and adv.simulations == 1
+    assert len(t) == 2 and adv.simulations == 2  # one per print step (rows.plan)
     assert list(t["numerics.print_step"]) == [0.5e-9, 1e-9]
     assert (t["probe.f2"] == 15 * t["probe.f1"]).all()  # thesis 4.5.1
     for _, r in t.iterrows():
@@ -141,6 +132,22 @@ def test_cli_bad_material_exits_2_with_one_line_and_writes_nothing(tmp_path):
                             "-o", str(png)])  # fmt: skip
     assert r.exit_code == 2 and "knob" in r.output
     assert not png.exists()
+
+
+def test_cli_outputs_are_checked_before_the_minutes_of_work(tmp_path):
+    """advise checked its outputs only after its study.  A figure or table path under
+    a file, or in a place that cannot be written, now exits 2 at once (well under the seconds
+    one simulation takes) with one line, leaving nothing."""
+    (tmp_path / "afile").write_text("x")
+    good = ["--k-inf", "4", "--k0", "64", "--cd", "3e-3"]
+    for args, fragment in ((["-o", str(tmp_path / "afile" / "a.png")], "a part of the path is a file"),
+                           (["-o", str(tmp_path / "a.png"), "--table", "/proc/vetica_t.parquet"], "/proc"),
+                           (["-o", str(tmp_path / "a.jpg")], ".png")):  # fmt: skip
+        t0 = time.perf_counter()
+        r = runner.invoke(app, ["advise", *good, *args])
+        assert r.exit_code == 2 and time.perf_counter() - t0 < 5, r.output
+        assert len(r.output.strip().splitlines()) == 1 and fragment in r.output, r.output
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["afile"]
 
 
 def test_cli_json_settings_go_straight_back_to_simulate(tmp_path):

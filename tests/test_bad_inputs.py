@@ -142,7 +142,7 @@ CASES = [
      d / "x.parquet"], ["probe.f1", "finite"]),
     ("a logspace count of .nan", lambda d, r: ["sweep", d / "nan.yaml", "-o", d / "x.parquet"], ["logspace count"]),
     ("a section that is 0", lambda d, r: ["simulate", d / "zero.yaml", "-o", d / "x.parquet"], ["'probe' must be a mapping"]),
-    ("a record too long for memory", lambda d, r: ["simulate", "--set", "numerics.record_cycles=100000000", "--set",
+    ("a record too long for memory", lambda d, r: ["simulate", "--set", "numerics.record_cycles=5000", "--set",
      "numerics.max_time=1e6", "-o", d / "x.parquet"], ["numerics.record_cycles", "at most 312 periods"]),
     ("plot a CSV", lambda d, r: ["plot", d / "bad.csv", "-o", d / "figs"], ["is not a number"]),
     ("bench --repeat 0", lambda d, r: ["bench", "--repeat", "0"], ["--repeat"]),

@@ -80,6 +80,7 @@ def _run_arms(z, h, p, xd0, ndir=0, s0=0.0, substeps=1, vdw=True, block=16):
     return f, jac, res
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("vdw", [True, False])
 @pytest.mark.parametrize("substeps", [1, 5])
 def test_n_arm_tangents_match_finite_differences(substeps, vdw):
@@ -139,9 +140,9 @@ def test_far_field_coarse_steps_do_not_change_the_force():
 
 
 @pytest.fixture(scope="module")
-def worked():
-    """The worked example at the defaults (PS 0.125 ns, 10 recorded periods): one simulate call."""
-    run = simulate(load(None))
+def worked(worked_example):
+    """The worked example at the defaults (PS 0.125 ns, 10 recorded periods; conftest, once a session)."""
+    run = worked_example()
     return run.frame(), run.metadata()
 
 

@@ -1,9 +1,12 @@
 """The package's architecture, checked on the source (ast, no imports executed).
 
-Imports point one way only (STYLE: cli -> plots -> scan -> study -> extraction/simulation
--> surfaces/signals -> core; ``errors``, ``io``, ``constants``, ``checks`` usable
-from anywhere), there is no import cycle, and no module -- in the package, the
-tests or the scripts -- imports another module's ``_private`` name or patches one.
+Imports point one way only (cli -> plots -> the batch commands scan, study (sweeps),
+advise, bench, report, siblings that never import each other -> the rows layer (point
+task, row schema) and the batch layer (launchers, lock, progress, parts; no physics)
+-> extraction/simulation -> surfaces/signals -> core; ``errors``, ``io``,
+``constants``, ``checks`` usable from anywhere), there is no import cycle, and no
+module -- in the package, the tests or the scripts -- imports another module's
+``_private`` name or patches one.
 """
 
 from __future__ import annotations
@@ -17,10 +20,11 @@ ROOT = Path(__file__).resolve().parents[1]
 PKG = ROOT / "vetica_cli"
 # top to bottom; a component may import its own modules, any component of a lower layer and the foundation
 LAYERS = (
+    {"__main__"},
     {"cli"},
     {"plots"},
-    {"scan"},
-    {"study", "bench", "report"},
+    {"scan", "study", "advise", "bench", "report"},
+    {"rows", "batch"},
     {"extraction", "simulation"},
     {"surfaces", "signals"},
     {"core"},
@@ -76,6 +80,13 @@ def imports(path: Path):
 
 PACKAGE_FILES = sorted(PKG.rglob("*.py"))
 OTHER_FILES = sorted((ROOT / "tests").glob("*.py")) + sorted((ROOT / "scripts").glob("*.py"))
+
+
+def test_batch_layer_knows_no_physics():
+    """The batch layer imports only the foundation (no simulation, extraction, surfaces, rows)."""
+    for path in sorted((PKG / "batch").glob("*.py")):
+        for line, target, _ in imports(path):
+            assert component(target) in FOUNDATION | {"batch"}, f"{path.name}:{line}: batch imports {target}"
 
 
 def test_every_package_module_belongs_to_a_layer():

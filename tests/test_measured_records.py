@@ -37,11 +37,9 @@ def stripped(run, columns=("t", "z_tip", "f_ts"), periods=None, phase=0.0):
 
 
 @pytest.fixture(scope="module", params=[True, False], ids=["pull_on", "pull_off"])
-def worked(request):
-    """The worked example with the surface pull on (the default) and off."""
-    run = simulate(load(None, {"surface.vdw_on_surface": request.param}))
-    assert run.steady_ok
-    return request.param, run
+def worked(request, worked_example):
+    """The worked example with the surface pull on (the default) and off (conftest, once a session)."""
+    return request.param, worked_example(request.param)
 
 
 def errors(res, names=("k0", "k_inf", "cd")):
@@ -76,8 +74,8 @@ def test_a_window_that_does_not_start_at_a_tap(worked):
 
 
 @pytest.fixture(scope="module")
-def pull_on():
-    return simulate(load(None))
+def pull_on(worked_example):
+    return worked_example()
 
 
 def test_known_constants_are_used_and_reported_as_given(pull_on):
@@ -104,7 +102,7 @@ def test_csv_with_only_t_z_tip_f_ts_through_the_cli(pull_on, tmp_path):
     assert data["info"]["constants"]["hamaker_radius"]["source"] == "fitted"
     bad = CliRunner().invoke(app, ["extract", str(path), "--method", "full", "--a0", "-1"])
     assert bad.exit_code == 2 and len(bad.output.strip().splitlines()) == 1
-    assert "'--a0': -1.0 is not allowed; expected a distance > 0 m" in bad.output
+    assert "'--a0': -1.0 is not allowed; expected a distance in [1e-10, 1e-09] m" in bad.output
 
 
 def test_reconstructed_force_from_the_paddle_signal_without_metadata(pull_on):

@@ -185,6 +185,17 @@ def test_plot_writes_the_study_figures_for_each_sweep_kind(table, tmp_path, stud
     assert not list(out.glob(".*.tmp"))
 
 
+def test_a_figure_that_cannot_be_written_leaves_none_of_the_set(table, tmp_path):
+    """One figure of the set cannot be written (its name is taken by a folder, as a full disk
+    refuses a write): exit 2, one line, and none of the figures this call drew is left."""
+    path = table("dashpot")
+    out = tmp_path / "figs"
+    (out / "dashpot_fig57_ss_zero_depth_vs_cd.png").mkdir(parents=True)  # drawn last of the four
+    res = runner.invoke(app, ["plot", str(path), "-o", str(out)])
+    assert res.exit_code == 2 and len(res.stderr.strip().splitlines()) == 1, res.output
+    assert not list(out.glob("*.png.*")) and [p.name for p in out.iterdir()] == ["dashpot_fig57_ss_zero_depth_vs_cd.png"]
+
+
 def test_figure_selection_follows_the_swept_keys():
     cd_only = [n for n, _, _ in select_sweep_figures(["surface.cd"])]
     assert "fig43-45_values_vs_cd" in cd_only and not any("ratio" in n or "f1" in n for n in cd_only)

@@ -24,7 +24,7 @@ from vetica_cli.extraction.format import format_table, to_json
 from vetica_cli.simulation.config import Config, from_dict, load
 from vetica_cli.simulation.simulate import simulate
 from vetica_cli.study.grid import EXTRACT_KEYS, expand
-from vetica_cli.study.schema import result_columns
+from vetica_cli.rows.schema import result_columns
 
 MODELS = list(surfaces.MODELS.values())
 
@@ -127,7 +127,8 @@ def test_wiechert_section_and_arm_keys():
         r"surface.arms.1.k: 'x' is not allowed; expected a finite number": [{"k": "x", "cd": 1}],
         r"surface.arms.1: \{'k': 1\} has no 'cd'": [{"k": 1}],
         r"unknown key 'surface.arms.1.tau'; allowed in an arm: k, cd": [{"k": 1, "cd": 1, "tau": 1}],
-        r"surface.arms: \[\] is not allowed; expected a list of one or more arms": [],
+        r"surface.arms: \[\] is not allowed; expected a list of 1..8 arms": [],
+        r"surface.arms: \[.*\] is not allowed; expected a list of 1..8 arms": [{"k": 1, "cd": 1}] * 9,
     }  # fmt: skip
     for message, arms in bad.items():
         with pytest.raises(ConfigError, match=message):
@@ -208,3 +209,15 @@ def test_method_choices_come_from_the_registry():
     for key in METHODS:
         assert key in help_text
     assert inspect.getdoc(type(METHODS["vetica"]))
+
+
+def test_every_method_declares_its_settable_options_with_type_unit_and_help():
+    """The registry, not the CLI, holds each method's options: every declared
+    option is one the method takes, typed, with help, and parses its default's kind."""
+    from vetica_cli.extraction import METHODS
+
+    for key, m in METHODS.items():
+        assert m.option_specs, key
+        for o in m.option_specs:
+            assert o.name in m.options_default and o.type in ("int", "float", "bool", "str") and o.help, (key, o)
+            assert isinstance(o.unit, str)

@@ -35,7 +35,8 @@ from vetica_cli.scan.line import LineTask
 from vetica_cli.scan.run import run_scan
 from vetica_cli.scan.sample import Raster, paint
 from vetica_cli.simulation.simulate import simulate
-from vetica_cli.study.store import parts_dir
+from vetica_cli.batch.lock import lock_path
+from vetica_cli.batch.parts import parts_dir
 
 ROOT = Path(__file__).resolve().parents[1]
 CONFIGS = ROOT / "configs"
@@ -210,6 +211,53 @@ def test_bad_scan_arguments_exit_2_with_one_line(tmp_path, args, message):
     assert not (tmp_path / "m.parquet").exists() and not (tmp_path / "m.parquet.parts").exists()
 
 
+def test_scan_output_paths_are_checked_before_any_work(tmp_path):
+    """Parity with the sweep: -o under a file, in a place that cannot be
+    written (/proc refuses even root), or with a sidecar path taken by a folder: exit 2, one
+    line, before any simulation, nothing written."""
+    path = tmp_path / "scan.yaml"
+    path.write_text(yaml.safe_dump(line_config()))
+    (tmp_path / "afile").write_text("x")
+    (tmp_path / "m.summary.md").mkdir()
+    cases = [(tmp_path / "afile" / "m.parquet", "a part of the path is a file"),
+             (Path("/proc/vetica_scan_test.parquet"), "/proc"),
+             (tmp_path / "m.parquet", "m.summary.md")]  # fmt: skip
+    before = sorted(tmp_path.rglob("*"))
+    for out, message in cases:
+        res = runner.invoke(app, ["scan", str(path), "-q", "-o", str(out)])
+        assert res.exit_code == 2, res.output
+        assert len(res.stderr.strip().splitlines()) == 1 and message in res.stderr, res.stderr
+    assert sorted(tmp_path.rglob("*")) == before
+
+
+def test_scan_writes_to_the_git_ignored_folder_by_default(tmp_path, monkeypatch):
+    """Without -o a scan writes under sweeps/ (git-ignored), as a sweep does: never over a
+    committed table in results/."""
+    path = tmp_path / "edge.yaml"
+    path.write_text(yaml.safe_dump(line_config()))
+    monkeypatch.chdir(tmp_path)
+    res = runner.invoke(app, ["scan", str(path), "--dry-run"])
+    assert res.exit_code == 0, res.output
+    assert f"would write {Path('sweeps') / 'edge.parquet'}" in res.stdout
+    assert not (tmp_path / "sweeps").exists()
+
+
+@pytest.mark.skipif(sys.platform != "linux", reason="flock")
+def test_a_second_scan_on_the_same_output_exits_2_naming_the_first(tmp_path):
+    """The output lock a sweep holds, held by a scan: a second scan exits 2 with one line."""
+    from vetica_cli.batch.lock import output_lock
+
+    path = tmp_path / "scan.yaml"
+    path.write_text(yaml.safe_dump(line_config()))
+    out = tmp_path / "m.parquet"
+    with output_lock(out, "scan"):
+        res = runner.invoke(app, ["scan", str(path), "-q", "-o", str(out)])
+    assert res.exit_code == 2, res.output
+    line = res.stderr.strip()
+    assert "\n" not in line and f"being written by another scan (pid {os.getpid()} on " in line, line
+    assert not out.exists() and not parts_dir(out).exists()
+
+
 def test_set_overrides_reach_lists_and_features(tmp_path):
     path = tmp_path / "scan.yaml"
     path.write_text(yaml.safe_dump(line_config()))
@@ -259,6 +307,7 @@ def test_interior_and_edge_runs_on_a_known_grid():
 # --------------------------------------------------------------------- physics of scanning
 
 
+@pytest.mark.slow
 def test_height_step_of_one_material_reads_the_true_step_and_every_orbit_pixel_is_the_single_point_orbit(tmp_path):
     """Translation invariance: over one material the dynamics depend only on Zb - h, so at the
     periodic orbit the measured topography is the true height (reference: the true step,
@@ -332,6 +381,7 @@ RESUME_SCRIPT = textwrap.dedent(
 )
 
 
+@pytest.mark.slow
 def test_killed_scan_resumes_only_the_missing_lines_and_ends_with_the_same_table(tmp_path):
     """kill -9 a scan after some lines are persisted; the rerun computes only the missing lines;
     its table equals an uninterrupted run's (wall_s excluded)."""
@@ -358,14 +408,66 @@ def test_killed_scan_resumes_only_the_missing_lines_and_ends_with_the_same_table
     ref = run_scan(cfg, tmp_path / "b" / "m.parquet", jobs=1, progress=False, task=FAKE)
     numeric_equal(res.table, ref.table)
     numeric_equal(read_table(out)[0], read_table(tmp_path / "b" / "m.parquet")[0])
-    again = run_scan(cfg, out, jobs=1, progress=False, task=FAKE)
-    assert again.computed == [] and len(again.reused) == 5
+    assert not parts.exists() and not lock_path(out).exists()  # removed on success, as a sweep's
+    again = run_scan(cfg, out, jobs=1, progress=False, task=FAKE, keep_parts=True)
+    assert len(again.computed) == 5 and again.parts_kept
     # another pixel time adds a pass: the lines of the first are reused
     more = build(line_config(nx=3, ny=5, pixel_time=[0.2e-3, 0.3e-3]))
     both = run_scan(more, out, jobs=1, progress=False, task=FAKE)
-    assert set(both.reused) == set(again.reused) and len(both.computed) == 5
+    assert set(both.reused) == set(again.computed) and len(both.computed) == 5 and not parts.exists()
 
 
+SIGNAL_SCRIPT = textwrap.dedent(
+    """
+    import os, sys, time
+    sys.path.insert(0, {tests!r})
+    from test_scan import fake_extract, line_config
+    from vetica_cli.batch.run import BatchInterrupted, signals_as_interrupt
+    from vetica_cli.scan.config import build
+    from vetica_cli.scan.line import LineTask
+    from vetica_cli.scan.run import run_scan
+
+    def slow_extract(df, meta, force, method):
+        time.sleep(0.4)
+        return fake_extract(df, meta, force, method)
+
+    cfg = build(line_config(nx=3, ny=5, pixel_time=0.2e-3))
+    try:
+        with signals_as_interrupt():
+            run_scan(cfg, sys.argv[1], jobs=1, progress=False, task=LineTask(extract=slow_extract))
+    except BatchInterrupted as exc:
+        print(exc, file=sys.stderr)
+        sys.exit(exc.exit_code)
+    """
+)
+
+
+@pytest.mark.slow
+@pytest.mark.skipif(sys.platform != "linux", reason="signals")
+@pytest.mark.parametrize("sig, code", [(signal.SIGTERM, 143), (signal.SIGHUP, 129)])
+def test_sigterm_and_sighup_stop_a_scan_as_they_stop_a_sweep(tmp_path, sig, code):
+    """A scan under the batch layer's signal handling: exit 128 + signal, one line naming the
+    lines persisted, no lock file, no table; the rerun computes only the rest."""
+    script = tmp_path / "run.py"
+    script.write_text(SIGNAL_SCRIPT.format(tests=str(Path(__file__).parent)))
+    out = tmp_path / "m.parquet"
+    proc = subprocess.Popen([sys.executable, str(script), str(out)], stderr=subprocess.PIPE, text=True)
+    deadline = time.monotonic() + 180
+    while time.monotonic() < deadline and len(list(parts_dir(out).glob("*.parquet"))) < 1:
+        assert proc.poll() is None, "the scan ended before the signal"
+        time.sleep(0.05)
+    proc.send_signal(sig)
+    _, err = proc.communicate(timeout=60)
+    assert proc.returncode == code, err
+    lines = [ln for ln in err.splitlines() if ln.strip()]
+    assert len(lines) == 1 and lines[0].startswith(f"interrupted ({sig.name}): ") and "of 5 lines" in lines[0], err
+    assert not lock_path(out).exists() and not out.exists()
+    persisted = {p.stem for p in parts_dir(out).glob("*.parquet")}
+    res = run_scan(build(line_config(nx=3, ny=5, pixel_time=0.2e-3)), out, jobs=1, progress=False, task=FAKE)
+    assert set(res.reused) == persisted and len(res.computed) == 5 - len(persisted)
+
+
+@pytest.mark.slow
 def test_dask_backend_on_a_local_cluster_gives_the_serial_table(tmp_path):
     """The same line jobs through joblib's dask backend on a distributed.LocalCluster
     (in-process workers) give the table of the serial run, bit for bit."""
@@ -398,6 +500,13 @@ def test_a_failing_extraction_becomes_failed_rows_and_the_table_explains_itself(
     for c in ("x", "y", "height_true", "topography", "amplitude", "phase_deg", "e_diss_ev", "peak_force",
               "max_penetration", "k0", "k0_theory", "k0_err_pct", "cd_err_pct", "status", "error"):  # fmt: skip
         assert c in t.columns and c in meta["units"], c
+    import pint  # the units parse with a unit library; the meanings are apart
+
+    ureg = pint.UnitRegistry()
+    assert set(meta["units"]) == set(meta["descriptions"]) >= set(t.columns)
+    for unit in meta["units"].values():
+        ureg.parse_units(unit)
+    assert ureg.parse_units(meta["units"]["topography"]) == ureg.parse_units("m")
     assert meta["table"] == "scan" and meta["config"]["scan"]["pixels"] == [4, 1]
     assert np.isfinite(bad["topography"]).all() and np.isfinite(bad["amplitude"]).all()  # the simulation is kept
     assert res.config_path.is_file() and res.summary_path.is_file()

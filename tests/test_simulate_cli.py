@@ -84,6 +84,12 @@ def test_simulate_writes_columns_units_params_and_observables(tmp_path):
     assert meta["params"]["surface"]["cd"] == 1e-4
     assert meta["params"]["numerics"]["dt"] == 0.025e-9
     assert meta["units"]["f_ts"] == "N" and meta["units"]["t"] == "s"
+    import pint  # every unit of a run parses with a unit library; the segment's meaning is apart
+
+    ureg = pint.UnitRegistry()
+    for unit in meta["units"].values():
+        ureg.parse_units(unit)
+    assert meta["descriptions"]["segment"].startswith("approach = ")
     for key in (
         "e_diss_ev", "peak_force", "max_penetration", "contact_time", "noncontact_time", "paddle_amplitude",
         "ss_zero_depth", "amplitude", "phase_deg", "virial_ev", "z1",

@@ -19,9 +19,9 @@ FA0 = 0.2e-18 * 10e-9 / (6 * (0.2e-9) ** 2)  # Fa(a0) = H R / (6 a0^2), thesis e
 
 
 @pytest.fixture(scope="module")
-def worked():
-    """The thesis worked example (defaults) at dt = 0.025 ns, PS = 0.125 ns."""
-    return simulate(load())
+def worked(worked_example):
+    """The thesis worked example (defaults) at dt = 0.025 ns, PS = 0.125 ns (conftest, once a session)."""
+    return worked_example()
 
 
 def test_worked_example_reaches_steady_state_at_the_setpoint(worked):

@@ -107,11 +107,10 @@ def test_bad_input_is_a_one_line_input_error(bad, match):
 
 
 @pytest.fixture(scope="module")
-def worked():
+def worked(worked_example):
     """Worked example (thesis tables 2-4), vdW pull on the surface off (the setting
-    of the worked-example bounds; see results/thesis/worked_example.md)."""
-    run = simulate(load(None, {"surface.vdw_on_surface": False}))
-    return run.frame()
+    of the worked-example bounds; see results/thesis/worked_example.md; conftest, once a session)."""
+    return worked_example(pull=False).frame()
 
 
 def _steady(df):

@@ -19,6 +19,7 @@ from pathlib import Path
 
 import numpy as np
 import pandas as pd
+import pint
 import pytest
 import yaml
 from typer.testing import CliRunner
@@ -31,11 +32,11 @@ from vetica_cli.simulation.config import Config, load
 from vetica_cli.simulation.simulate import simulate
 from vetica_cli.study.acceptance import acceptance_regime, format_acceptance
 from vetica_cli.study.grid import expand, load_study
-from vetica_cli.study.plan import plan
-from vetica_cli.study.schema import STATUSES
-from vetica_cli.study.store import fingerprint_files, parts_dir
-from vetica_cli.study.sweep import run_sweep
-from vetica_cli.study.task import PointTask
+from vetica_cli.rows.plan import group
+from vetica_cli.rows.schema import STATUSES
+from vetica_cli.batch.parts import fingerprint_files, parts_dir
+from vetica_cli.study.sweep import SWEEP_ROOTS, run_sweep
+from vetica_cli.rows.task import PointTask
 
 ROOT = Path(__file__).resolve().parents[1]
 CONFIGS = ROOT / "configs"
@@ -146,7 +147,14 @@ def test_table_has_issue_columns_units_metadata_and_saved_config(tmp_path):
     for c in ["point", "surface.cd", *ISSUE_COLUMNS]:
         assert c in df.columns, c
     assert list(df["force_source"]) == ["true", "reconstructed"] * 2
-    assert set(meta["units"]) == set(df.columns)
+    assert set(meta["units"]) == set(df.columns) == set(meta["descriptions"])
+    # every unit parses with a unit library (pint); the meanings are apart, in 'descriptions'
+    ureg = pint.UnitRegistry()
+    for col, unit in meta["units"].items():
+        ureg.parse_units(unit)  # raises for free text
+    assert ureg.parse_units(meta["units"]["k_g"]) == ureg.parse_units("N/m")
+    assert ureg.parse_units(meta["units"]["surface.cd"]) == ureg.parse_units("kg/s")
+    assert ureg.parse_units(meta["units"]["tau_c_err_pct"]) == ureg.parse_units("percent")
     assert meta["swept_keys"] == ["surface.cd"] and meta["points"] == 2
     assert meta["config"]["surface"]["stiffness_ratio"] == 16
     # the config saved next to the table expands to the same points
@@ -209,7 +217,7 @@ RESUME_SCRIPT = textwrap.dedent(
     sys.path.insert(0, {tests!r})
     from test_sweep import cheap_study, fake_extract
     from vetica_cli.study.sweep import run_sweep
-    from vetica_cli.study.task import PointTask
+    from vetica_cli.rows.task import PointTask
 
     def slow_extract(df, meta, force, method):
         time.sleep(float(os.environ.get("FAKE_SLEEP", "0")))
@@ -282,16 +290,15 @@ def test_parts_made_by_other_code_or_config_are_recomputed(tmp_path):
 
 
 def test_code_fingerprint_covers_simulation_and_extraction_only():
-    names = {f.relative_to(ROOT / "vetica_cli").as_posix() for f in fingerprint_files()}
+    names = {f.relative_to(ROOT / "vetica_cli").as_posix() for f in fingerprint_files(SWEEP_ROOTS)}
     assert {"simulation/simulate.py", "core/tapping.py", "core/engine.py", "core/coefficients.py", "core/sls.py", "core/prescribed.py", "simulation/observables.py",
             "simulation/config.py", "simulation/instrument.py", "extraction/__init__.py", "extraction/vetica.py",
             "extraction/record.py", "extraction/result.py", "extraction/fullfit/model.py",
             "extraction/fullfit/method.py", "signals/spectral.py", "signals/taps.py", "surfaces/sls.py",
-            "surfaces/base.py", "study/task.py", "study/plan.py", "study/grid.py", "study/schema.py",
-            "study/store.py"} <= names  # fmt: skip
-    assert not {n for n in names if n.startswith("plots/")}
-    assert not names & {"cli.py", "report.py", "bench.py", "study/sweep.py", "study/launch.py", "study/cost.py",
-                        "study/progress.py"}  # fmt: skip
+            "surfaces/base.py", "rows/task.py", "rows/plan.py", "study/grid.py", "rows/schema.py",
+            "study/table.py"} <= names  # fmt: skip
+    assert not {n for n in names if n.startswith(("plots/", "batch/", "scan/"))}
+    assert not names & {"cli.py", "report.py", "bench.py", "study/sweep.py", "study/cost.py"}  # fmt: skip
 
 
 def test_same_config_gives_bit_identical_numeric_columns_with_two_workers(tmp_path):
@@ -332,9 +339,9 @@ def test_plan_shares_only_identical_simulations():
     """Points that differ in the print step are simulated separately; points that differ only
     in the method or the instrument keys share one simulation."""
     st = cheap_study({"surface.cd": [1e-5, 1e-4], "numerics.print_step": [0.5e-9, 1e-9, 2e-9]})
-    assert len(plan(st)) == 6 and all(len(t.points) == 1 for t in plan(st))
+    assert len(group(st.points)) == 6 and all(len(t.points) == 1 for t in group(st.points))
     st2 = cheap_study({"surface.cd": [1e-5, 1e-4], "numerics.position_noise": [0.0, 1e-12]})
-    assert len(plan(st2)) == 2 and all(len(t.points) == 2 for t in plan(st2))
+    assert len(group(st2.points)) == 2 and all(len(t.points) == 2 for t in group(st2.points))
 
 
 # --------------------------------------------------------------------- Dask

@@ -26,9 +26,9 @@ from vetica_cli.simulation.instrument import noise_free
 from vetica_cli.simulation.simulate import simulate
 from vetica_cli.study.acceptance import acceptance_regime, format_acceptance
 from vetica_cli.study.grid import expand, point_key
-from vetica_cli.study.plan import plan, point_run
+from vetica_cli.rows.plan import group, point_run
 from vetica_cli.study.sweep import run_sweep
-from vetica_cli.study.task import PointTask
+from vetica_cli.rows.task import PointTask
 
 runner = CliRunner()
 
@@ -101,7 +101,7 @@ ALLOWED = ", ".join(METHODS)  # the registered methods, in registration order
         ({"extract": "full", "sweep": {"surface.cd": [1e-5]}}, None, "must be a mapping"),
         ({"sweep": {"surface.cd": [1e-5]}}, {"extract.method": "ful"}, "--set extract.method: 'ful' is not allowed"),
         ({"sweep": {"extract.method": ["full"]}}, {"extract.method": "vetica"}, "swept"),
-        ({"sweep": {"extract.method": ["full", "full"]}}, None, "same config"),
+        ({"sweep": {"extract.method": ["full", "full"]}}, None, "appears twice"),
         ({"sweep": {"extract.force": ["true", "measured"]}}, None,
          "sweep.extract.force: 'measured' is not allowed; expected one of: both, true, reconstructed"),
     ],
@@ -129,7 +129,7 @@ def test_points_differing_in_method_and_noise_share_one_simulation(tmp_path):
     """2 cd x 2 methods x 2 noise levels = 8 points -> 2 simulations (counted)."""
     st = cheap({"surface.cd": [1e-5, 1e-3], "extract.method": ["vetica", "full"],
                 "numerics.position_noise": [0.0, 1e-11]})  # fmt: skip
-    assert [len(t.points) for t in plan(st)] == [4, 4]
+    assert [len(t.points) for t in group(st.points)] == [4, 4]
     calls = []
 
     def counting(cfg):

@@ -27,10 +27,10 @@ from vetica_cli.io import read_table, write_table
 from vetica_cli.study import sweep as sweep_module
 from vetica_cli.study.acceptance import acceptance_regime, format_acceptance
 from vetica_cli.study.grid import load_grid
-from vetica_cli.study.lock import lock_path
-from vetica_cli.study.store import parts_dir
+from vetica_cli.batch.lock import lock_path
+from vetica_cli.batch.parts import parts_dir
 from vetica_cli.study.sweep import cores, default_output, run_sweep, summary, sweep_command
-from vetica_cli.study.task import PointTask, row_status
+from vetica_cli.rows.task import PointTask, row_status
 
 ROOT = Path(__file__).resolve().parents[1]
 runner = CliRunner()
@@ -80,7 +80,7 @@ def test_a_row_without_an_estimate_says_so_with_its_reason(tmp_path):
     assert "2 no_estimate" in text and "without an estimate" in text
     for entry in res.acceptance:
         assert entry["n_no_estimate"] == 1 and 1e-3 not in ([entry["cd_min"], entry["cd_max"]])
-    assert "no_estimate" in read_table(tmp_path / "t.parquet")[1]["units"]["status"]
+    assert "no_estimate" in read_table(tmp_path / "t.parquet")[1]["descriptions"]["status"]
 
 
 def test_a_not_steady_row_keeps_its_status_and_still_says_why_a_value_is_missing():
@@ -159,6 +159,7 @@ def _wait_gone(pids, limit):
     return time.monotonic() - t0
 
 
+@pytest.mark.slow
 @pytest.mark.skipif(sys.platform != "linux", reason="process tree and /dev/shm checks are Linux's")
 @pytest.mark.parametrize("sig, code", [(signal.SIGTERM, 143), (signal.SIGINT, 130)])
 def test_sigterm_and_ctrl_c_stop_the_workers_and_say_what_is_persisted(tmp_path, sig, code):
@@ -185,6 +186,28 @@ def test_sigterm_and_ctrl_c_stop_the_workers_and_say_what_is_persisted(tmp_path,
     assert out.is_file() and not parts_dir(out).exists() and not lock_path(out).exists()
 
 
+@pytest.mark.slow
+@pytest.mark.skipif(sys.platform != "linux", reason="signals")
+@pytest.mark.parametrize("delay", [0.3, 0.8, 1.5])
+def test_ctrl_c_in_the_first_seconds_ends_with_one_line_and_no_traceback(tmp_path, delay):
+    """Ctrl-C while the modules load, the study is checked or the workers start (before: 
+    a traceback in the first 0.4 s): exit 130 and one line, whatever the moment."""
+    cfg = tmp_path / "cheap.yaml"
+    cfg.write_text(CHEAP_STUDY.format(n=4))
+    proc = subprocess.Popen([sys.executable, "-m", "vetica_cli", "sweep", str(cfg), "-o", str(tmp_path / "o.parquet"),
+                             "-q"], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, cwd=ROOT,
+                            preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))  # fmt: skip
+    time.sleep(delay)
+    proc.send_signal(signal.SIGINT)
+    _, err = proc.communicate(timeout=120)
+    if proc.returncode == 0:
+        pytest.skip("the sweep ended before the signal")
+    lines = [ln for ln in err.splitlines() if ln.strip() and not ln.startswith("ran in this process")]
+    assert proc.returncode == 130 and len(lines) == 1 and "Traceback" not in err, err
+    assert lines[0].startswith(("interrupted before any output was written", "interrupted (SIGINT): ")), err
+
+
+@pytest.mark.slow
 @pytest.mark.skipif(sys.platform != "linux", reason="process tree and /dev/shm checks are Linux's")
 def test_workers_exit_within_seconds_when_the_sweep_is_killed(tmp_path):
     """kill -9 of the sweep process alone: its workers notice within a second (measured
@@ -210,7 +233,7 @@ def test_shm_left_by_a_killed_process_group_is_removed_and_live_entries_kept(tmp
     """What kill -9 of a whole sweep process group leaves (loky semaphores, joblib memmapping
     folders named after the dead sweep's pid) is removed; entries of a live pid and other
     files are kept (measured: 10 entries left by killpg -9, 0 after the next sweep)."""
-    from vetica_cli.study.launch import remove_orphaned_shm
+    from vetica_cli.batch.launch import remove_orphaned_shm
 
     dead = subprocess.Popen([sys.executable, "-c", "pass"])
     dead.wait()
@@ -225,6 +248,7 @@ def test_shm_left_by_a_killed_process_group_is_removed_and_live_entries_kept(tmp
     assert sorted(p.name for p in shm.iterdir()) == ["sem.loky-%d-live0001" % os.getpid(), "sem.other-1"]
 
 
+@pytest.mark.slow
 @pytest.mark.skipif(sys.platform != "linux", reason="flock")
 def test_a_second_sweep_on_the_same_output_exits_2_naming_the_first(tmp_path):
     """Two sweeps on one output: the second stops at once with one line naming the first
@@ -264,8 +288,8 @@ def test_corrupt_empty_stale_and_foreign_parts_are_counted_and_removed(tmp_path)
     again = run_sweep(st, out, jobs=1, progress=False, task=FAKE, log=logged.append)
     assert again.reused == [k[3]] and sorted(again.computed) == sorted(k[:3])
     note = (f"parts in {pdir}/: 1 reused; removed 2 corrupt (unreadable, empty or incomplete), "
-            "1 stale (made by other code, or for another setting of its point), "
-            "1 foreign (not a point of this study: an older config or another study), 1 half-written (a killed write)")  # fmt: skip
+            "1 stale (made by other code, or for another setting of its job), "
+            "1 foreign (not a job of this batch: an older config or another batch), 1 half-written (a killed write)")  # fmt: skip
     assert logged == [note] and again.notes == [note]
     numeric_equal(again.table, first.table)
     assert not pdir.exists() and not again.parts_kept

@@ -25,8 +25,6 @@ from vetica_cli.extraction.vetica import (
     stage2_kr,
 )
 from vetica_cli.signals.taps import Taps, find_taps
-from vetica_cli.simulation.config import load
-from vetica_cli.simulation.simulate import simulate
 
 K0, KINF, CD = 128.0, 4.0, 3e-5  # worked example (thesis tables 2-4)
 
@@ -152,15 +150,15 @@ def test_find_taps_without_repulsion_is_an_input_error():
 
 
 @pytest.fixture(scope="module")
-def vdw_off():
-    """Worked example with the vdW pull on the surface off (the bounds' setting)."""
-    run = simulate(load(None, {"surface.vdw_on_surface": False}))
+def vdw_off(worked_example):
+    """Worked example with the vdW pull on the surface off (the bounds' setting; conftest)."""
+    run = worked_example(pull=False)
     return run.frame(), run.metadata()
 
 
 @pytest.fixture(scope="module")
-def vdw_on():
-    run = simulate(load(None, {"surface.vdw_on_surface": True}))
+def vdw_on(worked_example):
+    run = worked_example(pull=True)
     return run.frame(), run.metadata()
 
 

@@ -27,7 +27,7 @@ from .simulation.simulate import simulate
 def _period_ms(run, cfg) -> tuple[float, float]:
     """Wall time of one unrecorded drive period from the run's last recorded state [ms],
     and the fine steps it took."""
-    from .core import engine, tapping
+    from .core import engine, session, tapping
     from .simulation.simulate import derive, kernel_setup
 
     d = derive(cfg)
@@ -36,8 +36,7 @@ def _period_ms(run, cfg) -> tuple[float, float]:
     last = run.steady[-1]
     # the orbit's state at the end of the window: positions from the record, velocities by one
     # period of warm-up (any state near the orbit costs the same)
-    s[tapping.S_ZC], s[tapping.S_ZP], s[tapping.S_ZB] = last[2], last[3], last[4]
-    s[tapping.S_VC] = d.a_sp * d.omega1
+    session.place_probe(s, zc=last[2], vc=d.a_sp * d.omega1, zp=last[3], zb=last[4])
     kern.advance(s)
     walls, fine = [], 0
     for _ in range(5):

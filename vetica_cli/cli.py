@@ -21,6 +21,7 @@ import typer
 from typer.core import TyperGroup
 
 from . import __version__
+from .checks import MAX_ARMS, limit
 from .errors import USER_ERRORS
 from .extraction import DEFAULT_METHOD, METHODS
 
@@ -96,6 +97,9 @@ def user_errors(fn):
         except USER_ERRORS as exc:
             typer.echo(f"error: {one_line(exc)}", err=True)
             raise typer.Exit(2) from None
+        except KeyboardInterrupt as exc:  # a batch says what it persisted; before, nothing is written yet
+            typer.echo(one_line(exc) or "interrupted before any output was written", err=True)
+            raise typer.Exit(getattr(exc, "exit_code", 130)) from None
 
     return wrapper
 
@@ -134,9 +138,11 @@ def simulate(
     """
     from .report import run_summary
     from .simulation.config import parse_set
+    from .simulation.jit import compile_notice
     from .simulation.simulate import simulate_file
 
-    run = simulate_file(config, output, parse_set(set_))
+    notice = None if quiet else compile_notice()
+    run = simulate_file(config, output, parse_set(set_), notice=lambda: notice and typer.echo(notice, err=True))
     if not quiet:
         typer.echo(run_summary(run, output))
 
@@ -202,15 +208,11 @@ def sweep(
     removed after success.  A second sweep on the same output exits at once.
     """
     from .simulation.config import parse_set
-    from .study.sweep import SweepInterrupted, sweep_command
+    from .study.sweep import sweep_command
 
-    try:
-        text = sweep_command(config, output, parse_set(set_), dry_run=dry_run, jobs=jobs, yes=yes, backend=backend,
-                             scheduler=scheduler, resume=resume, progress=not quiet, keep_parts=keep_parts,
-                             log=lambda line: typer.echo(line, err=True))  # fmt: skip
-    except SweepInterrupted as exc:
-        typer.echo(str(exc), err=True)
-        raise typer.Exit(exc.exit_code) from None
+    text = sweep_command(config, output, parse_set(set_), dry_run=dry_run, jobs=jobs, yes=yes, backend=backend,
+                         scheduler=scheduler, resume=resume, progress=not quiet, keep_parts=keep_parts,
+                         log=lambda line: typer.echo(line, err=True))  # fmt: skip
     typer.echo(text)
 
 
@@ -219,7 +221,7 @@ def sweep(
 def scan(
     config: Path = typer.Argument(..., help="Scan YAML: probe/operation/numerics/extract plus 'scan:' and 'sample:'."),
     output: Optional[Path] = typer.Option(
-        None, "-o", "--output", help="Parquet table to write (default: results/<config name>.parquet)."
+        None, "-o", "--output", help="Parquet table to write (default: sweeps/<config name>.parquet, git-ignored)."
     ),
     jobs: int = typer.Option(2, "--jobs", "-j", help="Parallel workers (processes), one core each; a line per job."),
     backend: str = typer.Option("loky", help="loky (local processes) or dask (a Dask cluster via joblib)."),
@@ -234,6 +236,7 @@ def scan(
     ),
     dry_run: bool = typer.Option(False, "--dry-run", help="Print the pixels, domains and a cost estimate, run nothing."),
     quiet: bool = typer.Option(False, "--quiet", "-q", help="No progress bar."),
+    keep_parts: bool = typer.Option(False, "--keep-parts", help="Keep <output>.parts/ after success."),
 ):
     """Image a heterogeneous sample as a tapping-mode AFM does: scan it line by line, pixel by
     pixel (the cantilever and the controller carry over, the surface under each pixel starts
@@ -241,17 +244,16 @@ def scan(
     row per pixel, method and force source: x, y, height_true, topography, amplitude,
     phase_deg, e_diss_ev, ..., each estimate with _theory and _err_pct, status, error) plus
     <name>.config.yaml and <name>.summary.md (per-domain medians against the truth, apparent
-    heights, edge-artefact widths).  A killed scan run again computes only the missing lines.
+    heights, edge-artefact widths).  A killed scan run again computes only the missing lines;
+    Ctrl-C, SIGTERM and SIGHUP stop it as they stop a sweep, a second scan on the same output
+    exits at once, and the parts folder is removed after success.
     """
-    from .scan.run import ScanInterrupted, scan_command
+    from .scan.run import scan_command
     from .simulation.config import parse_set
 
-    try:
-        text = scan_command(config, output, parse_set(set_), dry_run=dry_run, jobs=jobs, backend=backend,
-                            scheduler=scheduler, resume=resume, progress=not quiet)  # fmt: skip
-    except ScanInterrupted as exc:
-        typer.echo(str(exc), err=True)
-        raise typer.Exit(130) from None
+    text = scan_command(config, output, parse_set(set_), dry_run=dry_run, jobs=jobs, backend=backend,
+                        scheduler=scheduler, resume=resume, progress=not quiet, keep_parts=keep_parts,
+                        log=lambda line: typer.echo(line, err=True))  # fmt: skip
     typer.echo(text)
 
 
@@ -332,20 +334,20 @@ def extract(
     ),
     arms: Optional[int] = typer.Option(
         None, "--arms", help="--method full: Maxwell arms to fit (1 = SLS, 2+ = Wiechert); default: the file's surface, "
-        "else 1.", callback=checked("an integer >= 1", lambda v: v >= 1),
+        "else 1.", callback=checked(f"an integer in 1..{MAX_ARMS}", lambda v: 1 <= v <= MAX_ARMS),
     ),
     hamaker: Optional[float] = typer.Option(
         None, "--hamaker", help="--method full: Hamaker constant H, J (fixes H R; default: metadata, else H R fitted).",
-        callback=checked("a Hamaker constant > 0 J", lambda v: v > 0),
+        callback=checked(limit("surface.hamaker", "a Hamaker constant")[1], limit("surface.hamaker", "")[0]),
     ),
     tip_radius: Optional[float] = typer.Option(
         None, "--tip-radius", help="--method full: tip radius R, m (default: metadata, else 10 nm assumed).",
-        callback=checked("a radius > 0 m", lambda v: v > 0),
+        callback=checked(limit("probe.tip_radius", "a radius")[1], limit("probe.tip_radius", "")[0]),
     ),
     a0: Optional[float] = typer.Option(
         None, "--a0", help="Intermolecular distance a0, m (default: the metadata's): Z1 = a0 (thesis eq. 84) for a "
         "record without approach segment, z_tip measured from the undeformed surface; --method full fits with it "
-        "(else 0.2 nm assumed).", callback=checked("a distance > 0 m", lambda v: v > 0),
+        "(else 0.2 nm assumed).", callback=checked(limit("surface.a0", "a distance")[1], limit("surface.a0", "")[0]),
     ),
     vdw_on_surface: Optional[bool] = typer.Option(
         None, "--vdw-on-surface/--no-vdw-on-surface",
@@ -380,6 +382,10 @@ def extract(
         None, "--fit-range", help="--method dmt-fit: LOW,HIGH fractions of the peak-to-adhesion force fitted on the "
         "unloading branch (default 0.3,0.9).",
     ),
+    option: Optional[List[str]] = typer.Option(
+        None, "--option", help="A method option, key=value (repeatable), as the method declares it (name, type, unit): "
+        "e.g. --option arms=2 --option state=free for --method full; an unknown one lists the method's options.",
+    ),
 ):  # fmt: skip
     """Extract k0, k_inf, cd (and tau_c, Kg, Kr, tau_r) from a run with VETICA
     or another registered method (--method; full fits the SLS or Wiechert surface
@@ -402,21 +408,27 @@ def extract(
     from .extraction.format import format_table, to_json
     from .extraction.material import parse_contact
 
-    given = {"arms": arms, "hamaker": hamaker, "tip_radius": tip_radius}
-    opts = {k: v for k, v in given.items() if v is not None}
-    if prestress is not None:
-        opts["prestress"] = prestress
-    lock_in = {"free_amplitude": free_amplitude, "k1": k1, "q1": q1, "drive_frequency": drive_frequency,
-               "drive_t0": drive_t0}  # fmt: skip  (--f1 reaches observables as the record's f1)
-    opts.update({k: v for k, v in lock_in.items() if v is not None})
+    from .extraction import METHODS, RecordInputs
+    from .simulation.config import parse_set
+
+    inputs = RecordInputs.of(locals(), {"cutoff_hz": "cutoff"})
+    if method not in METHODS:
+        raise InputError(f"--method {method!r} is not allowed; choose one of: {', '.join(METHODS)}")
+    flags = {"arms": arms, "hamaker": hamaker, "tip_radius": tip_radius, "prestress": prestress,  # the options' own flags
+             "free_amplitude": free_amplitude, "k1": k1, "q1": q1, "drive_frequency": drive_frequency,
+             "drive_t0": drive_t0}  # fmt: skip  (--f1 reaches observables as the record's f1)
+    opts = {"kg_points": kg_points, **{k: v for k, v in flags.items() if v is not None}}
     if fit_range is not None:
         lo_hi = _numbers("--fit-range", fit_range)
         if len(lo_hi) != 2:
             raise InputError(f"--fit-range {fit_range!r} is not allowed; expected LOW,HIGH (two fractions)")
         opts["fit_low"], opts["fit_high"] = lo_hi
-    res = extract_file(run, force=force, method=method, kg_points=kg_points, k2=k2, f2=f2, q2=q2, z1=z1, f1=f1,
-                       cutoff_hz=cutoff, a0=a0, vdw_on_surface=vdw_on_surface, contact=parse_contact(contact),
-                       **opts)  # fmt: skip
+    given = METHODS[method].parse_options(parse_set(option, "--option"))
+    both = sorted(set(given) & {k for k, v in opts.items() if k != "kg_points"})
+    if both:
+        raise InputError(f"--option {both[0]} and --{both[0].replace('_', '-')} both given; give one of them")
+    res = extract_file(run, force=force, method=method, inputs=inputs, contact=parse_contact(contact),
+                       **{**opts, **given})  # fmt: skip
     typer.echo(json.dumps(to_json(res), allow_nan=False) if json_out else format_table(res, run))
 
 
@@ -484,8 +496,8 @@ def advise(
     from .extraction.material import parse_contact
     from .plots.advise import write_advice_figure
     from .simulation.config import parse_set
-    from .study.advise import advice_json, contact_for, format_advice, material_from
-    from .study.advise import advise as run_advice
+    from .advise import advice_json, contact_for, format_advice, material_from
+    from .advise import advise as run_advice
 
     overrides = parse_set(set_)
     cm = contact_for(overrides, parse_contact(contact))
@@ -494,24 +506,29 @@ def advise(
                              _number("--tau-r", tau_r), _number("--depth", depth), cm)  # fmt: skip
     knobs = {"probe.f1": _numbers("--f1", f1), "operation.setpoint": _numbers("--setpoint", setpoint),
              "numerics.print_step": _numbers("--print-step", print_step), "probe.k2": _numbers("--k2", k2)}  # fmt: skip
-    from .errors import InputError
+    from .io import check_output_file, write_table
 
-    if output.suffix.lower() != ".png":
-        raise InputError(f"-o {str(output)!r}: the map is written as PNG; expected a .png path")
-    if table is not None and table.suffix.lower() != ".parquet":
-        raise InputError(f"--table {str(table)!r}: the table is written as Parquet; expected a .parquet path")
+    check_output_file(output, "-o", ".png")  # every output checked before the work (minutes)
+    if table is not None:
+        check_output_file(table, "--table", ".parquet")
     adv = run_advice(material, overrides, knobs, [m.strip() for m in methods.split(",") if m.strip()], force, jobs,
                      progress=not (quiet or json_out))  # fmt: skip
     figure = write_advice_figure(adv, output)
     if table is not None:
-        from .io import write_table
-
-        write_table(adv.table, table, advice_json(adv, figure))
+        try:
+            write_table(adv.table, table, advice_json(adv, figure))
+        except BaseException:  # nothing half-written: the figure goes with the table
+            Path(figure).unlink(missing_ok=True)
+            raise
     typer.echo(json.dumps(advice_json(adv, figure), allow_nan=False) if json_out else format_advice(adv, figure))
 
 
 def main():  # pragma: no cover - console script entry
-    app()
+    try:
+        app()
+    except KeyboardInterrupt:  # Ctrl-C while the modules load: nothing has been written
+        sys.stderr.write("interrupted before any output was written\n")
+        sys.exit(130)
 
 
 if __name__ == "__main__":  # pragma: no cover

@@ -49,6 +49,7 @@ import math
 import numpy as np
 from numba import njit
 
+from .sls import NEWTON_TOL, vdw_force  # noqa: F401 - NEWTON_TOL: re-exported
 from .coefficients import (
     A_ALPHA, A_G, A_K, A_KER, A_LIN, A_OMER,
     L_C00, L_C01, L_C10, L_C11, L_COS, L_H, L_K1BI, L_K1BR, L_K1I, L_K1R, L_K2BI, L_K2BR, L_K2I, L_K2R,
@@ -79,24 +80,7 @@ NR = 8
 ) = range(26)  # fmt: skip
 NO_BASE = O_XM
 
-NEWTON_TOL = 1e-4  # |guess error| above which vdw_force divides exactly
-
-
-@njit(cache=True, inline="always", fastmath={"contract"}, error_model="numpy")
-def vdw_force(d, fa_guess, hr6, ihr6):
-    """Van der Waals attraction ``Fa(d) = H R/(6 d^2)`` [N] (thesis eq. 3).
-
-    One Newton step for the reciprocal from the previous step's force
-    (``fa <- fa (2 - d^2 fa 6/(H R))``): accurate to the square of the guess
-    error, <= 1e-8 relative when the guess is within NEWTON_TOL, else the
-    exact division.  Keeps a division off the fine loop's critical path.
-    """
-    dd = d * d
-    tn = 2.0 - dd * (fa_guess * ihr6)
-    fa = fa_guess * tn
-    if abs(tn - 1.0) > NEWTON_TOL:
-        fa = hr6 / dd
-    return fa
+# the van der Waals force and its Newton tolerance are the surface module's (one definition: .sls)
 
 
 @njit(cache=True)

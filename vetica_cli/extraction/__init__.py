@@ -13,6 +13,8 @@ its module and one import line below.
 
 from __future__ import annotations
 
+from dataclasses import asdict, replace
+
 from ..errors import InputError
 from ..io import read_table
 from .base import DEFAULT_METHOD, METHODS, ExtractionMethod, get, register
@@ -27,7 +29,7 @@ from . import dmt_fit as _dmt_fit  # noqa: F401  (registers 'dmt-fit')
 
 # isort: on
 from .material import ContactModel, contact_metadata, contact_model, material_entries, tap_contact
-from .record import FORCES, SOURCES, Record, build_record
+from .record import FORCES, RECORD_KEYS, SOURCES, Record, RecordInputs, build_record
 from .result import Estimate, ExtractionResult, Spread
 
 
@@ -37,41 +39,33 @@ def extract(
     force: str = "auto",
     method: str = DEFAULT_METHOD,
     *,
-    k2: float | None = None,
-    f2: float | None = None,
-    q2: float | None = None,
-    z1: float | None = None,
-    f1: float | None = None,
-    cutoff_hz: float | None = None,
-    taper: float = 0.0,
-    a0: float | None = None,
-    vdw_on_surface: bool | None = None,
+    inputs: RecordInputs | None = None,
     contact: ContactModel | dict | None = None,
     **options,
 ) -> ExtractionResult:
     """Extract the surface from a run table with a registered ``method``.
 
     ``df`` and ``meta`` as :func:`~.record.build_record` takes them, with the
-    force source ``force`` ('auto', 'true', 'reconstructed'), the probe keywords
-    for data without metadata (``k2, f2, q2``), ``z1``, ``f1`` and the
-    reconstruction's low-pass ``cutoff_hz``/``taper``, the intermolecular distance ``a0``
-    and the surface pull ``vdw_on_surface`` (for Z1 on a record without approach or
-    metadata, :func:`~.record.z1_estimate`), and the ``contact`` model of the material
-    units (a :class:`~.material.ContactModel`, or overrides ``{key: value}`` of thesis
-    table 6; the tip radius defaults to the metadata's probe).  ``options`` are the
-    method's own (``kg_points`` for both; ``kr_guess`` for vetica; ``start``,
-    ``state``, ``fit_hamaker``, ... for full: ``METHODS[key].options_default``).
-    Theory values and errors are None when the metadata does not hold the
-    surface's parameters.  Raises InputError (one line) for a bad option,
-    missing columns, non-increasing time, no contact, too few taps or missing
-    probe parameters.
+    force source ``force`` ('auto', 'true', 'reconstructed'), what the user states
+    about the record (``inputs``, a :class:`~.record.RecordInputs`, or its fields as
+    keywords: the probe keywords for data without metadata ``k2, f2, q2``, ``z1``,
+    ``f1``, the reconstruction's low-pass ``cutoff_hz``/``taper``, the intermolecular
+    distance ``a0`` and the surface pull ``vdw_on_surface``), and the ``contact``
+    model of the material units (a :class:`~.material.ContactModel`, or overrides
+    ``{key: value}`` of thesis table 6; the tip radius defaults to the metadata's
+    probe).  The other keywords are the method's own options (``kg_points`` for both;
+    ``kr_guess`` for vetica; ``start``, ``state``, ``fit_hamaker``, ... for full:
+    ``METHODS[key].options_default``).  Theory values and errors are None when the
+    metadata does not hold the surface's parameters.  Raises InputError (one line) for
+    a bad option, missing columns, non-increasing time, no contact, too few taps or
+    missing probe parameters.
     """
-    kw = {"k2": k2, "f2": f2, "q2": q2, "z1": z1, "f1": f1, "cutoff_hz": cutoff_hz, "taper": taper, "a0": a0,
-          "vdw_on_surface": vdw_on_surface, "contact": contact}  # fmt: skip
-    return extract_many(df, meta, force, {method: options}, **kw)[method]
+    inputs = replace(inputs or RecordInputs(), **{k: options.pop(k) for k in RECORD_KEYS if k in options})
+    return extract_many(df, meta, force, {method: options}, inputs=inputs, contact=contact)[method]
 
 
-def extract_many(df, meta: dict | None, force: str, methods: dict, *, contact=None, **record_kw) -> dict:
+def extract_many(df, meta: dict | None, force: str, methods: dict, *, contact=None, inputs: RecordInputs | None = None,
+                 **record_kw) -> dict:  # fmt: skip
     """Several methods on one record: ``methods = {key: options}``; the record (and a
     reconstructed force) is built once, with the approach segment analysed when any method
     needs it and the time step checked when any needs a uniform one.  ``record_kw`` as
@@ -79,6 +73,7 @@ def extract_many(df, meta: dict | None, force: str, methods: dict, *, contact=No
     ``{key: ExtractionResult}`` in the order given (each with its material units)."""
     if force not in FORCES:
         raise InputError(f"force {force!r} not allowed; choose one of: {', '.join(FORCES)}")
+    record_kw = asdict(replace(inputs or RecordInputs(), **record_kw))
     ms = {key: get(key) for key in methods}
     # the constants the record takes (a0, the surface pull, f1) are options of a method that uses them too
     shared = {k: record_kw[k] for k in ("a0", "vdw_on_surface", "f1") if record_kw.get(k) is not None}
@@ -139,7 +134,9 @@ __all__ = [
     "Estimate",
     "ExtractionMethod",
     "ExtractionResult",
+    "RECORD_KEYS",
     "Record",
+    "RecordInputs",
     "Spread",
     "add_material",
     "build_record",

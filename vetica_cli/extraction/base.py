@@ -4,7 +4,9 @@ A method is one module (or package) under :mod:`vetica_cli.extraction` defining 
 subclass of :class:`ExtractionMethod` decorated with :func:`register`: it
 declares its ``key`` (the ``--method`` / ``extract.method`` value), a one-line
 description, the surface models it can extract, its options with their
-defaults, and ``run(record, options) -> ExtractionResult``.  The CLI's
+defaults, the options a user may set (:class:`Option`: name, type, unit, help; the
+CLI's ``extract --option key=value`` reads them), and ``run(record, options) ->
+ExtractionResult``.  The CLI's
 ``--method`` choices, the sweep's ``extract.method`` values and the table's
 ``method`` column all come from :data:`METHODS`.
 """
@@ -12,14 +14,37 @@ defaults, and ``run(record, options) -> ExtractionResult``.  The CLI's
 from __future__ import annotations
 
 from abc import ABC, abstractmethod
+from dataclasses import dataclass
 from typing import Any, ClassVar
 
 import numpy as np
 
-from ..errors import InputError
+from ..checks import Rule, check, coerce, load_yaml
+from ..errors import ConfigError, InputError
 from ..surfaces import Quantity, SurfaceModel
 from .record import Record
 from .result import ExtractionResult
+
+
+@dataclass(frozen=True)
+class Option:
+    """An option of a method a user may set: its name (a key of ``options_default``), type
+    ('int', 'float', 'bool', 'str'), unit ('' for none), one line of help and its rule."""
+
+    name: str
+    type: str
+    unit: str
+    help: str
+    rule: Rule | None = None
+
+    def parse(self, raw: Any) -> Any:
+        """A value (YAML scalar text, or already typed) coerced and checked; ConfigError (one line)."""
+        value = load_yaml(raw, f"--option {self.name}") if isinstance(raw, str) and self.type != "str" else raw
+        return check(f"--option {self.name}", raw, coerce(f"--option {self.name}", value, self.type), self.rule)
+
+
+KG_POINTS = Option("kg_points", "int", "", "samples of the contact's initial slope fitted for Kg (thesis 3.3.2)",
+                   (lambda v: 2 <= v <= 10_000, "an integer in 2..10000"))  # fmt: skip
 
 
 class ExtractionMethod(ABC):
@@ -35,6 +60,22 @@ class ExtractionMethod(ABC):
     surface_note: ClassVar[str] = ""  # why it extracts only its surface_models (for the refusal message)
     uniform_sampling: ClassVar[bool] = False  # needs a constant time step in the steady record
     seconds_per_point: ClassVar[float] = 1.0  # both force sources, 10 periods at 0.125 ns (dry-run estimate)
+    option_specs: ClassVar[tuple[Option, ...]] = (KG_POINTS,)  # the options a user may set (--option key=value)
+
+    def parse_options(self, given: dict) -> dict:
+        """``{name: raw value}`` (``--option key=value``) typed and checked by :attr:`option_specs`;
+        InputError (one line) naming the options the method takes."""
+        specs = {o.name: o for o in self.option_specs}
+        out = {}
+        for name, raw in given.items():
+            if name not in specs:
+                raise InputError(f"--option {name}: method {self.key!r} takes no such option; it takes: "
+                                 f"{', '.join(specs) or 'none'}")  # fmt: skip
+            try:
+                out[name] = specs[name].parse(raw)
+            except ConfigError as exc:
+                raise InputError(str(exc)) from None
+        return out
 
     def quantities(self, model: SurfaceModel) -> dict[str, Quantity]:
         """The quantities the method reports for a surface of ``model``, in table order."""

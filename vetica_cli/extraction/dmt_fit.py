@@ -68,7 +68,7 @@ QUANTITIES: dict[str, Quantity] = {
 THEORY_SOURCES = {
     "adhesion": "Fa(a0) = H R / (6 a0^2), thesis eq. 3 (surface hamaker, a0; probe tip_radius)",
     "e_dmt": "reduced storage modulus E*' at pi / contact time (models with moduli; none for springs)",
-    "k_dmt": "the surface's storage stiffness k' at pi / contact time (SPEC 14)",
+    "k_dmt": "the surface's storage stiffness k' at pi / contact time (the AM-AFM energy balance)",
     "e_diss_tap": "the simulator's exact sample dissipation per cycle (observable 'e_diss_ev')",
     "deformation": "the simulator's maximum penetration below the undeformed surface (observable 'max_penetration')",
 }

@@ -1,6 +1,6 @@
 """What an AM-AFM gives in tapping mode without a special probe: the amplitude and phase of
 the tip at the drive frequency, and the dissipated energy, virial and loss tangent that
-follow from them (SPEC 14; Cleveland et al. 1998, San Paulo & Garcia 2001, Proksch et al.
+follow from them (the AM-AFM energy balance; Cleveland et al. 1998, San Paulo & Garcia 2001, Proksch et al.
 2016).  Registered as extraction method ``observables``.
 
 From the record's ``t`` and ``z_tip`` over a whole number of drive periods (a lock-in at
@@ -24,7 +24,7 @@ The force is not used.
 
 Truth (when the metadata holds it): the simulator's exact amplitude, phase, sample
 dissipation ``-closed int F_ts dz_tip`` and virial ``<F_ts (z_tip - Zb)>``; for ``tan d_AM``
-the material's own ``k''/k'`` at the drive frequency (SPEC 14), with the surface's
+the material's own ``k''/k'`` at the drive frequency (the AM-AFM energy balance), with the surface's
 ``k', k'', tan delta`` at the drive frequency and at ``pi / contact time`` as references.
 
 Where the formulas and the simulator differ: they balance the drive's work against the
@@ -63,7 +63,7 @@ THEORY_SOURCES = {
     "phase_obs": "the simulator's phase (observable 'phase_deg')",
     "e_diss_obs": "the simulator's exact sample dissipation -closed int F_ts dz_tip (observable 'e_diss_ev')",
     "virial_obs": "the simulator's virial <F_ts (z_tip - Zb)> (observable 'virial_ev')",
-    "tan_delta_am": "the surface's own k''/k' at the drive frequency (SPEC 14)",
+    "tan_delta_am": "the surface's own k''/k' at the drive frequency (the AM-AFM energy balance)",
 }
 INPUTS = {  # option -> (CLI flag, unit, what it is)
     "free_amplitude": ("--free-amplitude", "m", "free amplitude A0 for the same drive"),
@@ -99,7 +99,7 @@ def first_harmonic(t: np.ndarray, z: np.ndarray, f_drive: float, t0: float = 0.0
 
 def am_observables(amp: float, phase_deg: float, a0: float, k1: float, q1: float, omega: float = 1.0) -> dict:
     """``E_diss`` [J per cycle], ``V_ts`` [J] and ``tan d_AM`` from amplitude [m], phase [deg],
-    free amplitude [m], ``k1`` [N/m], ``Q1`` and ``Omega = f_drive/f1`` (module docstring, SPEC 14)."""
+    free amplitude [m], ``k1`` [N/m], ``Q1`` and ``Omega = f_drive/f1`` (module docstring, the AM-AFM energy balance)."""
     phi = math.radians(phase_deg)
     e = math.pi * k1 * amp / q1 * (a0 * math.sin(phi) - omega * amp)
     v = k1 * amp / (2.0 * q1) * (q1 * amp * (1.0 - omega * omega) - a0 * math.cos(phi))
@@ -112,7 +112,7 @@ def instrument_inputs(record: Record, options: dict, names=tuple(INPUTS)) -> tup
     ``(values, sources)``.  InputError naming the flags of the missing ones."""
     probe, op = record.probe, record.params.get("operation") or {}
     meta = {"free_amplitude": op.get("free_amplitude"), "k1": probe.get("k1"), "q1": probe.get("q1"),
-            "f1": probe.get("f1"), "drive_frequency": probe.get("f1"),  # the simulator drives at f1 (SPEC 2)
+            "f1": probe.get("f1"), "drive_frequency": probe.get("f1"),  # the simulator drives at f1 (the probe model)
             "drive_t0": 0.0 if probe else None}  # fmt: skip  (its drive is cos(w1 t) on the record's time axis)
     values, sources = {}, {}
     for k in names:
@@ -151,11 +151,11 @@ def check_positive(opts: dict, names: dict) -> None:
 
 @register
 class Observables(ExtractionMethod):
-    """Amplitude and phase at the drive frequency, and E_diss, V_ts and tan d_AM from them (SPEC 14)."""
+    """Amplitude and phase at the drive frequency, and E_diss, V_ts and tan d_AM from them (the AM-AFM energy balance)."""
 
     key = "observables"
     description = ("the instrument's amplitude and phase, and E_diss, virial and loss tangent tan d_AM from them "
-                   "(SPEC 14)")  # fmt: skip
+                   "(the AM-AFM energy balance)")  # fmt: skip
     title = "AM-AFM observables (amplitude and phase)"
     options_default: ClassVar[dict[str, Any]] = {"kg_points": 10, **dict.fromkeys(INPUTS)}  # kg_points: not used
     needs_z1 = False

@@ -30,7 +30,7 @@ from __future__ import annotations
 
 import math
 import time
-from dataclasses import dataclass, field
+from dataclasses import astuple, dataclass, field, fields, replace
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -114,6 +114,40 @@ def column(df: pd.DataFrame, name: str, where: str) -> np.ndarray:
 def check_time(t: np.ndarray, where: str) -> None:
     if len(t) < 2 or not np.all(np.diff(t) > 0):
         raise InputError(f"time column 't' is not strictly increasing in {where}")
+
+
+# Plausible ranges of a tapping record in SI units: anything beyond is a record in other units
+# (nm, nN, us) or not a tapping record, refused with one line before any work
+MAX_TIME_STEP = 1e-4  # [s] a record sampled more coarsely (< 10 kHz) cannot resolve a tap (us at 50 kHz)
+MAX_POSITION = 1e-3  # [m] |z_tip|: tapping amplitudes and heights are nm to um
+MAX_FORCE = 1e-3  # [N] |f_ts|: tap forces are pN to uN
+JITTER = 1e-3  # relative deviation of a time step from the mean above which a record is not uniform
+
+
+def check_record(t: np.ndarray, z: np.ndarray, f: np.ndarray | None, meta: dict, where: str) -> None:
+    """InputError (one line) for a record that is not what an instrument in SI units records:
+    negative times, a time step over :data:`MAX_TIME_STEP`, a non-uniform time step (more than
+    :data:`JITTER` off the mean) unless the metadata declares ``time_sampling: nonuniform``,
+    positions beyond :data:`MAX_POSITION` or forces beyond :data:`MAX_FORCE` (lengths in nm,
+    forces in nN)."""
+    h = (t[-1] - t[0]) / (len(t) - 1)
+    if t[0] < 0:
+        raise InputError(f"time column 't' starts at {t[0]:.4g} s in {where}; expected times >= 0 s")
+    if h > MAX_TIME_STEP:
+        raise InputError(f"time column 't' steps {h:.4g} s in {where}; expected seconds with a step <= "
+                         f"{MAX_TIME_STEP:g} s (a tapping record samples at ns to us: is t in another unit?)")  # fmt: skip
+    if meta.get("time_sampling") != "nonuniform" and np.max(np.abs(np.diff(t) - h)) > JITTER * h:
+        raise InputError(f"time column 't' is not uniformly sampled in {where} (steps vary by more than {JITTER:g} of "
+                         "the mean); expected a constant step, or metadata time_sampling: nonuniform")  # fmt: skip
+    zmax = float(np.max(np.abs(z)))
+    if zmax > MAX_POSITION:
+        raise InputError(f"column 'z_tip' reaches {zmax:.4g} m in {where}; expected metres, |z_tip| <= "
+                         f"{MAX_POSITION:g} m (tapping records span nm to um: is it in nm?)")  # fmt: skip
+    if f is not None and len(f):
+        fmax = float(np.max(np.abs(f)))
+        if fmax > MAX_FORCE:
+            raise InputError(f"column 'f_ts' reaches {fmax:.4g} N in {where}; expected newtons, |f_ts| <= "
+                             f"{MAX_FORCE:g} N (tap forces are pN to uN: is it in nN?)")  # fmt: skip
 
 
 def resolve_force(df: pd.DataFrame, force: str) -> str:
@@ -301,6 +335,34 @@ def surface_of(params: dict) -> tuple[surfaces.SurfaceModel, dict | None]:
     return model, model.theory(surface)
 
 
+@dataclass(frozen=True)
+class RecordInputs:
+    """What a user states about a record beside the table (the record keywords, spelled here
+    once): the probe's paddle for data without metadata, Z1, the drive frequency, the force
+    reconstruction's low-pass, and the attraction constants for Z1 without an approach."""
+
+    k2: float | None = None  # [N/m] paddle stiffness
+    f2: float | None = None  # [Hz] paddle resonance
+    q2: float | None = None  # paddle quality factor
+    z1: float | None = None  # [m] undeformed-surface reference (tip position)
+    f1: float | None = None  # [Hz] drive frequency (labels the cut-off in harmonics)
+    cutoff_hz: float | None = None  # [Hz] low-pass of the force reconstruction (None: Nyquist)
+    taper: float = 0.0  # raised-cosine taper of the low-pass (fraction of the cut-off)
+    a0: float | None = None  # [m] intermolecular distance (Z1 = a0, thesis eq. 84)
+    vdw_on_surface: bool | None = None  # whether the surface feels the tip's pull
+
+    @classmethod
+    def of(cls, values: dict, aliases: dict | None = None) -> "RecordInputs":
+        """The record inputs among ``values`` (e.g. a command's options; ``aliases``: field ->
+        the name it has there, as the CLI's ``cutoff`` for ``cutoff_hz``)."""
+        aliases = aliases or {}
+        return cls(**{f.name: values[aliases.get(f.name, f.name)] for f in fields(cls)
+                      if aliases.get(f.name, f.name) in values and values[aliases.get(f.name, f.name)] is not None})  # fmt: skip
+
+
+RECORD_KEYS = tuple(f.name for f in fields(RecordInputs))  # the record keywords
+
+
 def build_record(
     df: pd.DataFrame,
     meta: dict | None = None,
@@ -309,15 +371,8 @@ def build_record(
     need_approach: bool = False,
     need_z1: bool = True,
     uniform: str | None = None,
-    k2: float | None = None,
-    f2: float | None = None,
-    q2: float | None = None,
-    z1: float | None = None,
-    f1: float | None = None,
-    cutoff_hz: float | None = None,
-    taper: float = 0.0,
-    a0: float | None = None,
-    vdw_on_surface: bool | None = None,
+    inputs: RecordInputs | None = None,
+    **keywords,
 ) -> Record:
     """Check a run table and prepare its steady record (module docstring).
 
@@ -331,8 +386,11 @@ def build_record(
     analyses the approach segment even when ``z1`` is given; without ``need_z1`` a record
     with no way to Z1 gets ``z1 = None`` instead of an error.  ``uniform``: the name
     of a method that needs a constant time step (checked before the force is
-    built).  ``f1`` (drive frequency, Hz) only labels the cut-off in harmonics.
+    built).  ``f1`` (drive frequency, Hz) only labels the cut-off in harmonics.  The
+    record keywords come as ``inputs`` (:class:`RecordInputs`) or as keywords.
     """
+    inputs = replace(inputs or RecordInputs(), **keywords)  # TypeError for an unknown keyword, as before
+    k2, f2, q2, z1, f1, cutoff_hz, taper, a0, vdw_on_surface = astuple(inputs)
     meta = meta or {}
     force = resolve_force(df, force)
     t_start = time.perf_counter()
@@ -341,6 +399,8 @@ def build_record(
     t = column(steady, "t", "the steady record")
     check_time(t, "the steady record")
     z = column(steady, "z_tip", "the steady record")
+    check_record(t, z, column(steady, "f_ts", "the steady record") if force == "true" else None, meta,
+                 "the steady record")
     if z1 is not None and not (math.isfinite(z1) and z.min() <= z1 <= z.max()):
         raise InputError(
             f"--z1 {z1!r} is not allowed for this record; expected a tip position within its z_tip range "

@@ -52,7 +52,7 @@ import numpy as np
 
 from ..errors import InputError
 from ..signals.taps import Taps, contact_slopes, find_taps
-from .base import ExtractionMethod, register
+from .base import KG_POINTS, ExtractionMethod, Option, register
 from .record import Record
 from .result import ExtractionResult, Spread, estimates
 
@@ -506,6 +506,8 @@ class Vetica(ExtractionMethod):
     surface_models = ("sls",)
     surface_note = "VETICA assumes one relaxation time (thesis 3.3)"
     options_default: ClassVar[dict[str, Any]] = {"kg_points": 10, "kr_guess": None}
+    option_specs = (KG_POINTS, Option("kr_guess", "float", "N/m", "start of the rubbery stiffness Kr in the "
+                                      "superposition fit (default: from the creep)", (lambda v: v > 0, "a stiffness > 0 N/m")))  # fmt: skip
     seconds_per_point = 1.4  # 0.6 s (true force) + 0.8 s (reconstructed), 10 periods at 0.125 ns, 2 cores
 
     def run(self, record: Record, options: dict) -> ExtractionResult:

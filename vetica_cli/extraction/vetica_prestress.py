@@ -60,9 +60,10 @@ from typing import Any, ClassVar
 
 import numpy as np
 
+from ..checks import one_of
 from ..errors import InputError
 from ..signals.taps import Taps, find_taps
-from .base import ExtractionMethod, register
+from .base import KG_POINTS, ExtractionMethod, Option, get, register
 from .record import Record
 from .result import ExtractionResult, Spread, estimates
 from .vetica import (
@@ -292,6 +293,8 @@ class VeticaPrestress(ExtractionMethod):
     title = "VETICA with pre-stress"
     surface_models = ("sls",)
     options_default: ClassVar[dict[str, Any]] = {"kg_points": 10, "kr_guess": None, "prestress": "auto"}
+    option_specs = (*get("vetica").option_specs,
+                    Option("prestress", "str", "", "how the Maxwell arm's pre-stress at contact is found", one_of(*PRESTRESS)))  # fmt: skip
     seconds_per_point = 2.0
 
     def options(self, given: dict) -> dict:

@@ -69,7 +69,8 @@ def plot(path: str | Path, outdir: str | Path | None = None, cutoff_hz: float | 
     reconstruction and tip velocity; None = Nyquist, as ``vetica extract``).  Files are named
     ``<table stem>_<figure>.png``, so several studies can share one folder.
     The input is read and checked completely before any file is written;
-    each PNG is written to a temporary file and renamed into place.
+    each PNG is written to a temporary file and renamed into place, and when one cannot
+    be written (a full disk) the ones this call wrote are removed.
     Raises InputError (one line) for a missing, corrupt or non-vetica file.
     """
     path = Path(path)
@@ -85,8 +86,13 @@ def plot(path: str | Path, outdir: str | Path | None = None, cutoff_hz: float | 
     else:
         figures, notes = sweep_figures(df, meta)
     result = PlotResult(notes=notes)
-    for name, fig in figures:
-        result.paths.append(save_png(fig, outdir / f"{path.stem}_{name}.png"))
+    try:
+        for name, fig in figures:
+            result.paths.append(save_png(fig, outdir / f"{path.stem}_{name}.png"))
+    except BaseException:  # a full disk, Ctrl-C: no figure set half-written, nothing left of this call
+        for written in result.paths:
+            Path(written).unlink(missing_ok=True)
+        raise
     return result
 
 

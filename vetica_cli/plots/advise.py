@@ -16,7 +16,7 @@ from pathlib import Path
 import numpy as np
 
 from ..study.acceptance import ACCEPT_ERR_PCT
-from ..study.advise import PARAM_LIMIT_PCT, Advice
+from ..advise import PARAM_LIMIT_PCT, Advice
 from .style import new_figure, save_png
 
 SCORE_LIMITS = (-1.0, 1.0)  # colour scale of the score (clipped)

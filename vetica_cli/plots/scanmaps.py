@@ -129,7 +129,7 @@ def own_quantities(g: pd.DataFrame) -> list[str]:
     return [q for q in estimate_names(g) if q not in models and g[q].notna().any()]
 
 
-# the instrument's maps beside VETICA's (issue 20): (method, quantity) drawn when the table has them
+# the instrument's maps beside VETICA's: (method, quantity) drawn when the table has them
 INSTRUMENT_MAPS = (("vetica", "tau_c"), ("observables", "tan_delta_am"), ("dmt-fit", "e_dmt"), ("dmt-fit", "k_dmt"))
 TRUTH_TITLES = {"tan_delta_am": r"truth: the surface's $\tan\delta$ at $f_{drive}$",
                 "k_dmt": r"truth: the surface's $k'$ at $\pi/t_c$"}  # fmt: skip
@@ -220,7 +220,7 @@ def fig_properties(geo: ScanGeometry, g: pd.DataFrame, title: str) -> Figure:
 
 
 def fig_instrument(geo: ScanGeometry, rows: pd.DataFrame, title: str) -> Figure | None:
-    """The instrument's maps beside VETICA's for one pass (issue 20): VETICA's tau_c, the loss
+    """The instrument's maps beside VETICA's for one pass: VETICA's tau_c, the loss
     tangent tan d_AM from amplitude and phase, the per-tap DMT modulus and unloading stiffness
     (top: extracted, first force source; bottom: the truth -- tau_c, the surface's tan delta at
     the drive frequency, k' at pi / contact time; none for E* of a spring surface).  None when

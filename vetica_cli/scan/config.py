@@ -48,10 +48,11 @@ from typing import Any
 
 import yaml
 
+from ..checks import finite
 from ..errors import ConfigError
 from ..extraction import DEFAULT_METHOD, METHODS
 from ..simulation.config import Config, from_dict, read_yaml
-from ..study.grid import EXTRACT_SECTION, META_KEYS, extract_section
+from ..rows.extract import EXTRACT_SECTION, META_KEYS, extract_section
 from ..surfaces import COMMON_KEYS, DEFAULT_MODEL
 from .sample import SHAPES, Feature, Raster, Sample
 
@@ -123,14 +124,7 @@ class ScanConfig:
 
 
 def _num(key: str, v: Any, rule=None, allowed: str = "a finite number") -> float:
-    if isinstance(v, str):
-        try:
-            v = float(v)
-        except ValueError:
-            pass
-    if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v) or (rule and not rule(v)):
-        raise ConfigError(f"{key}: {v!r} is not allowed; expected {allowed}")
-    return float(v)
+    return finite(key, v, (rule, allowed) if rule else None, allowed)
 
 
 def _pair(key: str, v: Any, rule=None, allowed: str = "finite numbers") -> tuple[float, float]:
@@ -284,7 +278,13 @@ def _check_cross(point: Config, spec: ScanSpec, sample: Sample) -> None:
                 f"drive periods ({need * period:.3g} s): the first-contact window and the recorded periods"
             )
     amp = point.operation.free_amplitude
+    r = spec.raster
     for i, f in enumerate(sample.features):
+        x0, y0, x1, y1 = f.bounds()
+        if x1 <= 0 or y1 <= 0 or x0 >= r.size_x or y0 >= r.size_y:
+            raise ConfigError(f"sample.features.{i}: {f.shape} over x {x0:g}..{x1:g} m, y {y0:g}..{y1:g} m is not "
+                              f"allowed; expected a feature that overlaps the scan area 0..{r.size_x:g} x "
+                              f"0..{r.size_y:g} m (scan.size)")  # fmt: skip
         if abs(f.height - sample.height) >= amp:
             raise ConfigError(
                 f"sample.features.{i}.height: {f.height!r} is not allowed; expected within the free amplitude "

@@ -1,9 +1,9 @@
 """One scan line as a job: drive the kernel along the line (:mod:`.pixel`) and extract every
 pixel with every method, giving the line's rows of the scan table (:mod:`.table`).
 
-:class:`LineTask` is what a launcher runs (:mod:`vetica_cli.study.launch`): a module-level,
+:class:`LineTask` is what a launcher runs (:mod:`vetica_cli.batch.launch`): a module-level,
 picklable callable; its extraction function is injected (``LineTask(extract=fake)``) as
-the sweep's :class:`~vetica_cli.study.task.PointTask`'s is, whose row building it reuses
+the sweep's :class:`~vetica_cli.rows.task.PointTask`'s is, whose row building it reuses
 (the estimates, their theory values and signed errors, the observables, ``status`` and
 ``error``; and whatever columns that row building grows).
 """
@@ -16,7 +16,7 @@ from collections.abc import Callable
 from dataclasses import dataclass
 
 from ..simulation.config import Config
-from ..study.task import PointTask, extract_point, failed_rows
+from ..rows.task import PointTask, extract_point, failed_rows
 from .config import Pass, ScanConfig, build
 from .pixel import LineDriver
 from .sample import paint
@@ -54,7 +54,7 @@ def pixel_columns(cfg: ScanConfig, p: Pass, iy: int, ix: int, domain: int, heigh
 @dataclass(frozen=True)
 class LineTask:
     """Scan one line and extract its pixels (module docstring).  ``extract(df, meta, force,
-    method) -> ExtractionResult`` defaults to the sweep's (:func:`vetica_cli.study.task.extract_point`)."""
+    method) -> ExtractionResult`` defaults to the sweep's (:func:`vetica_cli.rows.task.extract_point`)."""
 
     extract: Callable = extract_point
 

@@ -65,7 +65,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..core import engine
+from ..core import engine, session
 from ..core import tapping as T
 from ..simulation.config import Config
 from ..simulation.instrument import apply_instrument
@@ -103,7 +103,7 @@ def first_contact_window(kern: engine.Kernel, s, ctrl: engine.Controller, n_ring
     Returns ``(samples in time order, periods run, time and tip position of the first
     contact)``; without a contact within ``max_periods`` the samples hold no contact."""
     ring = np.zeros((max(n_ring, 2), 7 + kern.n_arms))
-    rec = T.new_recorder(stride=kern.setup.stride, origin=int(s[T.S_IDX]), ring=True, active=True)
+    rec = T.new_recorder(stride=kern.setup.stride, origin=session.step_index(s), ring=True, active=True)
     k = 0
     t_fc = z_fc = math.nan
     while rec[T.R_ACTIVE] and k < max_periods:
@@ -159,11 +159,7 @@ class LineDriver:
         """Put the tip over a fresh pixel of material ``m`` and height ``h``: the probe state
         and ``B`` carry over, ``Zb = B - h``, the surface is undeformed and out of contact."""
         kern = self.kernel(m)
-        s = np.zeros(T.S_XD + kern.n_arms)
-        s[: T.S_XD] = self.s[: T.S_XD]
-        s[T.S_ZB] = self.base - h
-        s[T.S_CONTACT] = 0.0
-        self.s = s
+        self.s = session.enter(self.s, kern.n_arms, self.base - h)
         return kern
 
     def _periods(self, kern, n: int) -> None:
@@ -194,7 +190,7 @@ class LineDriver:
         steps = round(phi / (2.0 * math.pi) * kern.nt) % kern.nt
         if steps:
             kern.advance(self.s, n_steps=steps, zb_step=self.ctrl.zb_step)
-        self.base = float(self.s[T.S_ZB]) + h
+        self.base = session.base(self.s) + h
         return {"approach_periods": ap.periods, "t_first_contact": ap.t_first_contact, "phase_steps": steps,
                 "lead_in_orbit": res.converged}  # fmt: skip
 
@@ -211,8 +207,8 @@ class LineDriver:
         self.ctrl.zb_step = held
         stop = "steady" if win.proven else PIXEL_TIME_STOP
         info = self._info(kern, p0, k, t_fc, z_fc, win, "transient")
-        self.base = float(self.s[T.S_ZB]) + h
-        return PixelRecord(ring, win, stop, float(win.states[0][T.S_ZB]) + h, info, [], time.perf_counter() - t0)
+        self.base = session.base(self.s) + h
+        return PixelRecord(ring, win, stop, session.base(win.states[0]) + h, info, [], time.perf_counter() - t0)
 
     def orbit(self, m: int, h: float) -> PixelRecord:
         """A pixel at its periodic orbit (the first-contact window, then the orbit solver;
@@ -243,8 +239,8 @@ class LineDriver:
             win = engine.transient(kern, self.s, self.ctrl, sp, left, False)
             stop = "steady (transient fallback)" if win.proven else "max_time (orbit solver failed)"
         info = self._info(kern, p0, k, t_fc, z_fc, win, "orbit", orbit)
-        base = float(win.states[0][T.S_ZB]) + h
-        self.base = float(self.s[T.S_ZB]) + h
+        base = session.base(win.states[0]) + h
+        self.base = session.base(self.s) + h
         return PixelRecord(ring, win, stop, base, info, warnings, time.perf_counter() - t0)
 
     def _info(self, kern, p0, k, t_fc, z_fc, win, method, orbit=None) -> dict:

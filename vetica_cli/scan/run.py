@@ -7,15 +7,20 @@ The path of a scan, one way through:
 2. the zero of the measured topography is the base height of the background's own
    periodic orbit (:func:`.pixel.reference_base`, one solve in this process);
 3. every line of every pass is a job (:class:`.line.LineItem`) named by a hash of what
-   it computes (:func:`line_key`); lines persisted in ``<output>.parts/`` by an earlier
-   run with the same code are reused (a killed scan resumes by line, like a sweep);
-4. a launcher (:mod:`vetica_cli.study.launch`: serial, loky, dask) runs the task
-   (:class:`.line.LineTask`, passed in) over the missing lines; each finished line is
-   written at once as a part;
+   it computes (:func:`line_key`);
+4. the batch layer (:func:`vetica_cli.batch.run.run_batch`, as a sweep's) checks every
+   output path first, locks the output, reuses the lines persisted in ``<output>.parts/``
+   by an earlier run with the same code (a killed scan resumes by line), runs the task
+   (:class:`.line.LineTask`, passed in) over the missing lines on a launcher (serial,
+   loky, dask), writes each finished line at once as a part, and handles Ctrl-C,
+   SIGTERM and SIGHUP as a sweep does;
 5. the table (:mod:`.table`) is written atomically with the units, the resolved config,
    the sample's geometry and the topography's zero in its metadata, the config as
    ``<output stem>.config.yaml`` and the measures (:mod:`.analysis`) as
-   ``<output stem>.summary.md``.
+   ``<output stem>.summary.md``; the parts folder is then removed.
+
+Without ``-o`` the table goes to the git-ignored ``sweeps/`` folder, never over a
+committed table.
 """
 
 from __future__ import annotations
@@ -30,12 +35,13 @@ from pathlib import Path
 import pandas as pd
 
 from .. import __version__
-from ..errors import InputError
-from ..io import read_table, write_table, write_text
-from ..study.launch import Launcher, make_launcher
-from ..study.progress import Progress
-from ..study.schema import STATUSES
-from ..study.store import code_fingerprint, part_path, parts_dir
+from ..batch.launch import Launcher, check_launcher_options
+from ..batch.parts import code_fingerprint, parts_dir
+from ..batch.run import Bar, BatchInterrupted, Job, check_batch_output, default_output, run_batch, sidecar
+from ..batch.run import signals_as_interrupt
+from ..io import write_table, write_text
+from ..rows.schema import STATUSES
+from ..simulation.jit import compile_notice
 from .analysis import summary_markdown
 from .config import ScanConfig, dump, load_scan
 from .line import LineItem, LineTask
@@ -58,6 +64,8 @@ class ScanResult:
     computed: list = field(default_factory=list)  # line keys computed in this call
     reused: list = field(default_factory=list)  # line keys read from parts
     wall_s: float = 0.0
+    parts_kept: bool = False
+    notes: list = field(default_factory=list)
 
 
 def line_key(cfg: ScanConfig, smap, steady: str, pixel_time: float, iy: int, zb_ref: float) -> str:
@@ -75,19 +83,6 @@ def line_key(cfg: ScanConfig, smap, steady: str, pixel_time: float, iy: int, zb_
     return hashlib.sha256(json.dumps(blob, sort_keys=True).encode()).hexdigest()[:16]
 
 
-def read_line(path: Path, key: str, fingerprint: str) -> pd.DataFrame | None:
-    """A persisted line, or None when absent, unreadable or made by other code."""
-    if not path.is_file():
-        return None
-    try:
-        df, meta = read_table(path)
-    except InputError:
-        return None
-    if meta.get("line") != key or meta.get("code") != fingerprint:
-        return None
-    return df
-
-
 def _items(cfg: ScanConfig, smap, zb_ref: float) -> list[LineItem]:
     return [LineItem(line_key(cfg, smap, p.steady, p.pixel_time, iy, zb_ref), cfg.resolved, p.steady, p.pixel_time,
                      iy, zb_ref)
@@ -99,77 +94,61 @@ def failed_pixels(df: pd.DataFrame) -> int:
     return int(df.loc[df["status"] == "failed", "ix"].nunique()) if len(df) else 0
 
 
+SIDECARS = (".config.yaml", ".summary.md")  # written beside the table
+
+
+def check_scan_output(output: str | Path) -> Path:
+    """Every path a scan on ``output`` writes, checked before any work (InputError, one line)."""
+    return check_batch_output(output, SIDECARS)
+
+
 def run_scan(cfg: ScanConfig, output: str | Path, jobs: int = 2, backend: str = "loky", scheduler: str | None = None,
              resume: bool = True, progress: bool = True, console=None, task: LineTask | None = None,
-             launcher: Launcher | None = None) -> ScanResult:  # fmt: skip
+             launcher: Launcher | None = None, keep_parts: bool = False, log=None,
+             notice: str | None = None) -> ScanResult:  # fmt: skip
     """Scan every missing line of ``cfg`` (module docstring), then write the table.
 
     ``task``: the job function (default :class:`.line.LineTask`: the real simulation and
     extraction); ``launcher``: where (default from ``backend``, ``jobs``, ``scheduler``;
-    a given launcher is not closed here)."""
+    a given launcher is not closed here); ``keep_parts`` keeps ``<output>.parts/`` after
+    success; ``log(line)`` receives notes.  Raises :class:`ScanInterrupted` on Ctrl-C,
+    SIGTERM or SIGHUP (under :func:`vetica_cli.batch.run.signals_as_interrupt`)."""
     t_start = time.perf_counter()
-    output = Path(output)
-    if output.suffix.lower() != ".parquet":
-        raise InputError(f"-o {str(output)!r}: the table is written as Parquet; expected a .parquet path")
-    own = launcher is None
-    launcher = make_launcher(backend, jobs, scheduler) if own else launcher
-    try:
-        smap = paint(cfg.sample, cfg.scan.raster)
-        zb_ref, zb_stop = reference_base(cfg.material_config(cfg.sample.background, "orbit"))
-        items = _items(cfg, smap, zb_ref)
-        done, computed, reused = _run_lines(items, output, launcher, task or LineTask(), resume, progress, console,
-                                            cfg.scan.raster.nx)  # fmt: skip
-    finally:
-        if own:
-            launcher.close()
-    table = assemble(cfg, [done[it.key] for it in items])
-    meta = scan_meta(cfg, smap, zb_ref, zb_stop)
-    meta["wall_s"] = time.perf_counter() - t_start
-    meta["lines"] = {"total": len(items), "computed": len(computed), "reused": len(reused)}
-    write_table(table, output, meta)
-    config_path = output.with_name(output.stem + ".config.yaml")
-    write_text(config_path, dump(cfg))
-    summary_path = output.with_name(output.stem + ".summary.md")
-    write_text(summary_path, f"# {cfg.name}: scan summary\n\n" + summary_markdown(table, meta) + "\n")
-    return ScanResult(table, meta, output, config_path, summary_path, computed, reused, time.perf_counter() - t_start)
-
-
-def _run_lines(items, output, launcher, task, resume, progress, console, nx):
-    """Run the missing lines, persisting each as it finishes.  Returns ``(done: key -> rows
-    frame, keys computed now, keys read from parts)``."""
-    pdir = parts_dir(output)
+    output = check_scan_output(output)
+    smap = paint(cfg.sample, cfg.scan.raster)
+    zb_ref, zb_stop = reference_base(cfg.material_config(cfg.sample.background, "orbit"))
+    items = _items(cfg, smap, zb_ref)
+    nx = cfg.scan.raster.nx
     fp = code_fingerprint(SCAN_ROOTS)
-    done: dict[str, pd.DataFrame] = {}
-    if resume:
-        for it in items:
-            df = read_line(part_path(pdir, it.key), it.key, fp)
-            if df is not None:
-                done[it.key] = df
-    reused = list(done)
-    todo = [it for it in items if it.key not in done]
-    pdir.mkdir(parents=True, exist_ok=True)
-    for stale in pdir.glob(".*.tmp"):  # temporaries of a killed write
-        stale.unlink(missing_ok=True)
-    computed: list[str] = []
-    failed = sum(failed_pixels(df) for df in done.values())
-    bar = Progress(len(items) * nx, len(done) * nx, failed, enabled=progress, console=console, name="scan",
-                   unit="pixels", groups=(len(done), len(items), "lines"))  # fmt: skip
 
-    def on_result(i: int, res) -> None:
-        nonlocal failed
-        it = todo[i]
-        df = pd.DataFrame(res.rows)
-        write_table(df, part_path(pdir, it.key), {"line": it.key, "code": fp, "iy": it.iy, "steady": it.steady,
-                                                  "pixel_time": None if math.isnan(it.pixel_time) else it.pixel_time,
-                                                  "wall_s": res.wall_s})  # fmt: skip
-        done[it.key] = df
-        computed.append(it.key)
-        failed += failed_pixels(df)
-        bar.advance(res.pixels, failed, 1)
+    def split(job: Job, res) -> list:
+        it = job.arg
+        meta = {"iy": it.iy, "steady": it.steady, "pixel_time": None if math.isnan(it.pixel_time) else it.pixel_time,
+                "wall_s": res.wall_s}  # fmt: skip
+        return [(it.key, pd.DataFrame(res.rows), meta)]
 
-    with bar:
-        launcher.launch(task, todo, on_result)
-    return done, computed, reused
+    def finish(done: dict) -> ScanResult:
+        table = assemble(cfg, [done[it.key] for it in items])
+        meta = scan_meta(cfg, smap, zb_ref, zb_stop)
+        meta["wall_s"] = time.perf_counter() - t_start
+        meta["lines"] = {"total": len(items)}
+        write_table(table, output, meta)
+        config_path = sidecar(output, ".config.yaml")
+        write_text(config_path, dump(cfg))
+        summary_path = sidecar(output, ".summary.md")
+        write_text(summary_path, f"# {cfg.name}: scan summary\n\n" + summary_markdown(table, meta) + "\n")
+        return ScanResult(table, meta, output, config_path, summary_path)
+
+    jobs_ = [Job(it, {it.key: it}) for it in items]
+    bar = Bar(name="scan", unit="pixels", count=lambda df: (nx, failed_pixels(df)), groups="lines",
+              total=len(items) * nx, estimate_s=scan_seconds(cfg) / max(1, jobs), notice=notice)  # fmt: skip
+    res, run = run_batch(output, jobs_, task or LineTask(), split, fingerprint=fp, finish=finish, bar=bar,
+                         backend=backend, n_jobs=jobs, scheduler=scheduler, launcher=launcher, resume=resume,
+                         progress=progress, console=console, keep_parts=keep_parts, log=log, what="lines")  # fmt: skip
+    res.computed, res.reused, res.wall_s = run.computed, run.reused, time.perf_counter() - t_start
+    res.meta["lines"].update(computed=len(run.computed), reused=len(run.reused))
+    res.parts_kept, res.notes = run.parts_kept, run.notes
+    return res
 
 
 def scan_meta(cfg: ScanConfig, smap, zb_ref: float, zb_stop: str) -> dict:
@@ -201,7 +180,7 @@ def scan_meta(cfg: ScanConfig, smap, zb_ref: float, zb_stop: str) -> dict:
             "zb_ref_stop_reason": zb_stop,
         },
         "config": cfg.resolved,
-        "units": column_units(cfg),
+        **column_units(cfg),
         "columns": columns(cfg),
         "version": __version__,
         "code": code_fingerprint(SCAN_ROOTS),
@@ -246,24 +225,32 @@ def dry_run_text(cfg: ScanConfig, output: Path, jobs: int) -> str:
     return "\n".join(lines)
 
 
-class ScanInterrupted(KeyboardInterrupt):
-    """Ctrl-C during a scan; the message says what is persisted and how to go on."""
+ScanInterrupted = BatchInterrupted  # Ctrl-C, SIGTERM or SIGHUP during a scan (message and exit code)
+DEFAULT_FOLDER = Path("sweeps")  # where `vetica scan CONFIG` writes without -o (git-ignored, as a sweep)
+
+
+def scan_seconds(cfg: ScanConfig) -> float:
+    """Estimated core-seconds of the whole scan (the dry run's measured costs)."""
+    r, period = cfg.scan.raster, 1.0 / cfg.point.probe.f1
+    total = 0.0
+    for p in cfg.scan.passes():
+        periods = round(p.pixel_time / period) if p.steady == "transient" else 40
+        total += (periods * SECONDS_PER_PERIOD + SECONDS_PER_RECORD * len(cfg.scan.methods)) * r.nx * r.ny
+    return total
 
 
 def scan_command(config: str | Path, output: str | Path | None = None, overrides: dict | None = None,
-                 dry_run: bool = False, jobs: int = 2, **run_kw) -> str:  # fmt: skip
-    """``vetica scan CONFIG``: load the scan (``overrides`` as dotted keys), then print its
-    plan and cost (``dry_run``) or run it (:func:`run_scan` keywords in ``run_kw``).
-    The table goes to ``output`` (default ``results/<config stem>.parquet``).  Raises
-    :class:`ScanInterrupted` on Ctrl-C."""
+                 dry_run: bool = False, jobs: int = 2, log=None, **run_kw) -> str:  # fmt: skip
+    """``vetica scan CONFIG``: load the scan (``overrides`` as dotted keys) and check every
+    output path, then print its plan and cost (``dry_run``) or run it (:func:`run_scan`
+    keywords in ``run_kw``).  The table goes to ``output`` (default
+    ``sweeps/<config stem>.parquet``, git-ignored).  Raises :class:`ScanInterrupted` on
+    Ctrl-C, SIGTERM or SIGHUP."""
     cfg = load_scan(config, overrides)
-    out = Path(output) if output is not None else Path("results") / f"{Path(config).stem}.parquet"
+    out = check_scan_output(Path(output) if output is not None else default_output(config, DEFAULT_FOLDER))
+    check_launcher_options(run_kw.get("backend", "loky"), jobs, run_kw.get("scheduler"))
     if dry_run:
         return dry_run_text(cfg, out, jobs)
-    try:
-        res = run_scan(cfg, out, jobs=jobs, **run_kw)
-    except KeyboardInterrupt:
-        n = len(list(parts_dir(out).glob("*.parquet")))
-        raise ScanInterrupted(f"interrupted: {n} lines are persisted in {parts_dir(out)}/; "
-                              "run the same command again to compute the rest") from None  # fmt: skip
+    with signals_as_interrupt():
+        res = run_scan(cfg, out, jobs=jobs, log=log, notice=compile_notice(), **run_kw)
     return summary(res)

@@ -49,6 +49,14 @@ class Feature:
         w, h = self.size
         return (x >= x0) & (x < x0 + w) & (y >= y0) & (y < y0 + h)
 
+    def bounds(self) -> tuple[float, float, float, float]:
+        """``(x0, y0, x1, y1)`` [m]: the feature's bounding box."""
+        if self.shape == "disk":
+            (cx, cy), r = self.center, self.radius
+            return cx - r, cy - r, cx + r, cy + r
+        (x0, y0), (w, h) = self.corner, self.size
+        return x0, y0, x0 + w, y0 + h
+
     def outline(self, n: int = 181) -> tuple[np.ndarray, np.ndarray]:
         """A closed polygon of the feature's boundary [m] (for the figures' domain outlines)."""
         if self.shape == "disk":

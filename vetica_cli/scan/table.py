@@ -1,12 +1,12 @@
 """The scan table: one row per pixel, method and force source, tidy.
 
 Columns: the pixel's place and truth (:data:`PIXEL_COLUMNS`), then the columns of a
-sweep row (:func:`vetica_cli.study.schema.result_columns`: ``method``,
+batch row (:func:`vetica_cli.rows.schema.result_columns`: ``method``,
 ``force_source``, every quantity of the surface model with ``_theory`` and
 ``_err_pct`` (signed), the 1-sigma of fitted parameters, ``unidentified``, ``taps``,
 the run observables -- ``amplitude``, ``phase_deg``, ``e_diss_ev``, ``peak_force``,
 ``max_penetration``, ... --, ``stop_reason``, ``sim_time``, ``status``, ``error``,
-``wall_s``).  The units go into the Parquet metadata (:func:`column_units`).
+``wall_s``).  The units and meanings go into the Parquet metadata (:func:`column_meta_of`).
 """
 
 from __future__ import annotations
@@ -14,9 +14,7 @@ from __future__ import annotations
 import pandas as pd
 
 from .. import surfaces
-from ..study.grid import Point, Study
-from ..study.schema import column_units as study_units
-from ..study.schema import result_columns
+from ..rows.schema import column_meta, result_columns, split_unit, units_metadata
 from .config import ScanConfig
 
 PIXEL_COLUMNS = ("steady", "pixel_time", "ix", "iy", "x", "y", "domain", "height_true", "topography")
@@ -49,21 +47,22 @@ def columns(cfg: ScanConfig) -> list[str]:
     return list(PIXEL_COLUMNS) + result_columns(scan_models(cfg), cfg.scan.methods)
 
 
+def column_meta_of(cfg: ScanConfig) -> dict:
+    """``column -> (unit, description)``: the pixel columns', then the batch rows' for the
+    sample's surfaces (:func:`vetica_cli.rows.schema.column_meta`), worded for a scan."""
+    meta = {c: split_unit(text) for c, text in PIXEL_UNITS.items()}
+    meta.update(column_meta(scan_models(cfg), cfg.scan.methods))
+    meta["stop_reason"] = ("", STOP_REASONS)
+    meta["status"] = ("", "ok (extracted; record proven periodic) | not_steady (extracted; record not proven "
+                      "periodic) | failed (see error)")  # fmt: skip
+    meta["sim_time"] = ("s", "simulated time since the line's start at the end of the pixel's record")
+    meta["wall_s"] = ("s", "wall time of the pixel's simulation plus this row's extraction")
+    return meta
+
+
 def column_units(cfg: ScanConfig) -> dict:
-    """Unit (and meaning) of every column: the pixel columns', then the sweep table's for the
-    sample's surfaces (:func:`vetica_cli.study.schema.column_units`), worded for a scan."""
-    points = tuple(Point(index=i, values={}, config=cfg.material_config(s, "orbit"), key="")
-                   for i, s in enumerate(cfg.sample.surfaces()))  # fmt: skip
-    units = dict(PIXEL_UNITS)
-    units.update(study_units(Study(name=cfg.name, description="", keys=(), points=points, base={}, sweep={})))
-    units.pop("point", None)
-    units["stop_reason"] = STOP_REASONS
-    units["status"] = (
-        "ok (extracted; record proven periodic) | not_steady (extracted; record not proven periodic) | failed (see error)"
-    )
-    units["sim_time"] = "s: simulated time since the line's start at the end of the pixel's record"
-    units["wall_s"] = "s: wall time of the pixel's simulation plus this row's extraction"
-    return units
+    """``{'units': ..., 'descriptions': ...}`` of the table's columns (:func:`column_meta_of`)."""
+    return units_metadata(column_meta_of(cfg))
 
 
 def assemble(cfg: ScanConfig, frames: list[pd.DataFrame]) -> pd.DataFrame:

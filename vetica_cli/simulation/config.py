@@ -22,7 +22,7 @@ from typing import Any
 import yaml
 
 from .. import surfaces
-from ..checks import check, coerce, number
+from ..checks import MAX_CYCLES, MAX_ORBIT_PERIODS, MAX_SEED, check, coerce, limit, load_yaml, number
 from ..checks import nonneg as _nonneg
 from ..checks import one_of
 from ..checks import open_unit as _open_unit
@@ -171,36 +171,36 @@ DERIVED = {
 
 # key -> (predicate, description of what is allowed); the surface's rules are its model's
 RULES = {
-    "probe.f1": (_positive, "a frequency > 0 Hz"),
-    "probe.f2": (_positive, "a frequency > 0 Hz"),
-    "probe.k1": (_positive, "a stiffness > 0 N/m"),
-    "probe.k2": (_positive, "a stiffness > 0 N/m"),
-    "probe.q1": (lambda v: v > 0.5, "a quality factor > 0.5 (an underdamped resonance)"),
-    "probe.q2": (lambda v: v > 0.5, "a quality factor > 0.5 (an underdamped resonance)"),
-    "probe.tip_radius": (_positive, "a radius > 0 m"),
-    "operation.free_amplitude": (_positive, "an amplitude > 0 m"),
+    "probe.f1": limit("probe.f1", "a frequency"),
+    "probe.f2": limit("probe.f2", "a frequency"),
+    "probe.k1": limit("probe.k1", "a stiffness"),
+    "probe.k2": limit("probe.k2", "a stiffness"),
+    "probe.q1": (lambda v: 0.5 < v <= 1e6, "a quality factor in (0.5, 1e6] (underdamped; air ~100-1000, vacuum ~1e5)"),
+    "probe.q2": (lambda v: 0.5 < v <= 1e6, "a quality factor in (0.5, 1e6] (underdamped; air ~100-1000, vacuum ~1e5)"),
+    "probe.tip_radius": limit("probe.tip_radius", "a radius"),
+    "operation.free_amplitude": limit("operation.free_amplitude", "an amplitude"),
     "operation.setpoint": (_open_unit, "a fraction of the free amplitude in (0, 1)"),
     "operation.base_height": (lambda v: v is None or v > 0, "null (PI control) or a height > 0 m"),
     "numerics.dt": (_positive, "a time step > 0 s"),
     "numerics.print_step": (_positive, "a time > 0 s, an integer multiple of numerics.dt"),
-    "numerics.record_cycles": (lambda v: v >= 1, "an integer >= 1"),
+    "numerics.record_cycles": (lambda v: 1 <= v <= MAX_CYCLES, f"an integer in 1..{MAX_CYCLES}"),
     "numerics.steady": one_of("orbit", "transient"),
     "numerics.integrator": one_of("hybrid", "verlet"),
     "numerics.switch_gap": (_positive, "a distance > 0 m"),
     "numerics.tol_orbit": (_positive, "a distance > 0 m"),
-    "numerics.orbit_max_periods": (lambda v: v >= 10, "an integer >= 10"),
+    "numerics.orbit_max_periods": (lambda v: 10 <= v <= MAX_ORBIT_PERIODS, f"an integer in 10..{MAX_ORBIT_PERIODS}"),
     "numerics.max_time": (_positive, "a time > 0 s"),
     "numerics.kp": (_nonneg, "a gain >= 0"),
     "numerics.ki": (_positive, "a gain > 0"),
     "numerics.tol_amp": (_open_unit, "a relative tolerance in (0, 1)"),
     "numerics.tol_z": (_positive, "a distance > 0 m"),
-    "numerics.settle_cycles": (lambda v: v >= 1, "an integer >= 1"),
+    "numerics.settle_cycles": (lambda v: 1 <= v <= MAX_CYCLES, f"an integer in 1..{MAX_CYCLES}"),
     "numerics.approach_gap": (_nonneg, "a distance >= 0 m"),
     "numerics.approach_rate": (_nonneg, "a speed >= 0 m/s"),
     "numerics.approach_cycles": (lambda v: 0 < v <= 20, "a number of periods in (0, 20]"),
     "numerics.position_noise": (_nonneg, "an RMS noise >= 0 m"),
     "numerics.force_noise": (_nonneg, "an RMS noise >= 0 N"),
-    "numerics.noise_seed": (_nonneg, "an integer >= 0"),
+    "numerics.noise_seed": (lambda v: 0 <= v <= MAX_SEED, f"an integer in 0..{MAX_SEED}"),
     "numerics.detector_bandwidth": (_nonneg, "a bandwidth >= 0 Hz (0 = infinite)"),
 }
 
@@ -317,6 +317,27 @@ def _check_cross(cfg: Config) -> None:
         )
     p = cfg.probe
     period = 1.0 / p.f1
+    if not p.f2 > p.f1:
+        raise ConfigError(
+            f"probe.f2: {p.f2!r} is not allowed; expected above probe.f1 ({p.f1!r} Hz): the torsional resonance lies "
+            "above the flexural one (thesis 2.4.2: f2 = 15 f1)"
+        )
+    amp = cfg.operation.free_amplitude
+    if n.approach_gap > amp:
+        raise ConfigError(
+            f"numerics.approach_gap: {n.approach_gap!r} is not allowed; expected a clearance <= the free amplitude "
+            f"operation.free_amplitude ({amp:g} m): the tip starts within one oscillation of the surface"
+        )
+    if n.position_noise > 0.1 * amp:
+        raise ConfigError(
+            f"numerics.position_noise: {n.position_noise!r} is not allowed; expected an RMS noise <= 0.1 "
+            f"operation.free_amplitude ({0.1 * amp:g} m; detectors reach pm to tens of pm)"
+        )
+    if n.force_noise > p.k1 * amp:
+        raise ConfigError(
+            f"numerics.force_noise: {n.force_noise!r} is not allowed; expected an RMS noise <= probe.k1 "
+            f"operation.free_amplitude ({p.k1 * amp:g} N, the cantilever's largest force; tap forces are nN)"
+        )
     if 0 < n.detector_bandwidth <= p.f1:
         raise ConfigError(
             f"numerics.detector_bandwidth: {n.detector_bandwidth!r} is not allowed; expected 0 (infinite) "
@@ -344,17 +365,19 @@ def _check_cross(cfg: Config) -> None:
         )
 
 
-def parse_set(items: list[str] | None) -> dict[str, Any]:
-    """Parse ``--set section.key=value`` items; values are YAML scalars."""
+def parse_set(items: list[str] | None, option: str = "--set") -> dict[str, Any]:
+    """Parse ``--set section.key=value`` items (or another ``option``'s key=value items);
+    values are YAML scalars."""
     out: dict[str, Any] = {}
     for item in items or []:
         if "=" not in item:
-            raise ConfigError(f"--set {item!r} is not allowed; expected section.key=value")
+            raise ConfigError(f"{option} {item!r} is not allowed; expected " + ("section.key=value" if option == "--set"
+                              else "key=value"))  # fmt: skip
         key, raw = item.split("=", 1)
         try:
-            value = yaml.safe_load(raw) if raw.strip() else None
+            value = load_yaml(raw, f"{option} {key.strip()}") if raw.strip() else None
         except yaml.YAMLError:
-            raise ConfigError(f"--set {item!r}: the value is not a valid YAML scalar") from None
+            raise ConfigError(f"{option} {item!r}: the value is not a valid YAML scalar") from None
         out[key.strip()] = number(value)
     return out
 
@@ -371,7 +394,7 @@ def read_yaml(path: str | Path) -> dict:
     if not is_file:
         raise ConfigError(f"config file {str(p)!r} does not exist")
     try:
-        data = yaml.safe_load(p.read_bytes().decode("utf-8"))
+        data = load_yaml(p.read_bytes().decode("utf-8"), f"config file {str(p)!r}")
     except (OSError, UnicodeDecodeError) as exc:
         raise ConfigError(f"config file {str(p)!r} cannot be read as UTF-8 text ({type(exc).__name__})") from None
     except yaml.YAMLError as exc:

@@ -47,7 +47,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from .. import __version__
-from ..core import engine, tapping
+from ..core import engine, session, tapping
 from ..io import check_output_file, segments_table, write_run
 from .config import Config, load
 from .instrument import apply_instrument
@@ -68,8 +68,11 @@ def columns(n_arms: int) -> list[str]:
 def units(n_arms: int) -> dict:
     u = {"t": "s", "z_tip": "m", "z_cantilever": "m", "z_paddle": "m", "z_base": "m", "f_ts": "N", "x_surface": "m"}
     u.update({c: "m" for c in columns(n_arms)[7:]})
-    u["segment"] = "approach = first-approach window (Z1); steady = recorded steady-state drive periods"
+    u["segment"] = ""  # a label, no unit (what it means: SEGMENT_MEANING, metadata 'descriptions')
     return u
+
+
+SEGMENT_MEANING = "approach = first-approach window (Z1); steady = recorded steady-state drive periods"
 
 
 @dataclass
@@ -200,7 +203,8 @@ class Run:
     def metadata(self) -> dict:
         return {
             "params": self.params,
-            "units": units(self.n_arms),
+            "units": units(self.n_arms),  # each a unit a unit library parses ('' for none)
+            "descriptions": {"segment": SEGMENT_MEANING},
             "version": __version__,
             "stop_reason": self.stop_reason,
             "observables": self.observables,
@@ -228,8 +232,7 @@ def _plain(v):
 
 def _mech_energy(st: engine.KernelSetup, s) -> float:
     """Kinetic + elastic energy of both probe oscillators [J]."""
-    T = tapping
-    return 0.5 * (st.m1 * s[T.S_VC] ** 2 + st.k1 * s[T.S_ZC] ** 2 + st.m2 * s[T.S_VP] ** 2 + st.k2 * s[T.S_ZP] ** 2)
+    return session.probe_energy(s, st.m1, st.k1, st.m2, st.k2)
 
 
 def run_info(rr: engine.RunResult, st: engine.KernelSetup, d: Derived) -> dict:
@@ -244,8 +247,8 @@ def run_info(rr: engine.RunResult, st: engine.KernelSetup, d: Derived) -> dict:
         "steps_per_period": d.steps_per_period,
         "t_first_contact": rr.info["t_first_contact"],
         "z_first_contact": rr.info["z_first_contact"],
-        "t_record_start": float(w.states[0][T.S_IDX]) * d.dt,
-        "t_end": float(w.states[-1][T.S_IDX]) * d.dt,
+        "t_record_start": session.step_index(w.states[0]) * d.dt,
+        "t_end": session.step_index(w.states[-1]) * d.dt,
         "periods_evaluated": rr.info["periods_evaluated"],
         "approach_periods": rr.info["approach_periods"],
         "w_drive": o[T.O_WDRIVE],
@@ -264,7 +267,7 @@ def run_info(rr: engine.RunResult, st: engine.KernelSetup, d: Derived) -> dict:
         "z_separation_last": o[T.O_ZSEP_LAST],
         "t_contact_last": o[T.O_TCONT_LAST],
         "t_separation_last": o[T.O_TSEP_LAST],
-        "zb_final": float(w.states[-1][T.S_ZB]),
+        "zb_final": session.base(w.states[-1]),
         # first harmonic of z_tip - Zb over the recorded window (the kernel's projection:
         # exact on far steps, trapezoidal on fine steps)
         "amplitude_h1": engine.amplitude(o, (len(w.states) - 1) * d.period),
@@ -311,12 +314,15 @@ def simulate(cfg: Config) -> Run:
     return run
 
 
-def simulate_file(config=None, output="run.parquet", overrides: dict | None = None) -> Run:
+def simulate_file(config=None, output="run.parquet", overrides: dict | None = None, notice=None) -> Run:
     """``vetica simulate``: load a one-point YAML config (None = the defaults) with dotted
     ``overrides``, simulate it and write the run to ``output`` (Parquet with metadata).
-    The config and the output path are checked before the simulation starts."""
+    The config and the output path are checked before the simulation starts; ``notice()``
+    is called then (e.g. to say that numba compiles its kernels)."""
     cfg = load(config, overrides)
     check_output_file(output)
+    if notice is not None:
+        notice()
     run = simulate(cfg)
     write_run(run, output)
     return run

@@ -1,6 +1,4 @@
-"""Parametric studies: the grid of points (:mod:`.grid`), planning and shared
-simulations (:mod:`.plan`), the task a worker runs (:mod:`.task`), launchers
-(:mod:`.launch`), persisted parts (:mod:`.store`), the output lock (:mod:`.lock`),
-the table schema and row statuses (:mod:`.schema`), the acceptance regime
-(:mod:`.acceptance`), the orchestration (:mod:`.sweep`), the cost estimate from the
-grid alone (:mod:`.cost`) and the progress bar."""
+"""Parametric sweeps: the grid of points (:mod:`.grid`), the cost estimate from the grid
+alone (:mod:`.cost`), the sweep table (:mod:`.table`), the acceptance regime
+(:mod:`.acceptance`) and the orchestration (:mod:`.sweep`).  The batch machinery is
+:mod:`vetica_cli.batch`, the point task and the row schema :mod:`vetica_cli.rows`."""

@@ -14,7 +14,8 @@ from dataclasses import dataclass
 import numpy as np
 import pandas as pd
 
-ACCEPT_ERR_PCT = 30.0  # [%] tau_c error below which a point is accepted (thesis fig. 52)
+from ..rows.schema import ACCEPT_ERR_PCT  # [%] tau_c error below which a point is accepted (thesis fig. 52)
+
 CD_KEY = "surface.cd"  # the swept key the regime is a range of
 ERR_COL = "tau_c_err_pct"  # the error that decides (any *_err_pct column may be asked for)
 

@@ -13,10 +13,10 @@ from ..checks import number
 from ..extraction import METHODS, get
 from ..simulation.config import Numerics, Probe
 from ..simulation.instrument import INSTRUMENT_KEYS
-from .grid import EXTRACT_KEYS, Grid
-from .plan import plan
-from .schema import point_sources
-from .store import parts_dir
+from ..batch.parts import parts_dir
+from ..rows.extract import EXTRACT_KEYS, point_sources
+from ..rows.plan import group
+from .grid import Grid
 
 # Measured on the project machine (2 cores, `vetica bench`, worked example): a hybrid drive period
 # costs ~0.09 of the fine steps of a period at NS_PER_STEP each (the tip is within the switch gap of
@@ -30,7 +30,7 @@ RECORD_NS = 50.0
 ORBIT_PERIODS = 60
 
 # keys the kernel-time estimate reads (section.name -> default), and keys that never need a
-# simulation of their own (points differing only in them share one: study.plan)
+# simulation of their own (points differing only in them share one: rows.plan)
 COST_KEYS = {
     "probe.f1": Probe.f1,
     "numerics.dt": Numerics.dt,
@@ -121,11 +121,19 @@ def grid_cost(g: Grid) -> Cost:
     # per factor: the distinct simulations it makes (its assignments without the sharing keys)
     sim_factors = []
     for f in g.factors:
+        keys = sorted({k for a in f[:1] for k in a if k not in SHARING_KEYS})  # a factor's keys are its first's
+        if keys and len(keys) == len(f[0]):  # no sharing key: every assignment is its own simulation, unless repeated
+            sim_factors.append(f)
+            continue
         distinct = {}
         for a in f:
-            sim = {k: v for k, v in a.items() if k not in SHARING_KEYS}
-            distinct.setdefault(repr(sorted(sim.items(), key=lambda kv: kv[0])), sim)
-        sim_factors.append(list(distinct.values()))
+            try:  # hashable values (numbers, names): a tuple is the cheap key of a million assignments
+                ident = tuple(a.get(k) for k in keys)
+                hash(ident)
+            except TypeError:  # e.g. a list of arms
+                ident = repr([a.get(k) for k in keys])
+            distinct.setdefault(ident, a)
+        sim_factors.append([{k: v for k, v in a.items() if k not in SHARING_KEYS} for a in distinct.values()])
     simulations = math.prod(len(f) for f in sim_factors)
     base_cost = {k: _base_value(g, k, d) for k, d in COST_KEYS.items()}
 
@@ -147,7 +155,10 @@ def grid_cost(g: Grid) -> Cost:
         v = {**base_ext, **{k: x for k, x in assign.items() if k in EXTRACT_KEYS}}
         return get(v["extract.method"]).seconds_per_point * len(point_sources(v["extract.force"])) / 2
 
-    ext_factors = [[{k: x for k, x in a.items() if k in EXTRACT_KEYS} for a in f] for f in g.factors]
+    ext_factors = []
+    for f in g.factors:  # a factor's keys are its first assignment's; most factors hold no extraction key
+        keys = [k for k in f[0] if k in EXTRACT_KEYS]
+        ext_factors.append([{k: a[k] for k in keys} for a in f] if keys else [{}] * len(f))
     used = [any(f) for f in ext_factors]
     rest = math.prod(len(f) for f, u in zip(ext_factors, used) if not u)
     extract_s = rest * _sum_over([f for f, u in zip(ext_factors, used) if u], extract)
@@ -157,11 +168,16 @@ def grid_cost(g: Grid) -> Cost:
 def study_core_seconds(study) -> float:
     """Estimated core-seconds of a resolved study (kernel per simulation, extraction per point)."""
     total = 0.0
-    for task in plan(study):
+    for task in group(study.points):
         total += kernel_seconds(task.points[0].config)
         for p in task.points:
             total += get(p.method).seconds_per_point * len(point_sources(p.force)) / 2
     return total
+
+
+def wall_estimate(core_s: float, jobs: int) -> float:
+    """Wall seconds of ``core_s`` core-seconds on ``jobs`` workers (the bar's first estimate)."""
+    return core_s / max(1, jobs)
 
 
 def duration(seconds: float) -> str:
@@ -175,7 +191,7 @@ def duration(seconds: float) -> str:
     return f"{seconds / 86400:.1f} days"
 
 
-def dry_run_text(g: Grid, output: Path, jobs: int) -> str:
+def dry_run_text(g: Grid, output: Path, jobs: int, checked: int | None = None) -> str:
     """Points, simulations, a cost estimate (:func:`grid_cost`) and the first points."""
     c = grid_cost(g)
     per_method = ", ".join(f"{m.seconds_per_point:g} s a {k} point" for k, m in METHODS.items())
@@ -191,7 +207,7 @@ def dry_run_text(g: Grid, output: Path, jobs: int) -> str:
         lines.append(f"  point {i}: {g.point(i).label()}")
     if c.points > 5:
         lines.append(f"  ... {c.points - 5} more")
-    lines.append(
-        "checked: every swept value against the base config; each combination is checked when the sweep starts"
-    )
+    values = sum(len(f) for f in g.factors)
+    which = "every swept value" if checked is None or checked >= values else f"{checked} of the {values} swept values"
+    lines.append(f"checked: {which} against the base config; every point is checked when the sweep starts")
     return "\n".join(lines)

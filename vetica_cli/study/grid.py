@@ -29,13 +29,13 @@ A value in the sweep block overrides the base; a derived key and its target
 Logspace/linspace values are rounded to 12 significant digits so that the
 table shows ``1e-05``, not ``1.0000000000000001e-05``.
 
-Extraction keys (issue 6) name how each point is analysed, not what is
+Extraction keys name how each point is analysed, not what is
 simulated; they may be swept or set in an ``extract:`` section of the base:
 
 * ``extract.method``: a registered extraction method (:mod:`vetica_cli.extraction`:
   ``vetica``, thesis 3.3, the default; ``full``, the whole-cycle model
   inversion).  Points that differ only in the method share one simulation
-  (see :mod:`vetica_cli.study.plan`).
+  (see :mod:`vetica_cli.rows.plan`).
 * ``extract.force``: ``both`` (the default: the simulator's true force and the
   force reconstructed from the paddle signal, one row each), ``true`` or
   ``reconstructed`` (one row).  E.g. with detector noise the reconstruction at
@@ -63,8 +63,9 @@ from pathlib import Path
 from typing import Any
 
 from .. import __version__
+from ..checks import MAX_POINTS, MAX_VALUES_PER_KEY, finite, number
 from ..errors import ConfigError
-from ..extraction import DEFAULT_METHOD, METHODS, SOURCES
+from ..extraction import DEFAULT_METHOD, METHODS
 from ..extraction.material import CONTACT_KEYS, contact_model
 from ..simulation.config import (
     DERIVED,
@@ -77,17 +78,12 @@ from ..simulation.config import (
     resolve_derived,
     section_names,
 )
+from ..rows.extract import EXTRACT_KEYS, EXTRACT_SECTION, META_KEYS, check_extract_value, extract_section
 from ..surfaces import DEFAULT_MODEL, MODELS
 
-META_KEYS = ("name", "description")
-# extraction keys: not part of the simulated config; key -> (allowed values, default)
-EXTRACT_KEYS = {
-    "extract.method": (tuple(METHODS), DEFAULT_METHOD),
-    "extract.force": (("both", *SOURCES), "both"),
-}
-EXTRACT_SECTION = "extract"
 MATERIAL_SECTION = "material"  # contact model of the material columns (applied at assembly)
 RANGE_FORMS = ("logspace", "linspace")
+CHECKED_VALUES = 2000  # values of one factor the dry run resolves (spread over it, first and last included)
 
 
 def config_keys() -> list[str]:
@@ -105,16 +101,6 @@ def allowed_text() -> str:
     """The sweepable keys for an error message, item patterns included."""
     items = [m.item_help for m in MODELS.values() if m.item_help]
     return ", ".join(sweepable_keys() + items)
-
-
-def check_extract_value(key: str, value: Any, where: str) -> str:
-    """An extraction key's value, or a one-line ConfigError listing the allowed values."""
-    allowed = EXTRACT_KEYS[key][0]
-    if isinstance(value, bool):  # YAML 1.1 reads a bare `true` (extract.force) as a boolean
-        value = str(value).lower()
-    if not isinstance(value, str) or value not in allowed:
-        raise ConfigError(f"{where}: {value!r} is not allowed; expected one of: {', '.join(allowed)}")
-    return value
 
 
 @dataclass(frozen=True)
@@ -182,21 +168,7 @@ def point_key(cfg: Config, method: str = DEFAULT_METHOD, force: str = "both") ->
 
 
 def _num(key: str, v: Any, what: str) -> float:
-    if isinstance(v, str):
-        try:
-            v = float(v)
-        except ValueError:
-            pass
-    if isinstance(v, bool) or not isinstance(v, (int, float)) or not _finite(v):
-        raise ConfigError(f"sweep.{key}: {what} {v!r} is not allowed; expected a finite number")
-    return float(v)
-
-
-def _finite(v: int | float) -> bool:
-    try:
-        return math.isfinite(float(v))
-    except OverflowError:  # an integer beyond the float range
-        return False
+    return finite(f"sweep.{key}: {what}", v)
 
 
 def _clean(x: float) -> float:
@@ -208,6 +180,8 @@ def parse_values(key: str, spec: Any) -> list:
     if isinstance(spec, list):
         if not spec:
             raise ConfigError(f"sweep.{key}: empty list (empty grid); expected at least one value")
+        if len(spec) > MAX_VALUES_PER_KEY:
+            raise ConfigError(f"sweep.{key}: {len(spec)} values are not allowed; expected at most {MAX_VALUES_PER_KEY}")
         return list(spec)
     if isinstance(spec, dict) and len(spec) == 1 and next(iter(spec)) in RANGE_FORMS:
         form, args = next(iter(spec.items()))
@@ -218,17 +192,15 @@ def parse_values(key: str, spec: Any) -> list:
             )
         a = _num(key, args[0], f"{form} first")
         b = _num(key, args[1], f"{form} last")
-        n = args[2]
-        if isinstance(n, str):
-            try:
-                n = float(n)
-            except ValueError:
-                pass
-        if isinstance(n, bool) or not isinstance(n, (int, float)) or not _finite(n) or n != int(n) or n < 0:
-            raise ConfigError(f"sweep.{key}: {form} count {n!r} is not allowed; expected an integer >= 1")
+        n = number(args[2])
+        if isinstance(n, bool) or not isinstance(n, (int, float)) or not math.isfinite(float(n)) or n != int(n) or n < 0:
+            raise ConfigError(f"sweep.{key}: {form} count {args[2]!r} is not allowed; expected an integer >= 1")
         n = int(n)
         if n == 0:
             raise ConfigError(f"sweep.{key}: {form} with 0 points (empty grid); expected n >= 1")
+        if n > MAX_VALUES_PER_KEY:
+            raise ConfigError(f"sweep.{key}: {form} count {n} is not allowed; expected at most {MAX_VALUES_PER_KEY} "
+                              "values of one key (combine keys instead: the grid is their product)")  # fmt: skip
         if n == 1 and a != b:
             raise ConfigError(
                 f"sweep.{key}: {form} [{args[0]}, {args[1]}, 1] is ambiguous; use n >= 2 or first == last"
@@ -298,10 +270,29 @@ def _factors(sweep: Any) -> tuple[list[str], list[list[dict]]]:
             for k, v in assign.items():
                 if k in EXTRACT_KEYS:
                     assign[k] = check_extract_value(k, v, f"sweep.{k}")
+        _no_repeats(factor)
     for dkey, (target, _) in DERIVED.items():
         if dkey in keys and target in keys:
             raise ConfigError(f"sweep: {dkey} and {target} are both swept; sweep one of them")
     return keys, factors
+
+
+def _no_repeats(factor: list[dict]) -> None:
+    """ConfigError (one line) for a value given twice in one factor (e.g. ``extract.method:
+    [vetica, vetica]``): its points would be duplicates."""
+    keys = list(factor[0])
+    try:
+        idents = [a[keys[0]] for a in factor] if len(keys) == 1 else [tuple(a[k] for k in keys) for a in factor]
+        if len(set(idents)) == len(idents):
+            return
+    except TypeError:  # unhashable values (a list of arms): the point keys catch duplicates
+        return
+    seen: set = set()
+    for assign, ident in zip(factor, idents):
+        if ident in seen:
+            what = ", ".join(f"{k}={v!r}" for k, v in assign.items())
+            raise ConfigError(f"sweep: {what} appears twice; expected each value once")
+        seen.add(ident)
 
 
 def _split_derived(base: dict) -> tuple[dict, dict]:
@@ -370,6 +361,12 @@ class Grid:
     def n_points(self) -> int:
         return math.prod(len(f) for f in self.factors)
 
+    def check_size(self) -> None:
+        """ConfigError (one line) for a grid over :data:`vetica_cli.checks.MAX_POINTS` points."""
+        if self.n_points > MAX_POINTS:
+            raise ConfigError(f"sweep: {self.n_points} points are not allowed; expected at most {MAX_POINTS} "
+                              f"(the product of {' x '.join(str(len(f)) for f in self.factors)} values)")  # fmt: skip
+
     def assignment(self, index: int) -> dict:
         """The swept assignments of point ``index`` (cartesian order, the first factor slowest)."""
         assign: dict = {}
@@ -386,15 +383,23 @@ class Grid:
         assign = self.assignment(index) if assign is None else assign
         return _point(index, list(self.keys), assign, self.extract, self.base_clean, self.base_derived)
 
-    def check_values(self) -> None:
-        """Resolve, for every swept value, the point that has it and the first value of every
-        other factor: each value is checked against the base (range, type, the model's rules)
-        in ``sum(len(factor))`` resolutions instead of one per point.  Combinations (e.g. a
-        print step against a swept dt) are checked by :meth:`points`."""
+    def check_values(self, limit: int = CHECKED_VALUES) -> int:
+        """Resolve, for swept values, the point that has it and the first value of every other
+        factor: each value is checked against the base (range, type, the model's rules) in
+        ``sum(len(factor))`` resolutions instead of one per point.  A factor of more than
+        ``limit`` values (a range of a million) is checked at ``limit`` values spread over it,
+        its first and last included, so the dry run answers in seconds; the sweep checks every
+        point before it starts (:meth:`points`), as it checks combinations (e.g. a print step
+        against a swept dt).  Returns how many values were checked."""
         strides = [math.prod(len(f) for f in self.factors[i + 1 :]) for i in range(len(self.factors))]
+        checked = 0
         for stride, f in zip(strides, self.factors):
-            for j in range(len(f)):
+            n = len(f)
+            picks = range(n) if n <= limit else sorted({round(i * (n - 1) / (limit - 1)) for i in range(limit)})
+            for j in picks:
                 self.point(j * stride)
+                checked += 1
+        return checked
 
     def points(self, on_progress=None) -> tuple:
         """Every point, resolved and validated, in grid order; ConfigError for an invalid or a
@@ -446,9 +451,11 @@ def grid(raw: dict, name: str = "study", overrides: dict | None = None) -> Grid:
     material = _material_section(material, "--set material")
     _apply_overrides(base, extract, keys, overrides)
     base_clean, base_derived = _split_derived(base)
-    return Grid(name=name, description=description, keys=tuple(keys), factors=tuple(factors), base=base,
+    g = Grid(name=name, description=description, keys=tuple(keys), factors=tuple(factors), base=base,
                 base_clean=base_clean, base_derived=base_derived, sweep=sweep, extract=extract,
                 material=material)  # fmt: skip
+    g.check_size()
+    return g
 
 
 def expand(raw: dict, name: str = "study", overrides: dict | None = None) -> Study:
@@ -509,21 +516,6 @@ def _model_of(sections: dict) -> str:
     surface = sections.get("surface")
     model = surface.get("model") if isinstance(surface, dict) else None
     return model if isinstance(model, str) and model in MODELS else DEFAULT_MODEL
-
-
-def extract_section(body: Any) -> dict:
-    """The base ``extract:`` section, checked: {name: value} for keys of EXTRACT_KEYS."""
-    if body is None:
-        return {}
-    if not isinstance(body, dict):
-        raise ConfigError(f"section {EXTRACT_SECTION!r} must be a mapping, got {body!r}")
-    out = {}
-    for name, value in body.items():
-        key = f"{EXTRACT_SECTION}.{name}"
-        if key not in EXTRACT_KEYS:
-            raise ConfigError(f"unknown key {key!r}; allowed: {', '.join(EXTRACT_KEYS)}")
-        out[name] = check_extract_value(key, value, key)
-    return out
 
 
 def load_grid(path: str | Path, overrides: dict | None = None) -> Grid:

@@ -12,14 +12,15 @@ a study, one way through:
    estimated from the grid alone (:mod:`.cost`; ``--dry-run`` stops here), and a
    study over :data:`CONFIRM_POINTS` points or :data:`CONFIRM_WALL_S` of estimated
    wall time needs ``--yes``;
-1. :func:`.plan.plan` groups the points into tasks that share one simulation;
-2. :mod:`.lock` locks the output against a second sweep; :mod:`.store` gives back
-   the points persisted by an earlier run (resume) and removes corrupt, stale and
-   foreign parts, saying how many and why;
-3. a :mod:`.launch` launcher runs the task function (:class:`.task.PointTask`,
+1. :func:`vetica_cli.rows.plan.group` groups the points into tasks that share one
+   simulation (the print-step policy every batch follows);
+2. the batch layer (:func:`vetica_cli.batch.run.run_batch`) locks the output against
+   a second sweep, gives back the points persisted by an earlier run (resume) and
+   removes corrupt, stale and foreign parts, saying how many and why;
+3. its launcher runs the task function (:class:`vetica_cli.rows.task.PointTask`,
    passed in) over the missing tasks, serially, on loky workers or on Dask;
-4. each finished point is written at once to ``<output>.parts/`` (:mod:`.store`);
-5. :func:`.schema.assemble` builds the table, :mod:`.acceptance` its acceptance
+4. each finished point is written at once to ``<output>.parts/``;
+5. :func:`.table.assemble` builds the table, :mod:`.acceptance` its acceptance
    regime, and the table is written atomically with the units, the resolved
    study config and the regime in its metadata; the config is also saved as
    ``<output stem>.config.yaml``; the parts folder is removed (``keep_parts``
@@ -35,10 +36,7 @@ killed sweep run again computes only the missing points.
 from __future__ import annotations
 
 import os
-import signal
-import threading
 import time
-from contextlib import contextmanager
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -46,97 +44,58 @@ import pandas as pd
 import yaml
 
 from .. import __version__
-from ..errors import InputError
-from ..io import check_output_file, write_table, write_text
-from .acceptance import ACCEPT_ERR_PCT, acceptance_regime, format_acceptance
-from .cost import Cost, dry_run_text, duration, grid_cost, study_core_seconds
-from .grid import Study, load_grid
-from .launch import (
-    Launcher,
-    LokyLauncher,
-    SerialLauncher,
-    check_launcher_options,
-    make_launcher,
-    remove_orphaned_shm,
+from ..batch.launch import Launcher, check_launcher_options
+from ..batch.parts import CORRUPT, STALE, code_fingerprint, parts_dir
+from ..batch.run import (
+    DEFAULT_FOLDER,
+    Bar,
+    BatchInterrupted,
+    Job,
+    check_batch_output,
+    run_batch,
+    sidecar,
+    signals_as_interrupt,
 )
-from .lock import lock_path, output_lock
-from .plan import plan
-from .progress import Progress
-from .schema import STATUSES, assemble, column_units, material_metadata
-from .store import code_fingerprint, parts_dir, remove_parts, rows_frame, scan_parts, write_part
-from .task import PointTask
+from ..batch.run import Terminated  # noqa: F401 - raised by SIGTERM/SIGHUP during a sweep
+from ..batch.run import default_output as batch_output
+from ..errors import InputError
+from ..io import write_table, write_text
+from ..rows.extract import point_sources
+from ..rows.plan import group
+from ..rows.schema import STATUSES, units_metadata
+from ..rows.task import PointTask
+from ..simulation.jit import compile_notice
+from .acceptance import ACCEPT_ERR_PCT, acceptance_regime, format_acceptance
+from .cost import Cost, dry_run_text, duration, grid_cost, study_core_seconds, wall_estimate
+from .grid import Study, load_grid
+from .table import assemble, column_meta_of, rows_frame, study_material_metadata
 
-
-DEFAULT_FOLDER = Path("sweeps")  # where `vetica sweep CONFIG` writes without -o (git-ignored)
+# the modules whose import closure computes a point's rows: the point task (simulation and
+# extraction), the print-step policy that shares simulations, and the points and their keys
+SWEEP_ROOTS = ("rows/task.py", "rows/plan.py", "study/grid.py", "study/table.py")
 CONFIRM_POINTS = 5000  # a study with more points needs --yes
 # Below this estimate of core-seconds a sweep runs in its own process: each worker costs ~1.5
 # CPU-seconds to start (imports, numba's target and cache), and measured on the project machine
 # a 4-point sweep took 3.0 s in one process against 5.3 s with two workers
 SERIAL_BELOW_S = 8.0
 CONFIRM_WALL_S = 2 * 3600.0  # [s] ... as does one estimated to take longer on the given workers
-
-
-class SweepInterrupted(KeyboardInterrupt):
-    """A sweep stopped by Ctrl-C, SIGTERM or SIGHUP; the message says what is persisted and
-    how to go on, ``exit_code`` is the shell's 128 + signal number."""
-
-    def __init__(self, message: str, exit_code: int = 130):
-        super().__init__(message)
-        self.exit_code = exit_code
-
-
-class Terminated(KeyboardInterrupt):
-    """Raised in the main thread by SIGTERM or SIGHUP during a sweep (handled like Ctrl-C)."""
-
-    def __init__(self, signum: int):
-        super().__init__(signal.Signals(signum).name)
-        self.signum = signum
-
-
-@contextmanager
-def signals_as_interrupt(signums=(signal.SIGTERM, signal.SIGHUP)):
-    """While the block runs, SIGTERM and SIGHUP raise :class:`Terminated` in the main thread,
-    so a terminated sweep stops its workers and reports like Ctrl-C; a repeated signal
-    during that shutdown is ignored.  Outside the main thread: no change."""
-    if threading.current_thread() is not threading.main_thread():
-        yield
-        return
-
-    def handler(signum, frame):
-        for s in signums:  # one shutdown: later signals must not interrupt it
-            signal.signal(s, signal.SIG_IGN)
-        raise Terminated(signum)
-
-    old = {s: signal.signal(s, handler) for s in signums}
-    try:
-        yield
-    finally:
-        for s, h in old.items():
-            signal.signal(s, h)
+SweepInterrupted = BatchInterrupted  # Ctrl-C, SIGTERM or SIGHUP during a sweep (message and exit code)
 
 
 def default_output(config: str | Path) -> Path:
     """``sweeps/<config stem>.parquet``: outside the tracked results/, so running a study
     config never rewrites a committed table."""
-    return DEFAULT_FOLDER / f"{Path(config).stem}.parquet"
+    return batch_output(config, DEFAULT_FOLDER)
 
 
 def config_copy_path(output: Path) -> Path:
-    return output.with_name(output.stem + ".config.yaml")
+    return sidecar(output, ".config.yaml")
 
 
 def check_sweep_output(output: str | Path) -> Path:
     """Every path a sweep on ``output`` writes, checked before any work (InputError, one line):
-    the table (a .parquet path in a writable place), the config copy, the parts folder and
-    the lock file."""
-    out = check_output_file(output, "-o", ".parquet")
-    check_output_file(config_copy_path(out), "-o (its config copy)", ".yaml")
-    pdir = parts_dir(out)
-    if pdir.exists() and not pdir.is_dir():
-        raise InputError(f"-o {str(out)!r}: {pdir} (its parts folder) is an existing file")
-    if lock_path(out).is_dir():
-        raise InputError(f"-o {str(out)!r}: {lock_path(out)} (its lock file) is an existing folder")
-    return out
+    the table, the config copy, the parts folder and the lock file."""
+    return check_batch_output(output, (".config.yaml",))
 
 
 @dataclass
@@ -166,96 +125,61 @@ def run_sweep(
     keep_parts: bool = False,
     log=None,
     auto_serial: bool = False,
+    notice: str | None = None,
 ) -> SweepResult:
     """Run every missing point of ``study``, then assemble and write the table.
 
-    ``task``: the function each task runs (default :class:`.task.PointTask`: the real
-    simulation and extraction); ``launcher``: where (default from ``backend``,
-    ``jobs`` and ``scheduler``, :func:`.launch.make_launcher`; a given launcher is
-    not closed here).  The output is locked while the sweep runs (:mod:`.lock`;
-    InputError when another sweep holds it).  ``keep_parts`` keeps ``<output>.parts/``
-    after success; ``log(line)`` receives notes as they arise (they are also in the
-    result's ``notes``); ``auto_serial``: run a study estimated under
-    :data:`SERIAL_BELOW_S` core-seconds in this process instead of starting workers.  Ctrl-C (or :class:`Terminated`) raises :class:`SweepInterrupted`.
-    """
+    ``task``: the function each task runs (default :class:`vetica_cli.rows.task.PointTask`:
+    the real simulation and extraction); ``launcher``: where (default from ``backend``,
+    ``jobs`` and ``scheduler``, :func:`vetica_cli.batch.launch.make_launcher`; a given
+    launcher is not closed here).  The output is locked while the sweep runs (InputError
+    when another sweep holds it).  ``keep_parts`` keeps ``<output>.parts/`` after success;
+    ``log(line)`` receives notes as they arise (they are also in the result's ``notes``);
+    ``auto_serial``: run a study estimated under :data:`SERIAL_BELOW_S` core-seconds in this
+    process instead of starting workers; ``notice``: a line shown as the bar starts.
+    Ctrl-C (or :class:`Terminated`) raises :class:`SweepInterrupted`."""
     t_start = time.perf_counter()
     output = check_sweep_output(output)
-    notes: list[str] = []
+    tasks = group(study.points)
+    jobs_ = [Job([(p.key, p.config.to_dict(), p.method, p.force) for p in t.points], {p.key: p for p in t.points})
+             for t in tasks]  # fmt: skip
+    by_key = {p.key: p for p in study.points}
 
-    def note(line: str) -> None:
-        notes.append(line)
-        if log is not None:
-            log(line)
+    def split(job: Job, res) -> list:
+        return [(key, rows_frame(by_key[key], rows), part_meta(by_key[key])) for key, rows in res]
 
-    own = launcher is None
-    launcher = make_launcher(backend, jobs, scheduler) if own else launcher
-    if own and auto_serial and isinstance(launcher, LokyLauncher):
-        est = study_core_seconds(study)
-        if est < SERIAL_BELOW_S:
-            launcher.close()
-            launcher = SerialLauncher()
-            note(f"ran in this process: the {len(study.points)} points are estimated at {est:.1f} core-seconds, "
-                 f"less than starting {jobs} workers costs")  # fmt: skip
-    if own and isinstance(launcher, LokyLauncher):
-        stale = remove_orphaned_shm()
-        if stale:
-            note(f"removed {stale} semaphore(s) and memory folder(s) left in /dev/shm by killed sweeps")
-    pdir = parts_dir(output)
-    try:
-        with output_lock(output):
-            done, computed, reused = _run_tasks(study, output, launcher, task or PointTask(), resume, progress,
-                                                console, note)  # fmt: skip
-            res = _write_table(study, output, done)
-            res.parts_kept = keep_parts or not remove_parts(pdir)
-            if res.parts_kept and not keep_parts:
-                note(f"{pdir}/ holds other files; left in place")
-    except KeyboardInterrupt as exc:  # Ctrl-C, or SIGTERM/SIGHUP as Terminated
-        signum = getattr(exc, "signum", signal.SIGINT)
-        keys = {p.key for p in study.points}
-        n = sum(1 for f in pdir.glob("*.parquet") if f.stem in keys) if pdir.is_dir() else 0
-        raise SweepInterrupted(
-            f"interrupted ({signal.Signals(signum).name}): {n} of {len(study.points)} points are persisted "
-            f"in {pdir}/; run the same command again to compute the rest",
-            128 + int(signum),
-        ) from None
-    finally:
-        if own:
-            launcher.close()
-    res.computed, res.reused, res.wall_s, res.notes = computed, reused, time.perf_counter() - t_start, notes
+    def finish(done: dict) -> SweepResult:
+        return _write_table(study, output, {k: done[k] for k in by_key})
+
+    core_s = study_core_seconds(study)
+    bar = Bar(name="sweep", unit="points", estimate_s=wall_estimate(core_s, 1 if jobs == 1 else jobs), notice=notice)
+    res, run = run_batch(output, jobs_, task or PointTask(), split, fingerprint=code_fingerprint(SWEEP_ROOTS),
+                         finish=finish, check=check_point_part, bar=bar, backend=backend, n_jobs=jobs,
+                         scheduler=scheduler, launcher=launcher, serial_estimate=core_s if auto_serial else None,
+                         serial_below_s=SERIAL_BELOW_S, resume=resume, progress=progress, console=console,
+                         keep_parts=keep_parts, log=log, what="points")  # fmt: skip
+    res.parts_kept = run.parts_kept
+    res.computed, res.reused, res.wall_s, res.notes = run.computed, run.reused, time.perf_counter() - t_start, run.notes
     return res
 
 
-def _run_tasks(study, output, launcher, task, resume, progress, console, note):
-    """Run the missing tasks, persisting each point as it finishes.  Returns
-    ``(done: point key -> rows frame, keys computed now, keys read from parts)``."""
-    pdir = parts_dir(output)
-    tasks = plan(study)
-    expected = {p.key: (p, t.sim_print_step) for t in tasks for p in t.points}
-    done, report = scan_parts(pdir, expected, resume)
-    if report.note():
-        note(report.note())
-    todo = [t for t in tasks if not all(p.key in done for p in t.points)]
-    reused = list(done)
-    pdir.mkdir(parents=True, exist_ok=True)
-    computed: list[str] = []
-    failed = sum(int((df["status"] == "failed").any()) for df in done.values())
-    bar = Progress(len(study.points), len(done), failed, enabled=progress, console=console)
+def part_meta(point) -> dict:
+    """What a point's part records beside its key and code: where it is in the grid, its config."""
+    return {"index": point.index, "values": point.values, "params": point.config.to_dict(), "method": point.method,
+            "force": point.force, "version": __version__}  # fmt: skip
 
-    def on_result(i: int, res) -> None:
-        nonlocal failed
-        by_key = {p.key: p for p in todo[i].points}
-        for key, rows, sim_ps in res:
-            point = by_key[key]
-            write_part(pdir, point, rows, sim_ps)
-            done[key] = rows_frame(point, rows)
-            computed.append(key)
-            failed += int(any(r["status"] == "failed" for r in rows))
-            bar.advance(1, failed)
 
-    items = [[(p.key, p.config.to_dict(), p.method, p.force) for p in t.points] for t in todo]
-    with bar:
-        launcher.launch(task, items, on_result)
-    return done, computed, reused
+def check_point_part(df: pd.DataFrame, meta: dict, point) -> str:
+    """Why a persisted part of ``point`` is not usable ('' when it is): its rows must be of
+    the point's method and force sources."""
+    want = list(point_sources(point.force))
+    if not {"force_source", "method", "status"} <= set(df.columns):
+        return CORRUPT
+    if set(df["method"]) != {point.method}:
+        return STALE
+    if list(df["force_source"]) != want:
+        return CORRUPT if set(df["force_source"]) < set(want) else STALE
+    return ""
 
 
 def _write_table(study, output, done) -> SweepResult:
@@ -268,10 +192,10 @@ def _write_table(study, output, done) -> SweepResult:
         "description": study.description,
         "config": study.resolved(),
         "swept_keys": list(study.keys),
-        "units": column_units(study),
-        "material": material_metadata(study),
+        **units_metadata(column_meta_of(study)),
+        "material": study_material_metadata(study),
         "version": __version__,
-        "code": code_fingerprint(),
+        "code": code_fingerprint(SWEEP_ROOTS),
         "points": len(study.points),
         "acceptance_err_pct": ACCEPT_ERR_PCT,
         "acceptance": acceptance,
@@ -340,17 +264,17 @@ def sweep_command(
     g = load_grid(config, overrides)
     out = check_sweep_output(Path(output) if output is not None else default_output(config))
     check_launcher_options(run_kw.get("backend", "loky"), jobs, run_kw.get("scheduler"))
-    g.check_values()
+    checked = g.check_values()
     log = log or (lambda line: None)
     if run_kw.get("backend", "loky") == "loky" and jobs > cores():
         log(f"warning: --jobs {jobs} is more than the {cores()} cores here; the workers will share them")
     if dry_run:
-        return dry_run_text(g, out, jobs)
+        return dry_run_text(g, out, jobs, checked)
     cost = grid_cost(g)
     size_guard(cost, jobs, yes)
     if cost.points > 2000:
         log(f"checking the {cost.points} points of {g.name} ...")
     study = g.study()
     with signals_as_interrupt():
-        res = run_sweep(study, out, jobs=jobs, log=log, auto_serial=auto, **run_kw)
+        res = run_sweep(study, out, jobs=jobs, log=log, auto_serial=auto, notice=compile_notice(), **run_kw)
     return summary(res, study)

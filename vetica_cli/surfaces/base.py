@@ -28,7 +28,7 @@ from typing import Any, ClassVar
 
 import numpy as np
 
-from ..checks import Rule, check, coerce, positive
+from ..checks import Rule, check, coerce, limit, positive
 from ..errors import ConfigError
 
 DEFAULT_MODEL = "sls"  # the model of a surface section without a 'model' key (every v0.1 config)
@@ -75,14 +75,14 @@ class CommonKey:
 
 # surface keys shared by every model: van der Waals attraction Fa(d) = H R/(6 d^2) (thesis eq. 3)
 COMMON_KEYS: dict[str, CommonKey] = {
-    "hamaker": CommonKey(0.2e-18, "float", "J", (positive, "a Hamaker constant > 0 J")),  # H
-    "a0": CommonKey(0.2e-9, "float", "m", (positive, "a distance > 0 m")),  # intermolecular distance
-    "vdw_on_surface": CommonKey(True, "bool", ""),  # the attraction also pulls the surface
+    "hamaker": CommonKey(0.2e-18, "float", "J", limit("surface.hamaker", "a Hamaker constant")),  # H
+    "a0": CommonKey(0.2e-9, "float", "m", limit("surface.a0", "a distance")),  # intermolecular distance
+    "vdw_on_surface": CommonKey(True, "bool", ""),  # the attraction also pulls the surface (the SLS surface model)
 }
 
 
 # theory values of the surface's linear response at the drive frequency and at the contact's own time
-# scale (omega = pi / contact time), for the instrument's comparison methods (SPEC 14; SurfaceModel.dynamic_theory)
+# scale (omega = pi / contact time), for the instrument's comparison methods (the AM-AFM energy balance; SurfaceModel.dynamic_theory)
 DYNAMIC_QUANTITIES: dict[str, Quantity] = {
     "k_storage_drive": Quantity("N/m", "k' (drive)", r"$k'(\omega_d)$", description="storage stiffness at the drive frequency"),
     "k_loss_drive": Quantity("N/m", "k'' (drive)", r"$k''(\omega_d)$", description="loss stiffness at the drive frequency"),
@@ -220,13 +220,13 @@ class SurfaceModel(ABC):
         return f"a {self.name} surface"
 
 
-    # ---- linear response to a small harmonic displacement (SPEC 14): what the instrument's loss
+    # ---- linear response to a small harmonic displacement (the AM-AFM energy balance): what the instrument's loss
     # tangent and the per-tap DMT modulus are compared with
 
     def complex_stiffness(self, params: dict, omega: float) -> tuple[float, float] | None:
         """Storage and loss stiffness ``k'(omega), k''(omega)`` [N/m] at angular frequency
         ``omega`` [rad/s] of a surface that is a spring ``k_inf`` in parallel with Maxwell arms
-        ``(k_i, cd_i)`` (SPEC 14, 11)::
+        ``(k_i, cd_i)`` (the AM-AFM energy balance; the Wiechert model)::
 
             k*(omega) = k_inf + sum_i k_i (i x_i)/(1 + i x_i),   x_i = omega tau_i,  tau_i = cd_i/k_i
             k'  = k_inf + sum_i k_i x_i^2/(1 + x_i^2)            k'' = sum_i k_i x_i/(1 + x_i^2)

@@ -10,7 +10,7 @@ from typing import Any, ClassVar
 
 import numpy as np
 
-from ..checks import Rule, check, coerce, positive
+from ..checks import MAX_ARMS, Rule, check, coerce, positive
 from ..errors import ConfigError
 from .base import Quantity, SurfaceModel, register
 
@@ -45,7 +45,7 @@ class Wiechert(SurfaceModel):
 
     Storage and loss stiffness at angular frequency ``omega``: each arm adds
     ``k_i x_i^2/(1 + x_i^2)`` and ``k_i x_i/(1 + x_i^2)``, ``x_i = omega tau_i``
-    (:meth:`~.base.SurfaceModel.complex_stiffness`, SPEC 14).
+    (:meth:`~.base.SurfaceModel.complex_stiffness`, the AM-AFM energy balance).
 
     One arm is the Zener SLS of thesis 3.2 (``k_1 = k0``, ``cd_1 = cd``).  Config::
 
@@ -92,9 +92,9 @@ class Wiechert(SurfaceModel):
     def parse_key(self, name: str, value: Any) -> Any:
         if name != "arms":
             return super().parse_key(name, value)
-        if not isinstance(value, list) or not value:
+        if not isinstance(value, list) or not value or len(value) > MAX_ARMS:
             raise ConfigError(
-                f"surface.arms: {value!r} is not allowed; expected a list of one or more arms {{k: N/m, cd: kg/s}}"
+                f"surface.arms: {value!r} is not allowed; expected a list of 1..{MAX_ARMS} arms {{k: N/m, cd: kg/s}}"
             )
         return [self._parse_arm(i, arm) for i, arm in enumerate(value, start=1)]
 

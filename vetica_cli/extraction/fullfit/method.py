@@ -12,10 +12,11 @@ import numpy as np
 
 from ... import surfaces
 from ...constants import TIP_RADIUS
+from ...checks import MAX_ARMS, limit, one_of
 from ...errors import InputError
 from ...signals.taps import find_taps
 from ...surfaces import COMMON_KEYS
-from ..base import ExtractionMethod, register
+from ..base import KG_POINTS, ExtractionMethod, Option, register
 from ..record import Record
 from ..result import ExtractionResult, estimates, finite_or_none
 from .fit import HAMAKER_BOUNDS, OFFSET_UNIT, FitVector, fit_surface, solve
@@ -238,6 +239,23 @@ class FullFit(ExtractionMethod):
         "fit_offset": True, "state": "auto", "substeps": None, "arms": None, "hamaker": None, "tip_radius": None,
         "a0": None, "vdw_on_surface": None,
     }  # fmt: skip
+    option_specs = (
+        KG_POINTS,
+        Option("arms", "int", "", "Maxwell arms to fit (1 = SLS, 2+ = Wiechert); default: the record's surface",
+               (lambda v: 1 <= v <= MAX_ARMS, f"an integer in 1..{MAX_ARMS}")),
+        Option("hamaker", "float", "J", "Hamaker constant H (fixes H R; default: metadata, else H R fitted)",
+               limit("surface.hamaker", "a Hamaker constant")),
+        Option("tip_radius", "float", "m", "tip radius R (default: metadata, else 10 nm)",
+               limit("probe.tip_radius", "a radius")),
+        Option("state", "str", "", "dashpot state at the window start", one_of(*STATES)),
+        Option("fit_hamaker", "bool", "", "fit H R (default: when neither H nor R is known)"),
+        Option("near_stride", "int", "", "kernel steps per evaluation near the surface", (lambda v: 1 <= v <= 4096,
+               "an integer in 1..4096")),
+        Option("far_stride", "int", "", "kernel steps per evaluation far from the surface", (lambda v: 1 <= v <= 65536,
+               "an integer in 1..65536")),
+        Option("scan", "bool", "", "scan cd on a grid before the fit"),
+        Option("fit_offset", "bool", "", "fit the surface height offset"),
+    )  # fmt: skip
     needs_approach = True
     needs_z1 = False
     uniform_sampling = True

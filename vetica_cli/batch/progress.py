@@ -1,20 +1,51 @@
-"""The sweep's progress bar (rich, on stderr): points done, failures, time left."""
+"""A batch's progress bar (rich, on stderr): items done, failures, time left.
+
+Until the first job of this run has finished, rich has no speed to measure, so the time
+left shown is the caller's cost-model estimate (``estimate_s``, marked ``~``); a line
+printed before the bar (``notice``) says what a silent start is (e.g. numba compiling
+its kernels on a first run)."""
 
 from __future__ import annotations
 
+import time
+
+
+def _estimate_column(progress_mod, bar):
+    """A rich column: rich's measured time left once a job of this run has finished, the
+    cost model's estimate (``~m:ss``) before."""
+
+    class Column(progress_mod.TimeRemainingColumn):
+        def render(self, task):
+            if task.completed > bar.done0 or bar.estimate_s is None:
+                return super().render(task)
+            from rich.text import Text
+
+            left = max(0.0, bar.estimate_s - (time.monotonic() - bar.t0))
+            m, s = divmod(int(round(left)), 60)
+            h, m = divmod(m, 60)
+            text = f"~{h}:{m:02d}:{s:02d}" if h else f"~{m}:{s:02d}"
+            return Text(text, style="progress.remaining")
+
+    return Column()
+
 
 class Progress:
-    """Rich progress bar: points done, failures, time left (stderr)."""
+    """Rich progress bar: items done, failures, time left (stderr)."""
 
     def __init__(self, total: int, done: int, failed: int, enabled: bool = True, console=None, *,
-                 name: str = "sweep", unit: str = "points", groups: tuple[int, int, str] | None = None):  # fmt: skip
+                 name: str = "sweep", unit: str = "points", groups: tuple[int, int, str] | None = None,
+                 estimate_s: float | None = None, notice: str | None = None):  # fmt: skip
         """``total`` items (``unit``), ``done`` of them already; ``groups = (done, total, unit)``
-        counts the jobs the items come in (a scan: pixels in lines)."""
+        counts the jobs the items come in (a scan: pixels in lines); ``estimate_s``: the cost
+        model's wall seconds for the rest, shown until a job has finished; ``notice``: a line
+        printed when the bar starts."""
         self.enabled = enabled and total > 0
         self.total, self.done0, self.failed = total, done, failed
+        self.estimate_s, self.notice, self.t0 = estimate_s, notice, time.monotonic()
         self.groups = list(groups) if groups else None
         self.progress = None
         if self.enabled:
+            from rich import progress as progress_mod
             from rich.console import Console
             from rich.progress import (
                 BarColumn,
@@ -22,7 +53,6 @@ class Progress:
                 Progress,
                 TextColumn,
                 TimeElapsedColumn,
-                TimeRemainingColumn,
             )
 
             group = [TextColumn("{task.fields[groups]}")] if groups else []
@@ -34,13 +64,16 @@ class Progress:
                 *group,
                 TimeElapsedColumn(),
                 TextColumn("left"),
-                TimeRemainingColumn(),
+                _estimate_column(progress_mod, self),
                 console=console or Console(stderr=True),
             )
             self.task = self.progress.add_task(name, total=total, completed=done, failed=failed, groups=self._groups())
 
     def __enter__(self):
+        self.t0 = time.monotonic()
         if self.progress is not None:
+            if self.notice:
+                self.progress.console.print(self.notice)
             self.progress.start()
         return self
 

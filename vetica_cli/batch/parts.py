@@ -1,14 +1,15 @@
-"""Persisted points: one Parquet part per finished point in ``<output>.parts/``, written
-atomically as it completes, so a killed sweep run again computes only the missing
-points (STYLE: sweeps behave like hydra's multirun).
+"""Persisted parts: one Parquet file per finished job in ``<output>.parts/``, written
+atomically as it completes, so a killed batch run again computes only the missing
+jobs (STYLE: batches behave like hydra's multirun).  Knows no physics: a part is a
+frame with metadata, named by a key the caller computes (a hash of what the job
+computes).
 
-A part records the point key (a hash of the resolved point config and the
-package version) and a fingerprint of the source that computed it
-(:func:`code_fingerprint`); a part made by other code, for another print-step
-group, method or force sources is stale and recomputed.  :func:`scan_parts` says
-how many parts it reuses and removes the others, by reason: corrupt, stale, or
-foreign (not a point of the study).  A sweep holds :func:`output_lock`
-on its output while it runs.
+A part records its key and a fingerprint of the source that computed it
+(:func:`code_fingerprint` of the roots the caller names); the caller's ``check``
+says whether a part is usable.  :func:`scan_parts` says how many parts it reuses
+and removes the others, by reason: corrupt, stale, or foreign (not a job of this
+batch).  A batch holds :func:`vetica_cli.batch.lock.output_lock` on its output while
+it runs.
 """
 
 from __future__ import annotations
@@ -16,22 +17,16 @@ from __future__ import annotations
 import ast
 import functools
 import hashlib
-import math
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import pandas as pd
 
-from .. import __version__
 from ..errors import InputError
 from ..io import read_table, write_table
-from .grid import Point
-from .schema import point_sources, result_columns
 
 PACKAGE = Path(__file__).resolve().parent.parent
-# the modules whose import closure computes a point's rows: the task (simulation and extraction),
-# the planning that shares simulations, the points and their keys, the row schema, and this store
-FINGERPRINT_ROOTS = ("study/task.py", "study/plan.py", "study/grid.py", "study/schema.py", "study/store.py")
 
 
 def _local_imports(path: Path, root: Path) -> set[Path]:
@@ -57,10 +52,9 @@ def _local_imports(path: Path, root: Path) -> set[Path]:
     return out
 
 
-def fingerprint_files(roots: tuple[str, ...] = FINGERPRINT_ROOTS) -> list[Path]:
-    """The import closure of ``roots`` (package-relative paths; default
-    :data:`FINGERPRINT_ROOTS`: simulation, extraction, surfaces, signals, kernels, and the
-    study code that turns them into rows)."""
+def fingerprint_files(roots: tuple[str, ...]) -> list[Path]:
+    """The import closure of ``roots`` (package-relative paths, e.g. a sweep's point task
+    and point keys: :data:`vetica_cli.study.sweep.SWEEP_ROOTS`)."""
     todo = [PACKAGE / name for name in roots]
     missing = [str(f) for f in todo if not f.is_file()]
     if missing:  # a moved module must not silently drop out of the fingerprint
@@ -76,11 +70,11 @@ def fingerprint_files(roots: tuple[str, ...] = FINGERPRINT_ROOTS) -> list[Path]:
 
 
 @functools.lru_cache(maxsize=4)
-def code_fingerprint(roots: tuple[str, ...] = FINGERPRINT_ROOTS) -> str:
-    """Hash of the package source that computes a point (:func:`fingerprint_files` of
-    ``roots``; a scan passes its own).  A part made by different code is stale and is
-    recomputed, so a resumed sweep never mixes results of two code versions; editing
-    e.g. the plots leaves parts valid."""
+def code_fingerprint(roots: tuple[str, ...]) -> str:
+    """Hash of the package source that computes a job (:func:`fingerprint_files` of
+    ``roots``, which each batch names: a sweep its point task, a scan its line task).  A
+    part made by different code is stale and is recomputed, so a resumed batch never mixes
+    results of two code versions; editing e.g. the plots leaves parts valid."""
     h = hashlib.sha256()
     for f in fingerprint_files(roots):
         h.update(str(f.relative_to(PACKAGE)).encode())
@@ -98,39 +92,36 @@ def part_path(pdir: Path, key: str) -> Path:
 
 # why a part file is not used (PartsReport counts them; the files are removed)
 CORRUPT = "corrupt (unreadable, empty or incomplete)"
-STALE = "stale (made by other code, or for another setting of its point)"
-FOREIGN = "foreign (not a point of this study: an older config or another study)"
+STALE = "stale (made by other code, or for another setting of its job)"
+FOREIGN = "foreign (not a job of this batch: an older config or another batch)"
 DISCARDED = "discarded (--no-resume)"
 
+Check = Callable[[pd.DataFrame, dict, object], str]  # (frame, metadata, expected) -> '' or a reason
 
-def check_part(path: Path, point: Point, sim_print_step: float) -> tuple[pd.DataFrame | None, str]:
-    """``(rows, '')`` for a usable persisted point, else ``(None, why)`` with ``why`` one of
-    :data:`CORRUPT` or :data:`STALE` (``''`` with None when there is no file)."""
+
+def read_part(path: Path, key: str, fingerprint: str, expected=None, check: Check | None = None
+              ) -> tuple[pd.DataFrame | None, str]:  # fmt: skip
+    """``(frame, '')`` for a usable part, else ``(None, why)`` with ``why`` one of
+    :data:`CORRUPT` or :data:`STALE` (``''`` with None when there is no file).  A part is
+    stale when its key or code fingerprint differ, or when ``check(frame, meta,
+    expected)`` names a reason."""
     if not path.is_file():
         return None, ""
     try:
         df, meta = read_table(path)
     except InputError:
         return None, CORRUPT
-    want = list(point_sources(point.force))
-    if not {"force_source", "method", "status"} <= set(df.columns) or len(df) == 0:
+    if len(df) == 0:
         return None, CORRUPT
-    if meta.get("point") != point.key or meta.get("code") != code_fingerprint():
+    if meta.get("key") != key or meta.get("code") != fingerprint:
         return None, STALE
-    try:
-        same_step = math.isclose(float(meta.get("sim_print_step", -1)), sim_print_step, rel_tol=1e-12)
-    except (TypeError, ValueError):
-        return None, CORRUPT
-    if not same_step or set(df["method"]) != {point.method}:
-        return None, STALE
-    if list(df["force_source"]) != want:
-        return None, CORRUPT if set(df["force_source"]) < set(want) else STALE
-    return df, ""
+    why = check(df, meta, expected) if check is not None else ""
+    return (None, why) if why else (df, "")
 
 
-def read_part(path: Path, point: Point, sim_print_step: float) -> pd.DataFrame | None:
-    """A persisted point, or None if absent, unreadable or made differently (:func:`check_part`)."""
-    return check_part(path, point, sim_print_step)[0]
+def write_part(pdir: Path, key: str, frame: pd.DataFrame, fingerprint: str, meta: dict | None = None) -> Path:
+    """Persist a finished job's frame (atomically) with its key, the code fingerprint and ``meta``."""
+    return write_table(frame, part_path(pdir, key), {"key": key, "code": fingerprint, **(meta or {})})
 
 
 @dataclass
@@ -153,13 +144,14 @@ class PartsReport:
         return f"parts in {self.folder}/: {self.reused} reused; removed " + ", ".join(items)
 
 
-def scan_parts(pdir: Path, expected: dict, resume: bool) -> tuple[dict, PartsReport]:
-    """The usable persisted points of a study and a report of the rest, which is removed.
+def scan_parts(pdir: Path, expected: dict, resume: bool, fingerprint: str, check: Check | None = None
+               ) -> tuple[dict, PartsReport]:  # fmt: skip
+    """The usable persisted jobs of a batch and a report of the rest, which is removed.
 
-    ``expected``: point key -> ``(Point, sim_print_step)`` of every point of the study.  A
-    part file is reused when :func:`check_part` accepts it (and ``resume``); it is removed
-    when it is corrupt, stale, foreign (its key is no point of the study) or, without
-    ``resume``, in any case.  Returns ``(point key -> rows, report)``."""
+    ``expected``: key -> what ``check`` compares a part with, for every job of the batch.
+    A part file is reused when :func:`read_part` accepts it (and ``resume``); it is
+    removed when it is corrupt, stale, foreign (its key is no job of the batch) or,
+    without ``resume``, in any case.  Returns ``(key -> frame, report)``."""
     report = PartsReport(pdir)
     done: dict[str, pd.DataFrame] = {}
     if not pdir.is_dir():
@@ -173,7 +165,7 @@ def scan_parts(pdir: Path, expected: dict, resume: bool) -> tuple[dict, PartsRep
         elif not resume:
             why = DISCARDED
         else:
-            rows, why = check_part(f, *expected[f.stem])
+            rows, why = read_part(f, f.stem, fingerprint, expected[f.stem], check)
             if rows is not None:
                 done[f.stem] = rows
                 continue
@@ -184,7 +176,7 @@ def scan_parts(pdir: Path, expected: dict, resume: bool) -> tuple[dict, PartsRep
 
 
 def remove_parts(pdir: Path) -> bool:
-    """Remove the parts folder of a finished sweep (its part files and half-written
+    """Remove the parts folder of a finished batch (its part files and half-written
     temporaries, then the folder).  False, leaving the folder, when it holds anything else."""
     if not pdir.is_dir():
         return True
@@ -195,24 +187,3 @@ def remove_parts(pdir: Path) -> bool:
     except OSError:
         return False
     return True
-
-
-def rows_frame(point: Point, rows: list[dict]) -> pd.DataFrame:
-    """A point's rows as a frame with the columns of its surface model."""
-    return pd.DataFrame(rows, columns=result_columns([point.config.surface.surface_model], [point.method]))
-
-
-def write_part(pdir: Path, point: Point, rows: list[dict], sim_print_step: float) -> Path:
-    """Persist a finished point (atomically)."""
-    meta = {
-        "point": point.key,
-        "index": point.index,
-        "values": point.values,
-        "params": point.config.to_dict(),
-        "method": point.method,
-        "force": point.force,
-        "sim_print_step": sim_print_step,
-        "version": __version__,
-        "code": code_fingerprint(),
-    }
-    return write_table(rows_frame(point, rows), part_path(pdir, point.key), meta)

@@ -1,4 +1,4 @@
-"""Planning a study: which points share one simulation.
+"""The print-step policy of every batch (sweep, scan, advise): which points share one simulation.
 
 Points that differ only in ``extract.method`` or in the instrument keys
 ``numerics.position_noise``, ``force_noise``, ``noise_seed`` and
@@ -25,22 +25,21 @@ from collections import defaultdict
 from dataclasses import dataclass
 
 from ..simulation.instrument import apply_instrument, noise_free
-from .grid import Study
 
 
 @dataclass
 class Task:
-    points: list  # of Point
-    sim_print_step: float  # print step the task simulates at
+    points: list  # of points (anything with a ``config``), which share one simulation
 
 
-def plan(study: Study) -> list[Task]:
-    """Group points into jobs that share one simulation (they differ only in the
-    extraction method and the instrument keys); every other point is a job of its own."""
+def group(points) -> list[Task]:
+    """Group points (anything with a resolved ``config``) into jobs that share one
+    simulation (they differ only in the extraction method and the instrument keys); every
+    other point is a job of its own."""
     groups: dict = defaultdict(list)
-    for p in study.points:
+    for p in points:
         groups[simulation_key(p.config)].append(p)
-    return [Task(pts, pts[0].config.numerics.print_step) for pts in groups.values()]
+    return [Task(pts) for pts in groups.values()]
 
 
 def simulation_key(cfg) -> str:

@@ -1,5 +1,4 @@
-"""``vetica advise``: the settings under which the extraction recovers a given material
-(issue 10 item 4).  The thesis's stated purpose is advice to experimentalists: which
+"""``vetica advise``: the settings under which the extraction recovers a given material.  The thesis's stated purpose is advice to experimentalists: which
 set point, frequency and print step make the method work for *their* material (thesis
 4.5-4.6, 5.2).
 
@@ -16,14 +15,15 @@ ranks the settings by their margin:
 
 so a setting *recovers the material* (score > 0) when every method keeps the
 retardation time within the acceptance regime's 30 % (thesis fig. 52,
-:data:`vetica_cli.study.acceptance.ACCEPT_ERR_PCT`) and each element within 5 %, and
+:data:`vetica_cli.rows.schema.ACCEPT_ERR_PCT`) and each element within 5 %, and
 only a setting whose record is a proven periodic state counts.
 
-The cost: one simulation per (f1, set point, k2), recorded at the finest print step;
-the coarser print steps are that record subsampled (:func:`subsample_record`: the
-trajectory does not depend on the print step, so this is the record a run at the
-coarser step gives, within the orbit solver's tolerance), each extracted by every method.  The simulations
-run on the study launcher (loky, ``jobs`` workers, one thread each).
+The cost: one simulation per setting, grouped by the print-step policy every batch
+follows (:func:`vetica_cli.rows.plan.group`: points share a simulation only when they
+differ in the extraction and the instrument keys, so each print step is its own run and
+the record is exactly what ``vetica simulate`` with the setting gives), each record
+extracted by every method.  The simulations run on the batch launcher (loky, ``jobs``
+workers, one thread each).
 """
 
 from __future__ import annotations
@@ -36,15 +36,18 @@ from dataclasses import dataclass, field
 import numpy as np
 import pandas as pd
 
-from .. import surfaces
-from ..errors import ConfigError, InputError
-from ..extraction import METHODS, SOURCES, extract, extract_many
-from ..extraction.material import ContactModel, contact_model, stiffness
-from ..simulation.config import from_dict, load
-from ..simulation.simulate import simulate
-from .acceptance import ACCEPT_ERR_PCT
-from .launch import make_launcher
-from .progress import Progress
+from . import surfaces
+from .checks import finite, limit
+from .errors import ConfigError, InputError
+from .extraction import METHODS, SOURCES, extract, extract_many
+from .extraction.material import ContactModel, contact_model, stiffness
+from .simulation.config import from_dict, load
+from .simulation.jit import compile_notice
+from .simulation.simulate import simulate
+from .batch.launch import make_launcher
+from .batch.progress import Progress
+from .rows.plan import group
+from .rows.schema import ACCEPT_ERR_PCT
 
 F2_RATIO = 15.0  # f2 = 15 f1 (thesis 4.5.1)
 RECORD_CYCLES = 4  # drive periods recorded per setting (VETICA needs two complete taps in a row)
@@ -152,33 +155,7 @@ def knob_values(given: dict | None) -> dict:
                 )
             clean.append(float(v))
         out[key] = tuple(sorted(set(clean)))
-    ps = out["numerics.print_step"]
-    for p in ps[1:]:
-        r = p / ps[0]
-        if abs(r - round(r)) > 1e-6 * r:
-            raise ConfigError(
-                f"numerics.print_step: {p:g} is not allowed; expected whole multiples of the finest, {ps[0]:g} s "
-                "(the coarser records are the finest one subsampled)"
-            )
     return out
-
-
-def subsample_record(df: pd.DataFrame, factor: int) -> pd.DataFrame:
-    """The record a run at ``factor`` times the print step gives, from one at the print step:
-    in each segment every ``factor``-th sample from the ``factor``-th on (a run samples its
-    windows at ``t_start + k PS``, k >= 1).  The trajectory does not depend on the print
-    step (the kernel's step and recording are separate), so this equals a separate run
-    within the orbit solver's tolerance (``numerics.tol_orbit``; tests/test_advise.py)."""
-    if factor == 1:
-        return df
-    if "segment" not in df.columns:
-        return df.iloc[factor - 1 :: factor].reset_index(drop=True)
-    seg = df["segment"].to_numpy()
-    parts = []
-    for name in pd.unique(seg):
-        part = df[seg == name]
-        parts.append(part.iloc[factor - 1 :: factor])
-    return pd.concat(parts, ignore_index=True)
 
 
 def margin(errors: dict) -> float:
@@ -190,29 +167,35 @@ def margin(errors: dict) -> float:
     return min(1.0 - abs(v) / lim for v, lim in zip(vals, LIMITS.values()))
 
 
+@dataclass(frozen=True)
+class Setting:
+    """One setting of the advice study: its resolved config (what :func:`vetica_cli.rows.plan.group` groups)."""
+
+    config: object
+
+
 def advise_task(item: dict) -> list[dict]:
-    """Simulate one (f1, set point, k2) at the finest print step and extract it at every
-    print step with every method: one row per print step (module level: joblib pickles
-    it).  Never raises: errors become rows with status 'failed'."""
-    cfg_d, steps, methods, force = item["config"], item["print_steps"], item["methods"], item["force"]
-    base_row = {k: cfg_d[k.split(".")[0]][k.split(".")[1]] for k in SETTING_KEYS if k != "numerics.print_step"}
+    """Simulate the settings of one planned task (they share one simulation) and extract each
+    with every method: one row per setting (module level: joblib pickles it).  Never
+    raises: errors become rows with status 'failed'."""
+    cfgs, methods, force = item["configs"], item["methods"], item["force"]
     t0 = time.perf_counter()
     try:
-        run = simulate(from_dict(cfg_d))
+        run = simulate(from_dict(cfgs[0]))
         err = ""
     except Exception as exc:  # noqa: BLE001 - a failed setting becomes rows
         run, err = None, f"simulate: {type(exc).__name__}: {exc}"
     sim_wall = time.perf_counter() - t0
     rows = []
-    for ps in steps:
-        row = {**base_row, "numerics.print_step": ps, "status": "failed", "stop_reason": "", "error": err,
-               "sim_wall_s": sim_wall / len(steps), "extract_wall_s": 0.0}  # fmt: skip
+    for cfg_d in cfgs:
+        row = {**{k: cfg_d[k.split(".")[0]][k.split(".")[1]] for k in SETTING_KEYS}, "status": "failed",
+               "stop_reason": "", "error": err, "sim_wall_s": sim_wall / len(cfgs), "extract_wall_s": 0.0}  # fmt: skip
         for m in methods:
             for q in LIMITS:
                 row[f"{m}.{q}_err_pct"] = math.nan
             row[f"{m}.margin"] = math.nan
         if run is not None:
-            _extract_row(row, run, round(ps / steps[0]), ps, methods, force)
+            _extract_row(row, run, methods, force)
         margins = [row[f"{m}.margin"] for m in methods]
         row["score"] = min(margins) if row["status"] == "ok" and all(math.isfinite(v) for v in margins) else math.nan
         row["recovered"] = bool(row["score"] > 0) if math.isfinite(row["score"]) else False
@@ -220,10 +203,8 @@ def advise_task(item: dict) -> list[dict]:
     return rows
 
 
-def _extract_row(row: dict, run, factor: int, ps: float, methods, force: str) -> None:
-    df = subsample_record(run.frame(), factor)
-    meta = copy.deepcopy(run.metadata())
-    meta["params"]["numerics"]["print_step"] = ps
+def _extract_row(row: dict, run, methods, force: str) -> None:
+    df, meta = run.frame(), run.metadata()
     row["stop_reason"] = run.stop_reason
     row["status"] = "ok" if run.steady_ok else "not_steady"
     errors = []
@@ -308,30 +289,33 @@ def advise(material: Material, overrides: dict | None = None, knobs: dict | None
             able = [k for k, me in METHODS.items() if set(LIMITS) <= set(me.quantities(surfaces.get("sls")))]
             raise InputError(f"--methods: {m!r} does not estimate {', '.join(LIMITS)} (the material advise checks); "
                              f"choose from: {', '.join(able)}")  # fmt: skip
+    twice = sorted({m for m in methods if methods.count(m) > 1})
+    if twice:
+        raise InputError(f"--methods: {', '.join(twice)} named twice; expected each method once")
     if force not in SOURCES:
         raise InputError(f"--force {force!r} not allowed; choose one of: {', '.join(SOURCES)}")
     values = knob_values(knobs)
     base = base_config(material, overrides)
-    items = []
+    settings = []
     for f1 in sorted(values["probe.f1"]):  # slow (low f1) settings first: the workers finish together
         for sp in values["operation.setpoint"]:
             for k2 in values["probe.k2"]:
-                d = copy.deepcopy(base)
-                d["probe"].update(f1=f1, f2=F2_RATIO * f1, k2=k2)
-                d["operation"]["setpoint"] = sp
                 for ps in values["numerics.print_step"]:  # every setting a valid config before work starts
+                    d = copy.deepcopy(base)
+                    d["probe"].update(f1=f1, f2=F2_RATIO * f1, k2=k2)
+                    d["operation"]["setpoint"] = sp
                     d["numerics"]["print_step"] = ps
                     try:
-                        from_dict(d)
+                        settings.append(Setting(from_dict(d)))
                     except ConfigError as exc:
                         raise ConfigError(f"setting f1 {f1:g} Hz, set point {sp:g}, print step {ps:g} s, k2 {k2:g} N/m: "
                                           f"{exc}") from None  # fmt: skip
-                d["numerics"]["print_step"] = values["numerics.print_step"][0]
-                items.append({"config": d, "print_steps": values["numerics.print_step"], "methods": methods,
-                              "force": force})  # fmt: skip
+    items = [{"configs": [p.config.to_dict() for p in task.points], "methods": methods, "force": force}
+             for task in group(settings)]  # fmt: skip
     t0 = time.perf_counter()
     rows: list = [None] * len(items)
-    bar = Progress(len(items), 0, 0, enabled=progress, name="advise", unit="simulations")
+    bar = Progress(len(items), 0, 0, enabled=progress, name="advise", unit="simulations",
+                   notice=compile_notice() if progress else None)
     failed = 0
 
     def on_result(i, res):
@@ -352,7 +336,9 @@ def contact_for(overrides: dict | None, contact: dict | None) -> ContactModel:
     """The contact model of a moduli input: table 6 with the probe's tip radius (``--set
     probe.tip_radius``) and ``--contact`` overrides."""
     radius = (overrides or {}).get("probe.tip_radius")
-    return contact_model(contact, None if radius is None else float(radius))
+    if radius is not None:
+        radius = finite("--set probe.tip_radius", radius, limit("probe.tip_radius", "a radius"))
+    return contact_model(contact, radius)
 
 
 def format_advice(adv: Advice, figure=None, top: int = 10) -> str:
@@ -366,8 +352,8 @@ def format_advice(adv: Advice, figure=None, top: int = 10) -> str:
             f"{' and '.join(adv.methods)} ({adv.force} force); score = smallest margin min(1 - |error|/limit) over "
             "the methods"
         ),
-        f"{len(t)} settings ({adv.simulations} simulations, {RECORD_CYCLES} periods each; the coarser print steps "
-        f"subsample the finest) in {adv.wall_s:.1f} s on {adv.jobs} worker(s): "
+        f"{len(t)} settings ({adv.simulations} simulations, {RECORD_CYCLES} periods each) in {adv.wall_s:.1f} s on "
+        f"{adv.jobs} worker(s): "
         + ", ".join(f"{m} recovers {int((t[f'{m}.margin'] > 0).sum())}" for m in adv.methods)
         + f"; all of them: {int(t['recovered'].sum())}",
     ]

@@ -1,6 +1,6 @@
-"""One sweep at a time on an output: an exclusive lock on ``<output>.lock`` held while
-the sweep runs (``flock``: the system releases it however the process ends, ``kill -9``
-included, so a stale lock file never blocks a later sweep)."""
+"""One batch (sweep, scan) at a time on an output: an exclusive lock on ``<output>.lock``
+held while the batch runs (``flock``: the system releases it however the process ends, ``kill -9``
+included, so a stale lock file never blocks a later batch)."""
 
 from __future__ import annotations
 
@@ -19,16 +19,17 @@ except ImportError:  # pragma: no cover - Windows: no flock, no lock
 
 
 def lock_path(output: Path) -> Path:
-    """The lock file of a sweep writing ``output``: ``<output>.lock``."""
+    """The lock file of a batch writing ``output``: ``<output>.lock``."""
     return Path(output).with_name(Path(output).name + ".lock")
 
 
 @contextmanager
-def output_lock(output: Path):
-    """Hold an exclusive lock on ``output`` for the duration of a sweep: ``<output>.lock``,
-    ``flock``-ed (released by the system however the process ends, ``kill -9`` included)
-    and holding who holds it.  A second sweep on the same output raises InputError naming
-    the first (pid, host, start time).  The lock file is removed on exit."""
+def output_lock(output: Path, what: str = "sweep"):
+    """Hold an exclusive lock on ``output`` for the duration of a batch (``what``: its
+    name in the message): ``<output>.lock``, ``flock``-ed (released by the system however
+    the process ends, ``kill -9`` included) and holding who holds it.  A second batch on the
+    same output raises InputError naming the first (pid, host, start time).  The lock file
+    is removed on exit."""
     if fcntl is None:  # pragma: no cover - no flock (Windows): no lock
         yield
         return
@@ -42,7 +43,7 @@ def output_lock(output: Path):
             holder = os.read(fd, 500).decode(errors="replace").strip() or "unknown process"
             os.close(fd)
             raise InputError(
-                f"{output} is being written by another sweep ({holder}); wait for it to end or choose another -o"
+                f"{output} is being written by another {what} ({holder}); wait for it to end or choose another -o"
             ) from None
         # the previous holder may have removed the file between our open and our lock: lock the file at the path
         try:

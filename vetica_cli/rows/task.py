@@ -1,6 +1,7 @@
-"""The task a launcher runs: simulate one point, or one group of points sharing a
-simulation (:mod:`.plan`), and extract each point with each of its force sources,
-giving the rows of the study table (:mod:`.schema`).
+"""The point task: simulate one point, or one group of points sharing a simulation
+(:mod:`.plan`), and extract each point with each of its force sources, giving the rows
+of a batch table (:mod:`.schema`).  A sweep's launcher runs it; a scan builds its
+pixels' rows with :meth:`PointTask.rows_for_run`.
 
 :class:`PointTask` holds the simulation and extraction functions it calls, so a
 test passes a fake extraction (``PointTask(extract=fake)``) to
@@ -19,7 +20,8 @@ from ..simulation.config import Config, from_dict
 from ..simulation.instrument import noise_free
 from ..simulation.simulate import Run, simulate
 from .plan import point_run
-from .schema import MATERIAL_INPUTS, OBSERVABLES, point_sources, sigma_names
+from .extract import point_sources
+from .schema import MATERIAL_INPUTS, OBSERVABLES, sigma_names
 
 Item = tuple  # (point key, resolved config dict, extract.method, extract.force)
 Rows = list  # of dicts keyed by schema.result_columns()
@@ -125,16 +127,15 @@ class PointTask:
     simulate: Callable[[Config], Run] = simulate
     extract: Callable[..., ExtractionResult] = extract_point
 
-    def __call__(self, items: list[Item]) -> list[tuple[str, Rows, float]]:
+    def __call__(self, items: list[Item]) -> list[tuple[str, Rows]]:
         """``items`` = ``(point key, resolved config dict, extract.method, extract.force)`` of
         the task's points, which share one simulation (:func:`.plan.plan`: they differ at
-        most in the method and the instrument keys).  Returns ``[(point key, rows, print
-        step simulated at), ...]``.  Never raises for a point: errors become rows with
+        most in the method and the instrument keys).  Returns ``[(point key, rows), ...]``.  Never raises for a point: errors become rows with
         status 'failed'."""
         cfgs = [from_dict(d) for _, d, _, _ in items]
         if len(items) == 1:
             (key, _, method, force), cfg = items[0], cfgs[0]
-            return [(key, self.simulate_point(cfg, method, force), cfg.numerics.print_step)]
+            return [(key, self.simulate_point(cfg, method, force))]
         t0 = time.perf_counter()
         shared, exc = None, None
         try:
@@ -144,11 +145,10 @@ class PointTask:
         sim_wall = time.perf_counter() - t0
         out = []
         for (key, _, method, force), cfg in zip(items, cfgs):
-            ps = cfg.numerics.print_step
             if exc is not None:
-                out.append((key, failed_rows(cfg, exc, "simulate", sim_wall, method, force), ps))
+                out.append((key, failed_rows(cfg, exc, "simulate", sim_wall, method, force)))
             else:
-                out.append((key, self.rows_for_run(cfg, point_run(shared, cfg), sim_wall, method, force), ps))
+                out.append((key, self.rows_for_run(cfg, point_run(shared, cfg), sim_wall, method, force)))
         return out
 
     def simulate_point(self, cfg: Config, method: str, force: str) -> Rows:

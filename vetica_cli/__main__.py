@@ -1,0 +1,19 @@
+"""The ``vetica`` console script and ``python -m vetica_cli``: the command line of
+:mod:`vetica_cli.cli`, imported inside the guard so that Ctrl-C while the modules load
+(numpy, numba, pandas: about a second) ends with one line and exit 130, not a traceback."""
+
+import sys
+
+
+def main():  # pragma: no cover - console script entry
+    try:
+        from .cli import app
+
+        app()
+    except KeyboardInterrupt:  # before any command started: nothing has been written
+        sys.stderr.write("interrupted before any output was written\n")
+        sys.exit(130)
+
+
+if __name__ == "__main__":  # pragma: no cover
+    main()
