@@ -38,7 +38,7 @@ import numpy as np
 from .. import surfaces
 from ..errors import ConfigError, InputError
 from ..signals.spectral import reconstruct_force, reconstruction_error
-from ..signals.taps import contact_slopes, find_taps, first_contact_minimum
+from ..signals.taps import Taps, contact_slopes, find_taps, first_contact_minimum
 
 if TYPE_CHECKING:
     import pandas as pd
@@ -66,6 +66,7 @@ class Record:
     vdw_on_surface: bool | None = None  # does the surface feel the pull: the keyword, else the metadata, else unknown
     t_start: float = 0.0  # perf_counter when the record was started
     t_force: float = 0.0  # perf_counter when the force was ready
+    taps: Taps | None = None  # the steady record's taps when the force was built around them (tap windows)
 
     @property
     def probe(self) -> dict:

@@ -371,9 +371,9 @@ def _mean(values: np.ndarray) -> float:
     return float(np.nanmean(values)) if np.any(np.isfinite(values)) else math.nan
 
 
-def _stage1(t, z, f, z1, kg_points):
+def _stage1(t, z, f, z1, kg_points, taps: Taps | None = None):
     """Taps, then stages 1a and 1b: ``(taps, tau_c per interval, Kg per tap, warnings)``."""
-    taps = find_taps(f)
+    taps = find_taps(f) if taps is None else taps
     n_taps = len(taps.contact)
     if n_taps < 2:
         raise InputError(
@@ -406,7 +406,58 @@ def _stage1_warnings(tau_c: float, kg: float, z1: float, kg_points: int) -> list
     return out
 
 
-def _stage2(t, z, f, taps: Taps, kg: float, tau_c: float, kr_guess):
+STAGE2 = ("closed", "sines")  # stage-2 solvers: compiled superposition of the samples | the thesis's sine fit
+
+
+def uniform_step(u: np.ndarray) -> float | None:
+    """The constant sample step of ``u`` [s], or None when the steps differ by more than 1e-3 of it."""
+    if len(u) < 2:
+        return None
+    h = (u[-1] - u[0]) / (len(u) - 1)
+    return h if h > 0 and np.max(np.abs(np.diff(u) - h)) <= 1e-3 * h else None
+
+
+def stage2_tap_closed(u, z, f, kg: float, tau_c: float, fc: float, kr_guess: float | None = None,
+                      sigma: tuple = (0.0, 0.0), fit_sigma: bool = False):  # fmt: skip
+    """Stage 2 of one tap without the sum-of-sines fit (``stage2='closed'``): ``(Kr, sigma0 [N],
+    residual RMS [N], cost evaluations)``, or None when the contact is not sampled at a
+    constant step (the caller then uses the thesis's path).
+
+    The indentation ``Zc - z_tip`` is taken as linear between the samples, on which the
+    superposition integral against ``exp(-u/tau_r)`` is exact by recursion, and the same
+    cost as :func:`stage2_kr` (over every contact sample) is solved for Kr the same way,
+    compiled (:func:`vetica_cli.core.superposition.solve_kr`).  The thesis's sine fit
+    smooths the trajectory first; on noise-free records of 1 ns samples the two agree to
+    ~1e-4 relative in Kr (tests/test_realtime.py).  ``sigma = (sa, sb)``: the pre-stress
+    ``sa + sb Kr`` (:mod:`.vetica_prestress`; 0 for VETICA), or with ``fit_sigma`` a
+    parameter fitted with Kr.
+    """
+    from ..core.superposition import solve_kr  # lazy: numba only when a record is extracted
+
+    u = np.asarray(u, dtype=float)
+    h = uniform_step(u)
+    if h is None:
+        return None
+    delta = float(z[0]) - np.asarray(z, dtype=float)
+    guess = -1.0 if kr_guess is None else float(kr_guess)
+    kr, s0, rms, calls = solve_kr(delta, np.asarray(f, dtype=float), h, float(kg), float(tau_c), float(fc), guess,
+                                  float(sigma[0]), float(sigma[1]), bool(fit_sigma), KR_SCAN, KR_RTOL)  # fmt: skip
+    return float(kr), float(s0), float(rms), int(calls)
+
+
+def stage2_tap(u, z, f, kg: float, tau_c: float, fc: float, kr_guess=None, solver: str = "closed"):
+    """Kr of one tap from its contact samples (``u`` [s] from the contact minimum, ``z_tip``,
+    force): ``(Kr, sine-fit RMS [m] or nan, force residual RMS [N], cost evaluations)``."""
+    if solver == "closed":
+        out = stage2_tap_closed(u, z, f, kg, tau_c, fc, kr_guess)
+        if out is not None:
+            return out[0], math.nan, out[2], out[3]
+    fit = fit_sum_of_sines(u, z)
+    kr, rms, nf = stage2_kr(u, f, fit, kg, tau_c, fc, kr_guess)
+    return kr, fit.rms, rms, nf
+
+
+def _stage2(t, z, f, taps: Taps, kg: float, tau_c: float, kr_guess, solver: str = "closed"):
     """Kr of every tap long enough (nan otherwise) and the fit residuals of those fitted."""
     kr_i, fit_rms, f_rms, nfev = [], [], [], []
     for ic, isep in zip(taps.contact, taps.separation):
@@ -414,11 +465,9 @@ def _stage2(t, z, f, taps: Taps, kg: float, tau_c: float, kr_guess):
             kr_i.append(math.nan)
             continue
         sl = slice(ic, isep + 1)
-        u = t[sl] - t[ic]
-        fit = fit_sum_of_sines(u, z[sl])
-        kr, rms, nf = stage2_kr(u, f[sl], fit, kg, tau_c, float(f[ic]), kr_guess)
+        kr, zrms, rms, nf = stage2_tap(t[sl] - t[ic], z[sl], f[sl], kg, tau_c, float(f[ic]), kr_guess, solver)
         kr_i.append(kr)
-        fit_rms.append(fit.rms)
+        fit_rms.append(zrms)
         f_rms.append(rms)
         nfev.append(nf)
     return kr_i, fit_rms, f_rms, nfev
@@ -431,6 +480,8 @@ def vetica(
     z1: float,
     kg_points: int = 10,
     kr_guess: float | None = None,
+    stage2: str = "closed",
+    taps: Taps | None = None,
 ) -> VeticaResult:
     """Run VETICA stages 1a, 1b and 2 on a record of consecutive taps.
 
@@ -440,24 +491,29 @@ def vetica(
     spread.  A stage that cannot produce a value (no creep interval with
     the surface recovering below Z1, or contacts shorter than ``kg_points``)
     gives nan for it and for what depends on it, with a warning.  Raises
-    InputError for no contact or fewer than two complete taps.
+    InputError for no contact or fewer than two complete taps.  ``stage2``: 'closed'
+    (:func:`stage2_tap_closed`, compiled, the default) or 'sines' (the thesis's sum-of-sines
+    fit, :func:`fit_sum_of_sines` and :func:`stage2_kr`).  ``taps``: the record's taps when
+    already located (else :func:`~vetica_cli.signals.taps.find_taps` on ``f``).
     """
+    if stage2 not in STAGE2:
+        raise InputError(f"stage2 {stage2!r} not allowed; choose one of: {', '.join(STAGE2)}")
     t = np.asarray(t, dtype=float)
     z = np.asarray(z, dtype=float)
     f = np.asarray(f, dtype=float)
     if kg_points < 2:
         raise InputError(f"kg_points {kg_points} not allowed; expected an integer >= 2")
     t0 = time.perf_counter()
-    taps, tau_c_i, kg_i, warnings = _stage1(t, z, f, z1, kg_points)
+    taps, tau_c_i, kg_i, warnings = _stage1(t, z, f, z1, kg_points, taps)
     n_taps = len(taps.contact)
     t1 = time.perf_counter()
     tau_c, kg = _mean(tau_c_i), _mean(kg_i)
     warnings += _stage1_warnings(tau_c, kg, z1, kg_points)
-    stage2 = not (math.isnan(tau_c) or math.isnan(kg)) and kg > 0
-    kr_i, fit_rms, f_rms, nfev = _stage2(t, z, f, taps, kg, tau_c, kr_guess) if stage2 else ([], [], [], [])
+    run2 = not (math.isnan(tau_c) or math.isnan(kg)) and kg > 0
+    kr_i, fit_rms, f_rms, nfev = _stage2(t, z, f, taps, kg, tau_c, kr_guess, stage2) if run2 else ([], [], [], [])
     t2 = time.perf_counter()
     kr_i = np.array(kr_i) if kr_i else np.full(n_taps, math.nan)
-    if stage2 and not fit_rms:
+    if run2 and not fit_rms:
         warnings.append(f"stage 2: every contact is shorter than {MIN_CONTACT_SAMPLES} samples; Kr skipped")
     per = [sls_elements(tau_c, kg, k) for k in kr_i]
     per_tap = {
@@ -468,11 +524,10 @@ def vetica(
     }
     diagnostics = {"contact_samples": int(np.median(taps.separation - taps.contact))}
     if fit_rms:
-        diagnostics.update(
-            sine_fit_rms_m=float(np.max(fit_rms)),
-            force_fit_rms_n=float(np.max(f_rms)),
-            kr_nfev_max=int(np.max(nfev)),
-        )
+        diagnostics.update(force_fit_rms_n=float(np.max(f_rms)), kr_nfev_max=int(np.max(nfev)))
+        if np.any(np.isfinite(fit_rms)):
+            diagnostics["sine_fit_rms_m"] = float(np.nanmax(fit_rms))
+        diagnostics["stage2"] = "sines" if np.all(np.isfinite(fit_rms)) else stage2
     return VeticaResult(
         values=sls_elements(tau_c, kg, _mean(kr_i)),
         per_tap=per_tap,
@@ -493,12 +548,12 @@ class Vetica(ExtractionMethod):
     title = "VETICA"
     surface_models = ("sls",)
     surface_note = "VETICA assumes one relaxation time (thesis 3.3)"
-    options_default: ClassVar[dict[str, Any]] = {"kg_points": 10, "kr_guess": None}
+    options_default: ClassVar[dict[str, Any]] = {"kg_points": 10, "kr_guess": None, "stage2": "closed"}
     seconds_per_point = 1.4  # 0.6 s (true force) + 0.8 s (reconstructed), 10 periods at 0.125 ns, 2 cores
 
     def run(self, record: Record, options: dict) -> ExtractionResult:
         ex = vetica(record.t, record.z, record.f, record.z1, kg_points=options["kg_points"],
-                    kr_guess=options["kr_guess"])  # fmt: skip
+                    kr_guess=options["kr_guess"], stage2=options["stage2"], taps=record.taps)  # fmt: skip
         units = {k: q.unit for k, q in self.quantities(record.model).items()}
         timing = {"reconstruction": record.reconstruction_s, **ex.timing_s,
                   "total": time.perf_counter() - record.t_start}  # fmt: skip
@@ -514,9 +569,15 @@ class Vetica(ExtractionMethod):
             timing_s=timing,
         )
 
+    def options(self, given: dict) -> dict:
+        opts = super().options(given)
+        if opts["stage2"] not in STAGE2:
+            raise InputError(f"stage2 {opts['stage2']!r} not allowed; choose one of: {', '.join(STAGE2)}")
+        return opts
+
     def timing_line(self, timing_s: dict) -> str:
         tm = timing_s
         return (
-            f"time: reconstruction {tm.get('reconstruction', 0):.2f} s, stage 1 {tm.get('stage1', 0):.3f} s, "
-            f"stage 2 {tm.get('stage2', 0):.3f} s ({tm.get('stage2_per_tap', 0) * 1e3:.0f} ms per tap)"
+            f"time: reconstruction {tm.get('reconstruction', 0):.4f} s, stage 1 {tm.get('stage1', 0):.4f} s, "
+            f"stage 2 {tm.get('stage2', 0):.4f} s ({tm.get('stage2_per_tap', 0) * 1e3:.2f} ms per tap)"
         )
