@@ -52,32 +52,46 @@ def superpose(delta, h, tau, y, dy):
 
 @njit(cache=True)
 def _cost(delta, f, h, kg, kr, tau_c, fc, scale, sa, sb, fit_sigma, y, dy, out):
-    """``out = (S, S'/2, sigma0)`` at ``kr``."""
+    """``out = (S, S'/2, sigma0)`` at ``kr``; the superposition (:func:`superpose`) fused
+    into the pass over the samples (``y``, ``dy`` are filled only with ``fit_sigma``)."""
     tau = tau_c * kr / kg
-    superpose(delta, h, tau, y, dy)
     n = len(delta)
     e = math.exp(-h / tau)
+    c = tau * (1.0 - e) / h
+    de = e * h / (tau * tau)
+    dc = (1.0 - e) / h - e / tau
+    inv = 1.0 / scale
+    dtau = tau_c / kg
     sigma = sa + sb * kr
+    dsig = sb
     if fit_sigma:  # sigma0 minimising S at this Kr: r = r0 + sigma g, g = (1 - p)/scale
+        superpose(delta, h, tau, y, dy)
         num = 0.0
         den = 0.0
         p = 1.0
         for k in range(n):
-            r0 = (fc + kr * delta[k] + (kg - kr) * y[k] - f[k]) / scale
-            g = (1.0 - p) / scale
+            r0 = (fc + kr * delta[k] + (kg - kr) * y[k] - f[k]) * inv
+            g = (1.0 - p) * inv
             num += r0 * g
             den += g * g
             p *= e
         sigma = -num / den if den > 0.0 else 0.0
+        dsig = 0.0
     s = 0.0
     slope = 0.0
     p = 1.0
-    dtau = tau_c / kg
+    yk = 0.0
+    dyk = 0.0
+    kgr = kg - kr
+    sp = sigma * h * dtau / (tau * tau)  # d(1 - p_k)/dKr = -(k h) p_k dtau/tau^2, times sigma
     for k in range(n):
-        u = k * h
-        r = (fc + kr * delta[k] + (kg - kr) * y[k] + sigma * (1.0 - p) - f[k]) / scale
-        dsig = 0.0 if fit_sigma else sb
-        dr = (delta[k] - y[k] + (kg - kr) * dy[k] * dtau + dsig * (1.0 - p) - sigma * u / (tau * tau) * p * dtau) / scale
+        if k > 0:
+            step = delta[k] - delta[k - 1]
+            dyk = e * dyk + yk * de + step * dc
+            yk = e * yk + step * c
+        q = 1.0 - p
+        r = (fc + kr * delta[k] + kgr * yk + sigma * q - f[k]) * inv
+        dr = (delta[k] - yk + kgr * dyk * dtau + dsig * q - sp * k * p) * inv
         s += r * r
         slope += r * dr
         p *= e
@@ -165,7 +179,9 @@ def _golden(delta, f, h, kg, tau_c, fc, scale, sa, sb, fit_sigma, y, dy, out, a,
 @njit(cache=True)
 def solve_kr(delta, f, h, kg, tau_c, fc, kr_guess, sa, sb, fit_sigma, n_scan, rtol):
     """Least-squares ``Kr`` of one tap on ``(1e-12 Kg, Kg (1 - 1e-9))`` (module docstring).
-    ``kr_guess <= 0``: none.  Returns ``(Kr, sigma0 [N], residual RMS [N], cost evaluations)``."""
+    ``kr_guess <= 0``: none.  ``n_scan = 0`` with a guess: a warm start (a fixed-point
+    iteration's previous Kr) -- the root of ``S'`` is bracketed by steps growing from 1e-3
+    of the guess (the scan when that finds none).  Returns ``(Kr, sigma0 [N], residual RMS [N], cost evaluations)``."""
     n = len(delta)
     y = np.empty(n)
     dy = np.empty(n)
@@ -177,13 +193,42 @@ def solve_kr(delta, f, h, kg, tau_c, fc, kr_guess, sa, sb, fit_sigma, n_scan, rt
         scale = 1.0
     lo = 1e-12 * kg
     hi = kg * (1.0 - 1e-9)
+    calls = 0
+    if n_scan == 0 and lo < kr_guess < hi:  # warm start: bracket the root of S' around the guess
+        _cost(delta, f, h, kg, kr_guess, tau_c, fc, scale, sa, sb, fit_sigma, y, dy, out)
+        calls += 1
+        g0 = out[1]
+        step = 1e-3
+        for _ in range(12):
+            other = kr_guess * (1.0 - step) if g0 > 0.0 else min(kr_guess * (1.0 + step), hi)
+            other = max(other, lo)
+            _cost(delta, f, h, kg, other, tau_c, fc, scale, sa, sb, fit_sigma, y, dy, out)
+            calls += 1
+            g1 = out[1]
+            if g0 == 0.0 or g1 == 0.0 or (g0 > 0.0) != (g1 > 0.0):
+                break
+            kr_guess, g0 = other, g1
+            step *= 4.0
+        if g0 == 0.0:
+            kr = kr_guess
+        elif g1 == 0.0:
+            kr = other
+        elif (g0 > 0.0) != (g1 > 0.0):
+            a, b, ga, gb = (other, kr_guess, g1, g0) if g0 > 0.0 else (kr_guess, other, g0, g1)
+            kr, c = _brent_root(delta, f, h, kg, tau_c, fc, scale, sa, sb, fit_sigma, y, dy, out, a, b, ga, gb, rtol)
+            calls += c
+        else:
+            kr = -1.0
+        if kr > 0.0:
+            _cost(delta, f, h, kg, kr, tau_c, fc, scale, sa, sb, fit_sigma, y, dy, out)
+            return kr, out[2], scale * math.sqrt(out[0] / n), calls + 1
+        n_scan = 16  # no bracket near the guess: scan the bounds
     xs = np.exp(np.linspace(math.log(lo), math.log(hi), n_scan))
     if lo < kr_guess < hi:
         xs = np.unique(np.append(xs, kr_guess))
     m = len(xs)
     best = 0
     sbest = np.inf
-    calls = 0
     for i in range(m):
         _cost(delta, f, h, kg, xs[i], tau_c, fc, scale, sa, sb, fit_sigma, y, dy, out)
         calls += 1

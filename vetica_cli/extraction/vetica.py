@@ -418,7 +418,7 @@ def uniform_step(u: np.ndarray) -> float | None:
 
 
 def stage2_tap_closed(u, z, f, kg: float, tau_c: float, fc: float, kr_guess: float | None = None,
-                      sigma: tuple = (0.0, 0.0), fit_sigma: bool = False):  # fmt: skip
+                      sigma: tuple = (0.0, 0.0), fit_sigma: bool = False, warm: bool = False):  # fmt: skip
     """Stage 2 of one tap without the sum-of-sines fit (``stage2='closed'``): ``(Kr, sigma0 [N],
     residual RMS [N], cost evaluations)``, or None when the contact is not sampled at a
     constant step (the caller then uses the thesis's path).
@@ -430,7 +430,8 @@ def stage2_tap_closed(u, z, f, kg: float, tau_c: float, fc: float, kr_guess: flo
     smooths the trajectory first; on noise-free records of 1 ns samples the two agree to
     ~1e-4 relative in Kr (tests/test_realtime.py).  ``sigma = (sa, sb)``: the pre-stress
     ``sa + sb Kr`` (:mod:`.vetica_prestress`; 0 for VETICA), or with ``fit_sigma`` a
-    parameter fitted with Kr.
+    parameter fitted with Kr.  ``warm``: ``kr_guess`` is the previous iteration's Kr (the
+    root is bracketed near it instead of scanning the bounds; same root).
     """
     from ..core.superposition import solve_kr  # lazy: numba only when a record is extracted
 
@@ -441,7 +442,8 @@ def stage2_tap_closed(u, z, f, kg: float, tau_c: float, fc: float, kr_guess: flo
     delta = float(z[0]) - np.asarray(z, dtype=float)
     guess = -1.0 if kr_guess is None else float(kr_guess)
     kr, s0, rms, calls = solve_kr(delta, np.asarray(f, dtype=float), h, float(kg), float(tau_c), float(fc), guess,
-                                  float(sigma[0]), float(sigma[1]), bool(fit_sigma), KR_SCAN, KR_RTOL)  # fmt: skip
+                                  float(sigma[0]), float(sigma[1]), bool(fit_sigma), 0 if warm else KR_SCAN,
+                                  KR_RTOL)  # fmt: skip
     return float(kr), float(s0), float(rms), int(calls)
 
 
@@ -547,6 +549,7 @@ class Vetica(ExtractionMethod):
     description = "VETICA (thesis 3.3): creep between taps, initial contact slope, superposition fit"
     title = "VETICA"
     surface_models = ("sls",)
+    tap_windows = True  # the force is read only around the contacts (and the approach's first contact)
     surface_note = "VETICA assumes one relaxation time (thesis 3.3)"
     options_default: ClassVar[dict[str, Any]] = {"kg_points": 10, "kr_guess": None, "stage2": "closed"}
     seconds_per_point = 1.4  # 0.6 s (true force) + 0.8 s (reconstructed), 10 periods at 0.125 ns, 2 cores

@@ -78,8 +78,25 @@ def paddle_inverse_transfer(omega: np.ndarray, k2: float, f2: float, q2: float) 
     return k2 * (1.0 - (omega / w2) ** 2 + 1j * omega / (q2 * w2))
 
 
+_BERNOULLI = (  # coefficients of B_m(s), highest power first (B_1 = s - 1/2 convention)
+    (1.0,),
+    (1.0, -0.5),
+    (1.0, -1.0, 1.0 / 6.0),
+    (1.0, -1.5, 0.5, 0.0),
+    (1.0, -2.0, 1.0, 0.0, -1.0 / 30.0),
+    (1.0, -2.5, 5.0 / 3.0, 0.0, -1.0 / 6.0, 0.0),
+)
+
+
 def _bernoulli_poly(m: int, s: np.ndarray) -> np.ndarray:
-    """Bernoulli polynomial ``B_m(s)`` (B_1 = s - 1/2 convention)."""
+    """Bernoulli polynomial ``B_m(s)`` (B_1 = s - 1/2 convention); a table up to m = 5 (Horner), scipy beyond."""
+    if m < len(_BERNOULLI):
+        coeffs = _BERNOULLI[m]
+        out = np.full_like(s, coeffs[0], dtype=float)
+        for c in coeffs[1:]:
+            out *= s
+            out += c
+        return out
     from scipy.special import bernoulli, comb
 
     b = bernoulli(m)
