@@ -148,14 +148,22 @@ def bench(
         3, help="Timed runs after one warm-up (compilation) run.", callback=checked("an integer >= 1", lambda v: v >= 1)
     ),
     set_: Optional[List[str]] = typer.Option(None, "--set", help=SET_HELP),
+    part: str = typer.Option(
+        "all", help="all | simulation | extraction (per pixel record and method).",
+        callback=checked("one of: all, simulation, extraction", lambda v: v in ("all", "simulation", "extraction")),
+    ),  # fmt: skip
 ):
     """Time the simulation on the worked example, all-fine Verlet against the hybrid
     integrator: ns per fine step, ms per drive period, seconds per point (approach,
-    steady state, recorded window); medians of the repeated runs, one core."""
-    from .bench import run_bench
+    steady state, recorded window); and the extraction of a scan pixel's record per
+    method (CPU ms); medians of the repeated runs, one core."""
+    from .bench import run_bench, run_extraction_bench
     from .simulation.config import parse_set
 
-    typer.echo(run_bench(parse_set(set_), repeat))
+    if part in ("all", "simulation"):
+        typer.echo(run_bench(parse_set(set_), repeat))
+    if part in ("all", "extraction"):
+        typer.echo(run_extraction_bench(repeat=max(5, 5 * repeat), overrides=parse_set(set_)))
 
 
 @app.command()

@@ -89,14 +89,18 @@ def segment(df: pd.DataFrame, name: str) -> pd.DataFrame | None:
     if "segment" not in df.columns:
         return None
     seg = df["segment"]
-    if hasattr(seg, "cat") and name not in seg.cat.categories:
+    if hasattr(seg, "cat"):
+        if name not in seg.cat.categories:
+            return None
+        mask = seg.cat.codes.to_numpy() == seg.cat.categories.get_loc(name)  # integer codes, no string compare
+    else:
+        mask = (seg == name).to_numpy()
+    first = int(np.argmax(mask))
+    if not mask[first]:
         return None
-    mask = (seg == name).to_numpy()
-    rows = np.flatnonzero(mask)
-    if not len(rows):
-        return None
-    if rows[-1] - rows[0] + 1 == len(rows):  # one contiguous block (a run table): a view, no copy
-        return df.iloc[rows[0] : rows[-1] + 1]
+    last = len(mask) - 1 - int(np.argmax(mask[::-1]))
+    if np.count_nonzero(mask) == last - first + 1:  # one contiguous block (a run table): a view, no copy
+        return df.iloc[first : last + 1]
     return df[mask]
 
 
