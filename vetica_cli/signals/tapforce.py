@@ -18,9 +18,11 @@ end correction over all of them), :func:`reconstruct_taps`:
    :data:`REFINE` samples of the estimate's).
 
 Outside the windows the returned force is the time-domain estimate.  Measured on records
-of 4 periods at 1 ns (worked example and a soft surface): the windows' force equals the
-whole-record inversion's to 1e-7 of the peak force, for windows of 2048 to 8192 samples
-(tests/test_realtime.py checks it on a record).
+of 4 periods at 1 ns (worked example and a soft surface): from the contact to the
+separation the windows' force equals the whole-record inversion's to 1e-7 of the peak
+force, for windows of 2048 to 8192 samples; the last few samples at a window's ends ring
+(up to 0.4 % of the peak), which the margin keeps away from the taps
+(tests/test_realtime.py checks half a margin either side on a record).
 """
 
 from __future__ import annotations
