@@ -24,6 +24,8 @@ from . import fullfit as _fullfit  # noqa: F401  (registers 'full')
 # isort: on
 from .material import ContactModel, contact_metadata, contact_model, material_entries, tap_contact
 from .record import FORCES, SOURCES, Record, build_record
+
+RECORD_COLUMNS = ("t", "z_tip", "f_ts", "z_paddle", "segment")  # what any method reads of a run table
 from .result import Estimate, ExtractionResult, Spread
 
 
@@ -123,7 +125,7 @@ def add_material(res: ExtractionResult, record: Record, cm: ContactModel, radius
 
 def extract_file(path, force: str = "auto", method: str = DEFAULT_METHOD, **kwargs) -> ExtractionResult:
     """:func:`extract` on a Parquet (with metadata) or CSV table (``vetica extract PATH``)."""
-    df, meta = read_table(path)
+    df, meta = read_table(path, columns=RECORD_COLUMNS)
     return extract(df, meta, force=force, method=method, **kwargs)
 
 

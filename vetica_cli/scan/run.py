@@ -32,6 +32,7 @@ import pandas as pd
 from .. import __version__
 from ..errors import InputError
 from ..io import read_table, write_table, write_text
+from ..study.cost import duration
 from ..study.launch import Launcher, make_launcher
 from ..study.progress import Progress
 from ..study.schema import STATUSES
@@ -235,13 +236,17 @@ def dry_run_text(cfg: ScanConfig, output: Path, jobs: int) -> str:
     for name, n in zip(cfg.sample.domain_names(), smap.covered):
         lines.append(f"  {name}: {n} pixels" + ("  (covers no pixel centre)" if n == 0 else ""))
     total = 0.0
+    n = cfg.point.numerics
+    # a record's cost scales with its samples: record_cycles / print_step (measured at 4 periods, 1 ns)
+    per_record = SECONDS_PER_RECORD * (n.record_cycles / 4) * (1e-9 / n.print_step)
     for p in cfg.scan.passes():
         periods = round(p.pixel_time / period) if p.steady == "transient" else 40
-        per_pixel = periods * SECONDS_PER_PERIOD + SECONDS_PER_RECORD * len(cfg.scan.methods)
+        per_pixel = periods * SECONDS_PER_PERIOD + per_record * len(cfg.scan.methods)
         total += per_pixel * r.nx * r.ny
         lines.append(f"  pass {p.label()}: {r.ny} lines, ~{per_pixel:.2f} s a pixel")
-    lines.append(f"~{total / jobs / 60:.1f} min on {jobs} worker(s) (measured costs at PS 1 ns and 4 recorded periods: "
-                 f"{SECONDS_PER_PERIOD * 1e3:g} ms a drive period, {SECONDS_PER_RECORD:g} s a record per method); "
+    lines.append(f"~{duration(total / jobs)} on {jobs} worker(s) (measured costs: {SECONDS_PER_PERIOD * 1e3:g} ms a "
+                 f"drive period, {SECONDS_PER_RECORD:g} s a record per method at PS 1 ns and 4 recorded periods, "
+                 f"{per_record:.3g} s at PS {n.print_step * 1e9:g} ns and {n.record_cycles} periods); "
                  f"would write {output}")  # fmt: skip
     return "\n".join(lines)
 
