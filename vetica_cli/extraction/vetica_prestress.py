@@ -372,7 +372,7 @@ class VeticaPrestress(ExtractionMethod):
     tap_windows = True  # the force is read only around the contacts (and the approach's first contact)
     options_default: ClassVar[dict[str, Any]] = {"kg_points": 10, "kr_guess": None, "prestress": "auto",
                                                  "stage2": "closed"}  # fmt: skip
-    seconds_per_point = 2.0
+    seconds_per_point = 0.15  # both forces, 10 periods at 0.125 ns: 0.11 CPU s measured (stage2 closed; sines: 0.51)
 
     def options(self, given: dict) -> dict:
         opts = super().options(given)
