@@ -18,6 +18,7 @@ from vetica_cli import surfaces
 from vetica_cli.core.superposition import superpose
 from vetica_cli.errors import InputError
 from vetica_cli.extraction import extract
+from vetica_cli.extraction.record import build_record
 from vetica_cli.extraction.vetica import SineFit, boltzmann_force, exp_conv_cos, fit_sum_of_sines, stage2_kr, \
     stage2_tap_closed  # fmt: skip
 from vetica_cli.signals.spectral import reconstruct_force
@@ -124,6 +125,7 @@ def test_closed_stage2_agrees_with_the_thesis_fit_on_a_pixel(pixel, method):
     fast = extract(df, meta, force="reconstructed", method=method)
     thesis = extract(df, meta, force="reconstructed", method=method, stage2="sines")
     assert fast.diagnostics["stage2"] == "closed" and thesis.diagnostics["stage2"] == "sines"
+    assert fast.info.get("force_windows") == 3  # the force was rebuilt in the 3 tap windows
     assert "sine_fit_rms_m" in thesis.diagnostics
     for q in ("tau_c", "k_g", "k_r", "k0", "k_inf", "cd"):
         assert fast.value(q) == pytest.approx(thesis.value(q), rel=5e-4), q
@@ -135,3 +137,26 @@ def test_stage2_option_is_checked(pixel):
     df, meta = pixel
     with pytest.raises(InputError, match="stage2 'fast' not allowed; choose one of: closed, sines"):
         extract(df, meta, force="true", method="vetica", stage2="fast")
+
+
+@pytest.mark.parametrize("noise", [1e-12, 1e-10])
+def test_tap_windows_step_aside_on_a_noisy_paddle_signal(pixel, noise):
+    """Detector noise on the paddle signal (RMS ``noise`` [m], seeded): at the Nyquist cut-off
+    the inversion amplifies it by ``(w/w2)^2`` (~4e5 at 500 MHz), so no force minimum is a clean
+    contact kink and the windows return None (measured down to 1e-12 m at 1 ns); with a
+    cut-off below Nyquist they always do.  build_record then rebuilds the whole record: the
+    same force and taps as without the windows."""
+    df, meta = pixel
+    st = df[df["segment"] == "steady"]
+    p = meta["params"]["probe"]
+    t = st["t"].to_numpy()
+    zp = st["z_paddle"].to_numpy() + noise * np.random.default_rng(7).standard_normal(len(t))
+    assert reconstruct_taps(t, zp, p["k2"], p["f2"], p["q2"]) is None
+    clean = st["z_paddle"].to_numpy()
+    assert reconstruct_taps(t, clean, p["k2"], p["f2"], p["q2"], cutoff_hz=100e6) is None
+    noisy = df.copy()
+    noisy.loc[noisy["segment"] == "steady", "z_paddle"] = zp
+    rec = build_record(noisy, meta, "reconstructed", tap_windows=True)
+    ref = build_record(noisy, meta, "reconstructed")
+    assert "force_windows" not in rec.info and rec.taps is None
+    assert np.array_equal(rec.f, ref.f) and rec.z1 == ref.z1

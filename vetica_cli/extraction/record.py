@@ -164,11 +164,15 @@ class _ForceSource:
         self.info["cutoff_hz"] = rec.cutoff_hz
         return rec.f
 
-    def tap_force(self, seg: pd.DataFrame, where: str) -> TapForce:
-        """The reconstructed force of a steady record in its tap windows (:mod:`~vetica_cli.signals.tapforce`)."""
+    def tap_force(self, seg: pd.DataFrame, where: str) -> TapForce | None:
+        """The reconstructed force of a steady record in its tap windows (:mod:`~vetica_cli.signals.tapforce`);
+        None when the windows cannot stand in for the whole record's inversion."""
         p = self._probe()
         tf = reconstruct_taps(seg["t"].to_numpy(float), column(seg, "z_paddle", where), p["k2"], p["f2"], p["q2"],
                               cutoff_hz=self.cutoff_hz, taper=self.taper)  # fmt: skip
+        if tf is None:  # and the approach segment is rebuilt whole too
+            self.windows = False
+            return None
         self.info["cutoff_hz"] = tf.cutoff_hz
         self.info["force_windows"] = len(tf.windows)
         return tf
@@ -177,8 +181,10 @@ class _ForceSource:
         """The approach segment's force and its first contact minimum (thesis eq. 84)."""
         if self.force == "reconstructed" and self.windows:
             p = self._probe()
-            return approach_force(seg["t"].to_numpy(float), column(seg, "z_paddle", where), p["k2"], p["f2"],
-                                  p["q2"], cutoff_hz=self.cutoff_hz, taper=self.taper)  # fmt: skip
+            out = approach_force(seg["t"].to_numpy(float), column(seg, "z_paddle", where), p["k2"], p["f2"],
+                                 p["q2"], cutoff_hz=self.cutoff_hz, taper=self.taper)  # fmt: skip
+            if out is not None:
+                return out
         f = self(seg, where)
         return f, first_contact_minimum(f)
 
@@ -212,8 +218,9 @@ def _steady_force(steady, force_of: _ForceSource, f1: float | None) -> tuple[np.
     ``force_of.info``."""
     info = force_of.info
     taps = None
-    if force_of.force == "reconstructed" and force_of.windows:
-        tf = force_of.tap_force(steady, "the steady record")
+    windows = force_of.force == "reconstructed" and force_of.windows
+    tf = force_of.tap_force(steady, "the steady record") if windows else None
+    if tf is not None:
         f, taps = tf.f, tf.taps
         if "f_ts" in steady.columns and tf.windows:
             idx = np.concatenate([np.arange(a, b) for a, b in tf.windows])

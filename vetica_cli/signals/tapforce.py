@@ -32,6 +32,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..errors import InputError
 from .spectral import reconstruct_force
 from .taps import Taps, find_taps, first_contact_minimum
 
@@ -87,24 +88,35 @@ def _window(lo: int, hi: int, n: int) -> tuple[int, int]:
     return a, a + length
 
 
-def _argmin_near(f: np.ndarray, i: int, a: int, b: int) -> int:
+def _argmin_near(f: np.ndarray, i: int, a: int, b: int) -> int | None:
+    """The rebuilt force's minimum within :data:`REFINE` samples of ``i``; None when it lies on
+    the edge of that range (no clean contact kink there: noise, or a low-pass cut-off)."""
     lo, hi = max(a, i - REFINE), min(b, i + REFINE + 1)
-    return lo + int(np.argmin(f[lo:hi]))
+    j = lo + int(np.argmin(f[lo:hi]))
+    return None if j in (lo, hi - 1) else j
 
 
 def reconstruct_taps(t, zp, k2: float, f2: float, q2: float, cutoff_hz: float | None = None,
-                     taper: float = 0.0) -> TapForce:  # fmt: skip
+                     taper: float = 0.0) -> TapForce | None:  # fmt: skip
     """The force rebuilt in the tap windows of a record (module docstring); input checks as
-    :func:`~vetica_cli.signals.spectral.reconstruct_force`, InputError as
-    :func:`~vetica_cli.signals.taps.find_taps` for a record without two taps."""
+    :func:`~vetica_cli.signals.spectral.reconstruct_force`.  None -- rebuild the whole record
+    instead -- when the windows would not find what the whole record's inversion finds: a
+    low-pass cut-off below the Nyquist frequency (the time-domain estimate has none), no two
+    taps in the estimate, or a contact or separation minimum of the rebuilt force that is not
+    a clean minimum within :data:`REFINE` samples of the estimate's (a noisy paddle signal)."""
     t = np.asarray(t, dtype=float)
     zp = np.asarray(zp, dtype=float)
+    n = len(t)
+    if n < 2 or (cutoff_hz is not None and cutoff_hz < 0.5 * (n - 1) / (t[-1] - t[0])):
+        return None
     est = paddle_estimate(t, zp, k2, f2, q2)
-    coarse = find_taps(est)
+    try:
+        coarse = find_taps(est)
+    except InputError:
+        return None
     f = est
     windows, cutoff = [], None
     contact, separation, peak = [], [], []
-    n = len(t)
     for ic, isep in zip(coarse.contact, coarse.separation):
         a, b = _window(int(ic), int(isep), n)
         rec = reconstruct_force(t[a:b], zp[a:b], k2, f2, q2, cutoff_hz=cutoff_hz, taper=taper)
@@ -113,26 +125,35 @@ def reconstruct_taps(t, zp, k2: float, f2: float, q2: float, cutoff_hz: float | 
         windows.append((a, b))
         c = _argmin_near(f, int(ic), a, b)
         s = _argmin_near(f, int(isep), a, b)
+        if c is None or s is None or s - c < 2:
+            return None
         contact.append(c)
         separation.append(s)
         peak.append(c + int(np.argmax(f[c : s + 1])))
     taps = Taps(np.array(contact, int), np.array(separation, int), np.array(peak, int), coarse.spacing,
                 coarse.incomplete)  # fmt: skip
-    if cutoff is None:  # no complete tap: the cut-off the windows would have used
-        cutoff = 0.5 * (n - 1) / (t[-1] - t[0]) if cutoff_hz is None else min(cutoff_hz, 0.5 * (n - 1) / (t[-1] - t[0]))
+    if cutoff is None:  # no complete tap: the whole record's inversion says what is wrong
+        return None
     return TapForce(f=f, taps=taps, windows=windows, cutoff_hz=float(cutoff))
 
 
 def approach_force(t, zp, k2: float, f2: float, q2: float, cutoff_hz: float | None = None,
-                   taper: float = 0.0) -> tuple[np.ndarray, int]:  # fmt: skip
+                   taper: float = 0.0) -> tuple[np.ndarray, int] | None:  # fmt: skip
     """The approach segment's force rebuilt around its first contact minimum, and that
     minimum's index (:func:`~vetica_cli.signals.taps.first_contact_minimum`, located on the
-    time-domain estimate, then moved to the rebuilt force's minimum nearby)."""
+    time-domain estimate, then moved to the rebuilt force's minimum nearby); None as
+    :func:`reconstruct_taps` says (then the whole segment is rebuilt)."""
     t = np.asarray(t, dtype=float)
     zp = np.asarray(zp, dtype=float)
-    f = paddle_estimate(t, zp, k2, f2, q2)
-    i1 = first_contact_minimum(f)
     n = len(t)
+    if n < 4 * MARGIN or (cutoff_hz is not None and cutoff_hz < 0.5 * (n - 1) / (t[-1] - t[0])):
+        return None
+    f = paddle_estimate(t, zp, k2, f2, q2)
+    try:
+        i1 = first_contact_minimum(f)
+    except InputError:
+        return None
     a, b = _window(i1 - APPROACH_HALF + MARGIN, i1 + APPROACH_HALF - MARGIN, n)
     f[a:b] = reconstruct_force(t[a:b], zp[a:b], k2, f2, q2, cutoff_hz=cutoff_hz, taper=taper).f
-    return f, _argmin_near(f, i1, a, b)
+    j = _argmin_near(f, i1, a, b)
+    return None if j is None else (f, j)
