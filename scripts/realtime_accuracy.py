@@ -1,6 +1,6 @@
 """How far the real-time extraction (compiled stage 2, force rebuilt in the tap windows) moves
 the committed results: re-run a few points of each study with this code into a temporary
-folder and compare their estimates with the rows of results/<study>.parquet.
+folder and compare their estimates with the rows of results/<study>.parquet (or results/<sub-folder>/<study>.parquet).
 
 For each study (default: the seven thesis studies), ``--points`` points spread evenly over
 its grid are simulated again (``vetica_cli.study``'s own point configs) and extracted with
@@ -55,6 +55,14 @@ def rel(a: float, b: float) -> float:
     return abs(a - b) / abs(b)
 
 
+def committed_table(name: str) -> Path:
+    """results/<name>.parquet, or in a sub-folder of results/ (results/thesis/, results/scans/, ...)."""
+    found = sorted((ROOT / "results").rglob(f"{name}.parquet"))
+    if not found:
+        raise SystemExit(f"no committed table {name}.parquet under results/")
+    return found[0]
+
+
 def accepted_row(row) -> bool:
     """In the thesis's acceptance regime (vetica_cli.study.acceptance): status ok and |tau_c error| < 30 %."""
     err = row.get("tau_c_err_pct")
@@ -67,7 +75,7 @@ def pick(n_points: int, k: int) -> list[int]:
 
 def study_rows(name: str, k: int) -> list[dict]:
     study = load_study(ROOT / "configs" / f"{name}.yaml")
-    table = pd.read_parquet(ROOT / "results" / f"{name}.parquet")
+    table = pd.read_parquet(committed_table(name))
     out = []
     for idx in pick(len(study.points), k):
         point = study.points[idx]
@@ -102,7 +110,7 @@ def scan_rows(tmp: Path) -> list[dict]:
                     "scan.methods=[vetica]", "-j", "1", "-o", str(out_path)], check=True, cwd=ROOT,
                    stdout=subprocess.DEVNULL)  # fmt: skip
     new = pd.read_parquet(out_path)
-    old = pd.read_parquet(ROOT / "results" / "scan_edge.parquet")
+    old = pd.read_parquet(committed_table("scan_edge"))
     old = old[(old["method"] == "vetica") & (old["steady"] == "transient") & np.isclose(old["pixel_time"], 2e-3)]
     merged = new.merge(old, on=["ix", "iy", "method", "force_source"], suffixes=("", "_old"))
     out = []
