@@ -160,3 +160,23 @@ def test_tap_windows_step_aside_on_a_noisy_paddle_signal(pixel, noise):
     ref = build_record(noisy, meta, "reconstructed")
     assert "force_windows" not in rec.info and rec.taps is None
     assert np.array_equal(rec.f, ref.f) and rec.z1 == ref.z1
+
+
+def test_extract_cli_stage2_option(tmp_path):
+    """``vetica extract --stage2``: sines runs the thesis's fit (its diagnostics say so); a bad
+    value is one line and exit 2."""
+    import json
+
+    from typer.testing import CliRunner
+
+    from vetica_cli.cli import app
+    from vetica_cli.io import write_run
+
+    path = write_run(simulate(load(None, {"numerics.print_step": 1e-9, "numerics.record_cycles": 3})),
+                     tmp_path / "r.parquet")  # fmt: skip
+    r = CliRunner().invoke(app, ["extract", str(path), "--stage2", "sines", "--json"])
+    assert r.exit_code == 0, r.output
+    out = json.loads(r.output)
+    assert out["info"]["diagnostics"]["stage2"] == "sines" and out["info"]["timing_s"]["total"] > 0
+    bad = CliRunner().invoke(app, ["extract", str(path), "--stage2", "fast"])
+    assert bad.exit_code == 2 and "stage2 'fast' not allowed; choose one of: closed, sines" in bad.output

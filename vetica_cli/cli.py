@@ -368,6 +368,10 @@ def extract(
         None, "--prestress", help="vetica-prestress: auto (adhesion if the surface feels the pull, else creep), "
         "adhesion, creep or fit.",
     ),
+    stage2: Optional[str] = typer.Option(
+        None, "--stage2", help="vetica, vetica-prestress: closed (compiled superposition of the samples, default) or "
+        "sines (the thesis's sum-of-sines fit).",
+    ),
 ):  # fmt: skip
     """Extract k0, k_inf, cd (and tau_c, Kg, Kr, tau_r) from a run with VETICA
     or another registered method (--method; full fits the SLS or Wiechert surface
@@ -394,6 +398,8 @@ def extract(
     opts = {k: v for k, v in given.items() if v is not None}
     if prestress is not None:
         opts["prestress"] = prestress
+    if stage2 is not None:
+        opts["stage2"] = stage2
     res = extract_file(run, force=force, method=method, kg_points=kg_points, k2=k2, f2=f2, q2=q2, z1=z1, f1=f1,
                        cutoff_hz=cutoff, a0=a0, vdw_on_surface=vdw_on_surface, contact=parse_contact(contact),
                        **opts)  # fmt: skip
