@@ -9,6 +9,12 @@ surface) on the given config (default: the thesis's worked example, dt = 0.025 n
 * ms per drive period: one period (not recorded) from the solved orbit;
 * s per point: ``simulate()``'s kernel time -- approach, steady state (orbit or transient),
   recorded window -- and its split.
+
+Extraction (:func:`run_extraction_bench`): a scan pixel's record -- 4 drive periods at 1 ns,
+the force reconstructed from the paddle signal -- of the worked example (stiff) and of the
+blend's soft domains (k_inf 2, k0 32, cd 3e-4 kg/s); per method, CPU milliseconds per
+pixel (``time.process_time``, medians) of ``extract()`` from the table and its parts: the
+record (force in the tap windows, Z1) and the method.
 """
 
 from __future__ import annotations
@@ -45,6 +51,55 @@ def _period_ms(run, cfg) -> tuple[float, float]:
         walls.append(time.perf_counter() - t0)
         fine = o[tapping.O_FINE]
     return 1e3 * statistics.median(walls), float(fine)
+
+
+PIXEL = {"numerics.print_step": 1e-9, "numerics.record_cycles": 4}  # a scan pixel's record (configs/scan_blend.yaml)
+SURFACES = {"stiff": {}, "soft": {"surface.k_inf": 2.0, "surface.k0": 32.0, "surface.cd": 3e-4}}
+
+
+def _cpu_ms(fn, repeat: int) -> float:
+    """Median CPU time of ``fn()`` over ``repeat`` calls [ms]."""
+    out = []
+    for _ in range(repeat):
+        t0 = time.process_time()
+        fn()
+        out.append(time.process_time() - t0)
+    return 1e3 * statistics.median(out)
+
+
+def run_extraction_bench(methods: tuple = ("vetica", "vetica-prestress", "full"), repeat: int = 20,
+                         overrides: dict | None = None) -> str:  # fmt: skip
+    """CPU ms per pixel record of each extraction method (module docstring); ``repeat`` timed
+    calls after two warm-up calls (compilation, caches), fewer for the whole-cycle fit."""
+    from .extraction import extract, get
+    from .extraction.record import build_record
+
+    lines = [f"extraction per pixel record (4 periods at 1 ns, reconstructed force), CPU ms, medians of {repeat} "
+             f"calls (the whole-cycle fit: {max(3, repeat // 5)}), one core"]  # fmt: skip
+    lines.append(f"{'surface':<6} {'method':<17} {'extract':>8} {'record':>8} {'method':>8}   "
+                 "stage2 thesis fit (sines) for comparison")  # fmt: skip
+    for name, surf in SURFACES.items():
+        run = simulate(load(None, {**PIXEL, **surf, **(overrides or {})}))
+        df, meta = run.frame(), run.metadata()
+        for key in methods:
+            m = get(key)
+            n = max(3, repeat // 5) if key == "full" else repeat
+            opts = m.options({})
+            for _ in range(2):
+                extract(df, meta, force="reconstructed", method=key)
+            total = _cpu_ms(lambda: extract(df, meta, force="reconstructed", method=key), n)
+            kw = {"need_approach": m.needs_approach, "need_z1": m.needs_z1, "tap_windows": m.tap_windows,
+                  "uniform": key if m.uniform_sampling else None}  # fmt: skip
+            record = build_record(df, meta, "reconstructed", **kw)
+            rec_ms = _cpu_ms(lambda: build_record(df, meta, "reconstructed", **kw), n)
+            meth_ms = _cpu_ms(lambda: m.run(record, opts), n)
+            extra = ""
+            if "stage2" in opts:
+                o2 = {**opts, "stage2": "sines"}
+                m.run(record, o2)
+                extra = f"{_cpu_ms(lambda: m.run(record, o2), max(3, repeat // 5)):8.1f}"
+            lines.append(f"{name:<6} {key:<17} {total:8.2f} {rec_ms:8.2f} {meth_ms:8.2f}   {extra}")
+    return "\n".join(lines)
 
 
 def run_bench(overrides: dict | None = None, repeat: int = 3) -> str:

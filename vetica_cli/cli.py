@@ -154,14 +154,22 @@ def bench(
         3, help="Timed runs after one warm-up (compilation) run.", callback=checked("an integer >= 1", lambda v: v >= 1)
     ),
     set_: Optional[List[str]] = typer.Option(None, "--set", help=SET_HELP),
+    part: str = typer.Option(
+        "all", help="all | simulation | extraction (per pixel record and method).",
+        callback=checked("one of: all, simulation, extraction", lambda v: v in ("all", "simulation", "extraction")),
+    ),  # fmt: skip
 ):
     """Time the simulation on the worked example, all-fine Verlet against the hybrid
     integrator: ns per fine step, ms per drive period, seconds per point (approach,
-    steady state, recorded window); medians of the repeated runs, one core."""
-    from .bench import run_bench
+    steady state, recorded window); and the extraction of a scan pixel's record per
+    method (CPU ms); medians of the repeated runs, one core."""
+    from .bench import run_bench, run_extraction_bench
     from .simulation.config import parse_set
 
-    typer.echo(run_bench(parse_set(set_), repeat))
+    if part in ("all", "simulation"):
+        typer.echo(run_bench(parse_set(set_), repeat))
+    if part in ("all", "extraction"):
+        typer.echo(run_extraction_bench(repeat=max(5, 5 * repeat), overrides=parse_set(set_)))
 
 
 @app.command()
@@ -386,6 +394,10 @@ def extract(
         None, "--option", help="A method option, key=value (repeatable), as the method declares it (name, type, unit): "
         "e.g. --option arms=2 --option state=free for --method full; an unknown one lists the method's options.",
     ),
+    stage2: Optional[str] = typer.Option(
+        None, "--stage2", help="vetica, vetica-prestress: closed (compiled superposition of the samples, default) or "
+        "sines (the thesis's sum-of-sines fit).",
+    ),
 ):  # fmt: skip
     """Extract k0, k_inf, cd (and tau_c, Kg, Kr, tau_r) from a run with VETICA
     or another registered method (--method; full fits the SLS or Wiechert surface
@@ -416,7 +428,7 @@ def extract(
         raise InputError(f"--method {method!r} is not allowed; choose one of: {', '.join(METHODS)}")
     flags = {"arms": arms, "hamaker": hamaker, "tip_radius": tip_radius, "prestress": prestress,  # the options' own flags
              "free_amplitude": free_amplitude, "k1": k1, "q1": q1, "drive_frequency": drive_frequency,
-             "drive_t0": drive_t0}  # fmt: skip  (--f1 reaches observables as the record's f1)
+             "drive_t0": drive_t0, "stage2": stage2}  # fmt: skip  (--f1 reaches observables as the record's f1)
     opts = {"kg_points": kg_points, **{k: v for k, v in flags.items() if v is not None}}
     if fit_range is not None:
         lo_hi = _numbers("--fit-range", fit_range)

@@ -201,8 +201,9 @@ def read_meta(path: str | Path) -> dict:
         raise InputError(f"{path}: the 'vetica' metadata is not valid JSON") from None
 
 
-def read_table(path: str | Path) -> tuple[pd.DataFrame, dict]:
-    """Read a Parquet (with metadata) or CSV (no metadata) table.
+def read_table(path: str | Path, columns: tuple | None = None) -> tuple[pd.DataFrame, dict]:
+    """Read a Parquet (with metadata) or CSV (no metadata) table.  ``columns``: read only
+    those of a Parquet file that it has (None: all; a CSV is read whole).
 
     Raises InputError with one line for a missing, unreadable or corrupt file.
     """
@@ -211,7 +212,10 @@ def read_table(path: str | Path) -> tuple[pd.DataFrame, dict]:
         return read_csv(p), {}
     meta = read_meta(p)
     try:
-        df = pq.read_table(p).to_pandas()
+        if columns is not None:
+            have = set(pq.read_schema(p).names)
+            columns = [c for c in columns if c in have]
+        df = pq.read_table(p, columns=columns).to_pandas()
     except Exception as exc:
         raise InputError(f"{p}: not a readable Parquet file ({type(exc).__name__})") from None
     return df, meta

@@ -30,6 +30,8 @@ from . import dmt_fit as _dmt_fit  # noqa: F401  (registers 'dmt-fit')
 # isort: on
 from .material import ContactModel, contact_metadata, contact_model, material_entries, tap_contact
 from .record import FORCES, RECORD_KEYS, SOURCES, Record, RecordInputs, build_record
+
+RECORD_COLUMNS = ("t", "z_tip", "f_ts", "z_paddle", "segment")  # what any method reads of a run table
 from .result import Estimate, ExtractionResult, Spread
 
 
@@ -85,7 +87,8 @@ def extract_many(df, meta: dict | None, force: str, methods: dict, *, contact=No
                      else "metadata (probe.tip_radius)" if radius is not None else "thesis table 6")  # fmt: skip
     uniform = next((k for k, m in ms.items() if m.uniform_sampling), None)
     record = build_record(df, meta, force, need_approach=any(m.needs_approach for m in ms.values()),
-                          need_z1=any(m.needs_z1 for m in ms.values()), uniform=uniform, **record_kw)  # fmt: skip
+                          need_z1=any(m.needs_z1 for m in ms.values()), uniform=uniform,
+                          tap_windows=all(m.tap_windows for m in ms.values()), **record_kw)  # fmt: skip
     for key, m in ms.items():
         if record.model.key not in m.surface_models:
             able = [k for k, other in METHODS.items() if record.model.key in other.surface_models]
@@ -113,7 +116,7 @@ def add_material(res: ExtractionResult, record: Record, cm: ContactModel, radius
     fit = res.info.get("fit") or {}
     if z1 is None and fit.get("surface_height_m") is not None and record.a0 is not None:
         z1 = fit["surface_height_m"] + record.a0  # a fit that found the surface without Z1: where the tip meets it
-    peak, depth = tap_contact(record.z, record.f, z1, kg) if z1 is not None else (float("nan"), float("nan"))
+    peak, depth = tap_contact(record.z, record.f, z1, kg, record.taps) if z1 is not None else (float("nan"), float("nan"))
     values = {k: (v if v is not None else float("nan")) for k, v in values.items()}
     res.material = material_entries(peak, depth, values, record.truth, cm)
     res.contact = contact_metadata(cm, radius_source)
@@ -121,7 +124,7 @@ def add_material(res: ExtractionResult, record: Record, cm: ContactModel, radius
 
 def extract_file(path, force: str = "auto", method: str = DEFAULT_METHOD, **kwargs) -> ExtractionResult:
     """:func:`extract` on a Parquet (with metadata) or CSV table (``vetica extract PATH``)."""
-    df, meta = read_table(path)
+    df, meta = read_table(path, columns=RECORD_COLUMNS)
     return extract(df, meta, force=force, method=method, **kwargs)
 
 

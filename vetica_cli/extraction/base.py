@@ -59,6 +59,7 @@ class ExtractionMethod(ABC):
     needs_z1: ClassVar[bool] = True  # a record without Z1 (no approach segment, no metadata) is an error
     surface_note: ClassVar[str] = ""  # why it extracts only its surface_models (for the refusal message)
     uniform_sampling: ClassVar[bool] = False  # needs a constant time step in the steady record
+    tap_windows: ClassVar[bool] = False  # reads a reconstructed force only in the tap windows (signals.tapforce)
     seconds_per_point: ClassVar[float] = 1.0  # both force sources, 10 periods at 0.125 ns (dry-run estimate)
     option_specs: ClassVar[tuple[Option, ...]] = (KG_POINTS,)  # the options a user may set (--option key=value)
 

@@ -159,16 +159,17 @@ def moduli(peak_force, penetration, k_g, k_r, tau_r, cm: ContactModel) -> dict:
     return {"E_dmt": e_dmt, "E_glassy": e_g, "E_rubbery": e_r, "viscosity": eta if eta.ndim else float(eta)}
 
 
-def tap_contact(z: np.ndarray, f: np.ndarray, z1: float, kg: float | None = None) -> tuple[float, float]:
+def tap_contact(z: np.ndarray, f: np.ndarray, z1: float, kg: float | None = None, taps=None) -> tuple[float, float]:
     """Peak force [N] and penetration [m] of a record, medians over its complete taps: per
     tap the largest force and the depth of the lowest tip position below the undeformed
     surface.  The tip meets the surface at ``Z1``; when the surface feels the pull it was
     lifted there by the adhesion against its glassy stiffness, so for a given
     ``kg`` [N/m] the lift ``-Fc/Kg`` (``Fc`` the force at the contact minima) is taken off
     the depth below ``Z1``; ``kg`` None: no lift (the surface does not feel the pull, or it
-    is not known).  nan when the record has no complete tap."""
+    is not known).  nan when the record has no complete tap.  ``taps``: the record's taps when
+    already located (else found on ``f``)."""
     try:
-        taps = find_taps(f)
+        taps = find_taps(f) if taps is None else taps
     except ValueError:
         return math.nan, math.nan
     if not len(taps.contact):

@@ -38,7 +38,8 @@ import numpy as np
 from .. import surfaces
 from ..errors import ConfigError, InputError
 from ..signals.spectral import reconstruct_force, reconstruction_error
-from ..signals.taps import contact_slopes, find_taps, first_contact_minimum
+from ..signals.tapforce import TapForce, approach_force, reconstruct_taps
+from ..signals.taps import Taps, contact_slopes, find_taps, first_contact_minimum
 
 if TYPE_CHECKING:
     import pandas as pd
@@ -68,6 +69,7 @@ class Record:
     energy: dict = field(default_factory=dict)  # the simulator's energy balance per cycle [eV] (metadata; {} if measured)
     t_start: float = 0.0  # perf_counter when the record was started
     t_force: float = 0.0  # perf_counter when the force was ready
+    taps: Taps | None = None  # the steady record's taps when the force was built around them (tap windows)
 
     @property
     def probe(self) -> dict:
@@ -89,14 +91,18 @@ def segment(df: pd.DataFrame, name: str) -> pd.DataFrame | None:
     if "segment" not in df.columns:
         return None
     seg = df["segment"]
-    if hasattr(seg, "cat") and name not in seg.cat.categories:
+    if hasattr(seg, "cat"):
+        if name not in seg.cat.categories:
+            return None
+        mask = seg.cat.codes.to_numpy() == seg.cat.categories.get_loc(name)  # integer codes, no string compare
+    else:
+        mask = (seg == name).to_numpy()
+    first = int(np.argmax(mask))
+    if not mask[first]:
         return None
-    mask = (seg == name).to_numpy()
-    rows = np.flatnonzero(mask)
-    if not len(rows):
-        return None
-    if rows[-1] - rows[0] + 1 == len(rows):  # one contiguous block (a run table): a view, no copy
-        return df.iloc[rows[0] : rows[-1] + 1]
+    last = len(mask) - 1 - int(np.argmax(mask[::-1]))
+    if np.count_nonzero(mask) == last - first + 1:  # one contiguous block (a run table): a view, no copy
+        return df.iloc[first : last + 1]
     return df[mask]
 
 
@@ -183,9 +189,42 @@ class _ForceSource:
     cutoff_hz: float | None = None
     taper: float = 0.0
 
+    windows: bool = False  # rebuild the force only in the tap windows (signals.tapforce)
+
     def __call__(self, seg: pd.DataFrame, where: str) -> np.ndarray:
         if self.force == "true":
             return column(seg, "f_ts", where)
+        p = self._probe()
+        rec = reconstruct_force(seg["t"].to_numpy(float), column(seg, "z_paddle", where),
+                                p["k2"], p["f2"], p["q2"], cutoff_hz=self.cutoff_hz, taper=self.taper)  # fmt: skip
+        self.info["cutoff_hz"] = rec.cutoff_hz
+        return rec.f
+
+    def tap_force(self, seg: pd.DataFrame, where: str) -> TapForce | None:
+        """The reconstructed force of a steady record in its tap windows (:mod:`~vetica_cli.signals.tapforce`);
+        None when the windows cannot stand in for the whole record's inversion."""
+        p = self._probe()
+        tf = reconstruct_taps(seg["t"].to_numpy(float), column(seg, "z_paddle", where), p["k2"], p["f2"], p["q2"],
+                              cutoff_hz=self.cutoff_hz, taper=self.taper)  # fmt: skip
+        if tf is None:  # and the approach segment is rebuilt whole too
+            self.windows = False
+            return None
+        self.info["cutoff_hz"] = tf.cutoff_hz
+        self.info["force_windows"] = len(tf.windows)
+        return tf
+
+    def approach(self, seg: pd.DataFrame, where: str) -> tuple[np.ndarray, int]:
+        """The approach segment's force and its first contact minimum (thesis eq. 84)."""
+        if self.force == "reconstructed" and self.windows:
+            p = self._probe()
+            out = approach_force(seg["t"].to_numpy(float), column(seg, "z_paddle", where), p["k2"], p["f2"],
+                                 p["q2"], cutoff_hz=self.cutoff_hz, taper=self.taper)  # fmt: skip
+            if out is not None:
+                return out
+        f = self(seg, where)
+        return f, first_contact_minimum(f)
+
+    def _probe(self) -> dict:
         p = {
             k: v if v is not None else self.probe.get(k) for k, v in (("k2", self.k2), ("f2", self.f2), ("q2", self.q2))
         }
@@ -195,10 +234,7 @@ class _ForceSource:
                 f"the force reconstruction needs the probe's {', '.join(absent)} (not in the file's metadata): "
                 f"pass {' '.join('--' + k for k in absent)}, or use --force true"
             )
-        rec = reconstruct_force(seg["t"].to_numpy(float), column(seg, "z_paddle", where),
-                                p["k2"], p["f2"], p["q2"], cutoff_hz=self.cutoff_hz, taper=self.taper)  # fmt: skip
-        self.info["cutoff_hz"] = rec.cutoff_hz
-        return rec.f
+        return p
 
 
 def _steady_segment(df: pd.DataFrame) -> pd.DataFrame:
@@ -211,17 +247,28 @@ def _steady_segment(df: pd.DataFrame) -> pd.DataFrame:
     return steady
 
 
-def _steady_force(steady, force_of: _ForceSource, f1: float | None) -> np.ndarray:
-    """The force of the steady record; for a reconstructed force also its error against
-    ``f_ts`` (when present) and the cut-off in drive harmonics, in ``force_of.info``."""
+def _steady_force(steady, force_of: _ForceSource, f1: float | None) -> tuple[np.ndarray, Taps | None]:
+    """The force of the steady record and its taps when they were located on the way (tap
+    windows); for a reconstructed force also its error against ``f_ts`` (when present; over
+    the tap windows when only they were rebuilt) and the cut-off in drive harmonics, in
+    ``force_of.info``."""
     info = force_of.info
-    f = force_of(steady, "the steady record")
-    if force_of.force == "reconstructed" and "f_ts" in steady.columns:
+    taps = None
+    windows = force_of.force == "reconstructed" and force_of.windows
+    tf = force_of.tap_force(steady, "the steady record") if windows else None
+    if tf is not None:
+        f, taps = tf.f, tf.taps
+        if "f_ts" in steady.columns and tf.windows:
+            idx = np.concatenate([np.arange(a, b) for a, b in tf.windows])
+            info["reconstruction_error"] = reconstruction_error(f[idx], steady["f_ts"].to_numpy(float)[idx])
+    else:
+        f = force_of(steady, "the steady record")
+    if force_of.force == "reconstructed" and "f_ts" in steady.columns and taps is None:
         info["reconstruction_error"] = reconstruction_error(f, column(steady, "f_ts", "the steady record"))
     drive = f1 if f1 is not None else force_of.probe.get("f1")
     if "cutoff_hz" in info and drive:
         info["cutoff_harmonic"] = info["cutoff_hz"] / drive
-    return f
+    return f, taps
 
 
 def z1_estimate(z: np.ndarray, f: np.ndarray, a0: float, pull: bool, kg_points: int = 10) -> tuple[float, str]:
@@ -279,8 +326,7 @@ def _z1_reference(approach, z1, meta, force_of: _ForceSource, need_approach: boo
     if approach is not None and (z1 is None or need_approach):
         ta = column(approach, "t", "the approach segment")
         check_time(ta, "the approach segment")
-        fa = force_of(approach, "the approach segment")
-        i1 = first_contact_minimum(fa)
+        fa, i1 = force_of.approach(approach, "the approach segment")
         rec = (column(approach, "z_tip", "the approach segment"), fa, i1)
     if z1 is not None:
         value, source = float(z1), "given"
@@ -371,6 +417,7 @@ def build_record(
     need_approach: bool = False,
     need_z1: bool = True,
     uniform: str | None = None,
+    tap_windows: bool = False,
     inputs: RecordInputs | None = None,
     **keywords,
 ) -> Record:
@@ -388,6 +435,9 @@ def build_record(
     of a method that needs a constant time step (checked before the force is
     built).  ``f1`` (drive frequency, Hz) only labels the cut-off in harmonics.  The
     record keywords come as ``inputs`` (:class:`RecordInputs`) or as keywords.
+    ``tap_windows``: a reconstructed force is rebuilt only in the taps' windows
+    (:mod:`vetica_cli.signals.tapforce`; for methods that read the force only there) and
+    the record carries the taps located on it.
     """
     inputs = replace(inputs or RecordInputs(), **keywords)  # TypeError for an unknown keyword, as before
     k2, f2, q2, z1, f1, cutoff_hz, taper, a0, vdw_on_surface = astuple(inputs)
@@ -412,8 +462,8 @@ def build_record(
             raise InputError(f"--method {uniform} needs uniformly sampled t (constant time step) in the steady record")
     params = meta.get("params") or {}
     info: dict = {}
-    force_of = _ForceSource(force, params.get("probe") or {}, info, k2, f2, q2, cutoff_hz, taper)
-    f = _steady_force(steady, force_of, f1)
+    force_of = _ForceSource(force, params.get("probe") or {}, info, k2, f2, q2, cutoff_hz, taper, tap_windows)
+    f, taps = _steady_force(steady, force_of, f1)
     t_force = time.perf_counter()
     surface = params.get("surface") or {}
     a0 = _known(a0, surface.get("a0"), "a0", info)
@@ -424,7 +474,7 @@ def build_record(
     if z1_value is not None and not math.isfinite(z1_value):
         raise InputError(f"z1 {z1_value!r} not allowed; expected a finite tip position in m")
     warnings = list(meta.get("warnings") or [])
-    periods = drive_periods(f)
+    periods = drive_periods(f) if taps is None else (len(f) / taps.spacing if taps.spacing > 0 else None)
     if periods is not None:
         info["periods"] = periods
         if force == "reconstructed" and abs(periods - round(periods)) > 0.05:
@@ -437,4 +487,4 @@ def build_record(
                   params=params, info=info, meta_warnings=warnings, t_start=t_start, t_force=t_force,
                   a0=None if a0 is None else float(a0), vdw_on_surface=None if pull is None else bool(pull),
                   observables=dict(meta.get("observables") or {}),
-                  energy=dict(meta.get("energy_ev_per_cycle") or {}))  # fmt: skip
+                  energy=dict(meta.get("energy_ev_per_cycle") or {}), taps=taps)  # fmt: skip

@@ -102,7 +102,7 @@ def first_contact_window(kern: engine.Kernel, s, ctrl: engine.Controller, n_ring
 
     Returns ``(samples in time order, periods run, time and tip position of the first
     contact)``; without a contact within ``max_periods`` the samples hold no contact."""
-    ring = np.zeros((max(n_ring, 2), 7 + kern.n_arms))
+    ring = engine.record_buffer(max(n_ring, 2), kern.n_arms)  # F-ordered as every buffer: no second compile
     rec = T.new_recorder(stride=kern.setup.stride, origin=session.step_index(s), ring=True, active=True)
     k = 0
     t_fc = z_fc = math.nan

@@ -42,6 +42,8 @@ from ..batch.run import signals_as_interrupt
 from ..io import write_table, write_text
 from ..rows.schema import STATUSES
 from ..simulation.jit import compile_notice
+from ..batch.progress import duration
+from ..extraction import get as get_method
 from .analysis import summary_markdown
 from .config import ScanConfig, dump, load_scan
 from .line import LineItem, LineTask
@@ -51,7 +53,9 @@ from .table import assemble, column_units, columns
 
 SCAN_ROOTS = ("scan/line.py", "scan/table.py")  # the code that computes a line's rows (its import closure)
 SECONDS_PER_PERIOD = 0.8e-3  # kernel, one drive period away from recording (hybrid, 50 kHz; dry-run estimate)
-SECONDS_PER_RECORD = 0.07  # one pixel's record, observables and VETICA at PS 1 ns, 4 periods (dry-run estimate)
+# a pixel's record (observables, table, force) at the methods' reference size, 10 periods at 0.125 ns, one
+# force source; a record costs in proportion to its samples, as each method's seconds_per_point / 2
+SECONDS_PER_RECORD = 0.2
 
 
 @dataclass
@@ -214,13 +218,19 @@ def dry_run_text(cfg: ScanConfig, output: Path, jobs: int) -> str:
     for name, n in zip(cfg.sample.domain_names(), smap.covered):
         lines.append(f"  {name}: {n} pixels" + ("  (covers no pixel centre)" if n == 0 else ""))
     total = 0.0
+    n = cfg.point.numerics
+    # a record's cost scales with its samples: record_cycles / print_step, from the reference size of
+    # the methods' seconds_per_point (10 periods at 0.125 ns, both force sources: halved for one)
+    scale = (n.record_cycles / 10) * (0.125e-9 / n.print_step)
+    per_record = scale * (SECONDS_PER_RECORD + sum(get_method(m).seconds_per_point / 2 for m in cfg.scan.methods))
     for p in cfg.scan.passes():
         periods = round(p.pixel_time / period) if p.steady == "transient" else 40
-        per_pixel = periods * SECONDS_PER_PERIOD + SECONDS_PER_RECORD * len(cfg.scan.methods)
+        per_pixel = periods * SECONDS_PER_PERIOD + per_record
         total += per_pixel * r.nx * r.ny
         lines.append(f"  pass {p.label()}: {r.ny} lines, ~{per_pixel:.2f} s a pixel")
-    lines.append(f"~{total / jobs / 60:.1f} min on {jobs} worker(s) (measured costs at PS 1 ns and 4 recorded periods: "
-                 f"{SECONDS_PER_PERIOD * 1e3:g} ms a drive period, {SECONDS_PER_RECORD:g} s a record per method); "
+    lines.append(f"~{duration(total / jobs)} on {jobs} worker(s) (measured costs: {SECONDS_PER_PERIOD * 1e3:g} ms a "
+                 f"drive period, {per_record:.3g} s a pixel's record and its extraction at PS "
+                 f"{n.print_step * 1e9:g} ns and {n.record_cycles} periods); "
                  f"would write {output}")  # fmt: skip
     return "\n".join(lines)
 

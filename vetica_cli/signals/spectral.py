@@ -78,8 +78,25 @@ def paddle_inverse_transfer(omega: np.ndarray, k2: float, f2: float, q2: float) 
     return k2 * (1.0 - (omega / w2) ** 2 + 1j * omega / (q2 * w2))
 
 
+_BERNOULLI = (  # coefficients of B_m(s), highest power first (B_1 = s - 1/2 convention)
+    (1.0,),
+    (1.0, -0.5),
+    (1.0, -1.0, 1.0 / 6.0),
+    (1.0, -1.5, 0.5, 0.0),
+    (1.0, -2.0, 1.0, 0.0, -1.0 / 30.0),
+    (1.0, -2.5, 5.0 / 3.0, 0.0, -1.0 / 6.0, 0.0),
+)
+
+
 def _bernoulli_poly(m: int, s: np.ndarray) -> np.ndarray:
-    """Bernoulli polynomial ``B_m(s)`` (B_1 = s - 1/2 convention)."""
+    """Bernoulli polynomial ``B_m(s)`` (B_1 = s - 1/2 convention); a table up to m = 5 (Horner), scipy beyond."""
+    if m < len(_BERNOULLI):
+        coeffs = _BERNOULLI[m]
+        out = np.full_like(s, coeffs[0], dtype=float)
+        for c in coeffs[1:]:
+            out *= s
+            out += c
+        return out
     from scipy.special import bernoulli, comb
 
     b = bernoulli(m)
@@ -98,18 +115,51 @@ def bernoulli_correction(jumps: np.ndarray, n: int, h: float) -> tuple[np.ndarra
     extension continuous up to derivative ``len(jumps) - 1``.
     """
     length = n * h
-    s = np.arange(n) / n
     b = np.zeros(n)
     b1 = np.zeros(n)
     b2 = np.zeros(n)
     for j, jump in enumerate(jumps):
+        if jump == 0.0:  # a jump left out (below the noise) adds nothing
+            continue
         m = j + 1
         a = jump * length**j / math.factorial(m)
-        b += a * _bernoulli_poly(m, s)
-        b1 += a * m * _bernoulli_poly(m - 1, s) / length
+        b += a * _bernoulli_on_grid(m, n)
+        b1 += a * m * _bernoulli_on_grid(m - 1, n) / length
         if m >= 2:
-            b2 += a * m * (m - 1) * _bernoulli_poly(m - 2, s) / length**2
+            b2 += a * m * (m - 1) * _bernoulli_on_grid(m - 2, n) / length**2
     return b, b1, b2
+
+
+CACHE_SAMPLES = 1 << 16  # windows up to this length keep their Bernoulli polynomials and paddle gain
+
+
+def _bernoulli_on_grid(m: int, n: int) -> np.ndarray:
+    """``B_m(k/n)``, k = 0..n-1 (cached, read-only, for tap windows of up to CACHE_SAMPLES)."""
+    return _bernoulli_cached(m, n) if n <= CACHE_SAMPLES else _bernoulli_poly(m, np.arange(n) / n)
+
+
+@functools.lru_cache(maxsize=64)
+def _bernoulli_cached(m: int, n: int) -> np.ndarray:
+    out = _bernoulli_poly(m, np.arange(n) / n)
+    out.setflags(write=False)
+    return out
+
+
+def _paddle_gain(n: int, h: float, k2: float, f2: float, q2: float) -> tuple[np.ndarray, np.ndarray]:
+    """``(rfftfreq(n, h), 1/T(2 pi freq))`` (cached for windows of up to CACHE_SAMPLES)."""
+    if n <= CACHE_SAMPLES:
+        return _paddle_gain_cached(n, h, k2, f2, q2)
+    freq = np.fft.rfftfreq(n, h)
+    return freq, paddle_inverse_transfer(2.0 * math.pi * freq, k2, f2, q2)
+
+
+@functools.lru_cache(maxsize=64)
+def _paddle_gain_cached(n: int, h: float, k2: float, f2: float, q2: float) -> tuple[np.ndarray, np.ndarray]:
+    freq = np.fft.rfftfreq(n, h)
+    gain = paddle_inverse_transfer(2.0 * math.pi * freq, k2, f2, q2)
+    freq.setflags(write=False)
+    gain.setflags(write=False)
+    return freq, gain
 
 
 @functools.lru_cache(maxsize=None)
@@ -229,8 +279,7 @@ def reconstruct_force(
     b, b1, b2 = bernoulli_correction(jumps, n, h)
 
     spec = np.fft.rfft(zp - b)
-    freq = np.fft.rfftfreq(n, h)
-    gain = paddle_inverse_transfer(2.0 * math.pi * freq, k2, f2, q2)
+    freq, gain = _paddle_gain(n, h, k2, f2, q2)
     if taper > 0:
         f_pass = fc * (1.0 - taper)
         roll = np.clip((freq - f_pass) / (fc - f_pass), 0.0, 1.0)

@@ -17,6 +17,7 @@ from ..batch.parts import parts_dir
 from ..rows.extract import EXTRACT_KEYS, point_sources
 from ..rows.plan import group
 from .grid import Grid
+from ..batch.progress import duration  # noqa: F401  (re-exported: the sweep's and scan's estimates)
 
 # Measured on the project machine (2 cores, `vetica bench`, worked example): a hybrid drive period
 # costs ~0.09 of the fine steps of a period at NS_PER_STEP each (the tip is within the switch gap of
@@ -178,17 +179,6 @@ def study_core_seconds(study) -> float:
 def wall_estimate(core_s: float, jobs: int) -> float:
     """Wall seconds of ``core_s`` core-seconds on ``jobs`` workers (the bar's first estimate)."""
     return core_s / max(1, jobs)
-
-
-def duration(seconds: float) -> str:
-    """``seconds`` as a short human duration: 45 s, 12 min, 3.4 h, 2.1 days."""
-    if seconds < 90:
-        return f"{seconds:.0f} s"
-    if seconds < 5400:
-        return f"{seconds / 60:.0f} min"
-    if seconds < 48 * 3600:
-        return f"{seconds / 3600:.1f} h"
-    return f"{seconds / 86400:.1f} days"
 
 
 def dry_run_text(g: Grid, output: Path, jobs: int, checked: int | None = None) -> str:
