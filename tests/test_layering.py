@@ -19,7 +19,7 @@ PKG = ROOT / "vetica_cli"
 LAYERS = (
     {"cli"},
     {"plots"},
-    {"scan"},
+    {"scan", "curves"},
     {"study", "bench", "report"},
     {"extraction", "simulation"},
     {"surfaces", "signals"},

@@ -32,7 +32,7 @@ import math
 import numpy as np
 from scipy.optimize import least_squares
 
-from .leeradok import force_from_p, hertz_constant
+from .leeradok import force_and_gradient, force_from_p, hertz_constant
 
 ARM_COUNTS = (1, 2, 3)
 WINDOWS = ("all", "dwell")  # residuals over approach and dwell, or over the dwell only (the approach as loading history)
@@ -104,6 +104,7 @@ class Problem:
         self.e_app = self.f[i_peak] / (self.c * d[i_peak] ** 1.5)  # apparent modulus at the end of loading
         self.e_end = max(self.f[-1], 1e-3 * self.f[i_peak]) / (self.c * d[-1] ** 1.5)  # at the end of the dwell
         self.scale = float(self.e_app)
+        self.noise_scale = max(self.noise, 1e-3 * float(np.max(np.abs(self.f))), 1e-300)  # residual unit [N]
 
     def indentation(self, contact: float) -> np.ndarray:
         return (contact - self.h) - self.f / self.k
@@ -125,12 +126,20 @@ class Problem:
         p = np.clip(self.indentation(contact), 0.0, None) ** 1.5
         return force_from_p(self.t, p, e_inf, np.ascontiguousarray(e, float), np.ascontiguousarray(tau, float), self.c)
 
+    def jacobian(self, x, n: int) -> np.ndarray:
+        """∂residual/∂x from the kernel's exact derivatives (chain rule to the log parameters)."""
+        contact, e_inf, e, tau = self.unpack(x, n)
+        d = np.clip(self.indentation(contact), 0.0, None)
+        _, g = force_and_gradient(self.t, d**1.5, 1.5 * np.sqrt(d), e_inf, np.ascontiguousarray(e, float),
+                                  np.ascontiguousarray(tau, float), self.c)  # fmt: skip
+        g = g[self.mask]
+        cols = ([g[:, :1] * 1e-6] if self.contact_fixed is None else []) + [
+            g[:, 1:2] * e_inf, g[:, 2 : 2 + n] * e, g[:, 2 + n :] * tau]
+        return np.hstack(cols) / self.noise_scale
+
     def residual(self, x, n: int) -> np.ndarray:
         return (self.model(*self.unpack(x, n)) - self.f)[self.mask] / self.noise_scale
 
-    @property
-    def noise_scale(self) -> float:
-        return max(self.noise, 1e-3 * float(np.max(np.abs(self.f))), 1e-300)
 
     def start(self, n: int, taus) -> np.ndarray:
         e_inf0 = min(max(self.e_end, 1e-3 * self.e_app), self.e_app)
@@ -149,9 +158,9 @@ class Problem:
 def tau_starts(n: int, dwell: float, previous=None) -> list:
     """Starting relaxation times for ``n`` arms: log-spaced sets over the dwell, and the
     previous arm count's solution with one arm added below, between and above its times."""
-    grids = {1: [(dwell / 10,), (dwell / 3,), (dwell / 30,)],
-             2: [(dwell / 30, dwell / 3), (dwell / 100, dwell / 10), (dwell / 10, dwell)],
-             3: [(dwell / 100, dwell / 10, dwell), (dwell / 300, dwell / 30, dwell / 3)]}.get(n, [])  # fmt: skip
+    grids = {1: [(dwell / 10,), (dwell / 30,)],
+             2: [(dwell / 30, dwell / 3), (dwell / 100, dwell / 10)],
+             3: [(dwell / 100, dwell / 10, dwell)]}.get(n, [])  # fmt: skip
     starts = [tuple(g) for g in grids] or [tuple(dwell * 10.0 ** (-2 + 3 * i / max(n - 1, 1)) for i in range(n))]
     if previous is not None:
         prev = sorted(previous)
@@ -167,8 +176,8 @@ def fit_arms(prob: Problem, n: int, previous=None) -> dict:
     for taus in tau_starts(n, prob.dwell, previous):
         x0 = np.clip(prob.start(n, taus), lo + 1e-9, hi - 1e-9)
         try:
-            res = least_squares(prob.residual, x0, args=(n,), bounds=(lo, hi), method="trf", x_scale="jac",
-                                max_nfev=400 * len(x0))  # fmt: skip
+            res = least_squares(prob.residual, x0, jac=prob.jacobian, args=(n,), bounds=(lo, hi), method="trf",
+                                x_scale="jac", max_nfev=100)  # fmt: skip
         except (ValueError, FloatingPointError):
             continue
         if np.isfinite(res.cost) and (best is None or res.cost < best.cost):
@@ -192,7 +201,7 @@ def summarize(prob: Problem, res, n: int) -> dict:
     except np.linalg.LinAlgError:
         se = np.full(npar, np.nan)
     j = 0
-    row = {"model": MODEL, "arms": n}
+    row = {"model": MODEL, "arms": n, "window": "all" if prob.mask.all() else "dwell"}
     if prob.contact_fixed is None:
         row["contact"], row["se_contact"] = contact, 1e-6 * se[0]
         j = 1
@@ -220,14 +229,20 @@ def summarize(prob: Problem, res, n: int) -> dict:
 
 
 def fit_curve(curve, tip_radius: float, nu: float = 0.5, arms=ARM_COUNTS, criterion: str = "bic",
-              contact: float | None = None, window: str = "all", with_traces: bool = False):  # fmt: skip
+              contact: float | None = None, window: str = "dwell", with_traces: bool = False):  # fmt: skip
     """One row per arm count (module docstring) with ``selected`` set on the lowest
     ``criterion``; with ``with_traces`` also ``{"t", "force", arms: model force}`` over the fit
     window for figures.  CurveError when the curve cannot be fitted."""
+    se_contact = 0.0
+    if window == "dwell" and contact is None:  # the contact from the approach (one-arm fit of approach and dwell)
+        first = fit_arms(Problem(curve, tip_radius, nu, None, "all"), 1)
+        contact, se_contact = first["contact"], first["se_contact"]
     prob = Problem(curve, tip_radius, nu, contact, window)
     rows, traces, previous = [], {"t": prob.t, "force": prob.f, "segment": prob.segment}, None
     for n in sorted(arms):
         row = fit_arms(prob, n, previous)
+        if prob.contact_fixed is not None and window == "dwell":
+            row["se_contact"] = se_contact
         previous = [row[f"tau_{k}"] for k in range(1, n + 1)]
         rows.append(row)
         if with_traces:

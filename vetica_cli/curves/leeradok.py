@@ -189,3 +189,61 @@ def creep(t, force_history, tip_radius: float, nu: float, e_inf: float, e, tau) 
     p = p_from_force(np.ascontiguousarray(t, float), np.ascontiguousarray(force_history, float), float(e_inf),
                      np.asarray(e, float), np.asarray(tau, float), hertz_constant(tip_radius, nu))  # fmt: skip
     return np.clip(p, 0.0, None) ** (2.0 / 3.0)
+
+
+@njit(cache=True)
+def force_and_gradient(t, p, dp, e_inf, e, tau, c):  # pragma: no cover - numba
+    """Force [N] as :func:`force_from_p` and its derivatives, columns ``[∂F/∂contact,
+    ∂F/∂e_inf, ∂F/∂e_i..., ∂F/∂tau_i...]``; ``dp = ∂p/∂contact`` (the force is linear in the
+    p history, so its contact derivative is the same recursion run on ``dp``; the tau
+    derivatives follow the recursion's own derivative, ``∂a/∂tau = a h/tau²``,
+    ``∂b/∂tau = (1 - a)/h - a/tau``)."""
+    n = t.size
+    m = e.size
+    out = np.empty(n)
+    jac = np.zeros((n, 2 + 2 * m))
+    q = np.empty(m)
+    r = np.empty(m)  # the same recursion on dp
+    g = np.zeros(m)  # dq_i/dtau_i
+    for i in range(m):
+        q[i] = p[0]
+        r[i] = dp[0]
+    a = np.ones(m)
+    b = np.ones(m)
+    da = np.zeros(m)
+    db = np.zeros(m)
+    h_last = -1.0
+    for k in range(n):
+        if k > 0:
+            h = t[k] - t[k - 1]
+            if h != h_last:
+                for i in range(m):
+                    if h > 0.0:
+                        x = h / tau[i]
+                        a[i] = math.exp(-x)
+                        b[i] = -math.expm1(-x) / x
+                        da[i] = a[i] * h / (tau[i] * tau[i])
+                        db[i] = (1.0 - a[i]) / h - a[i] / tau[i]
+                    else:
+                        a[i] = 1.0
+                        b[i] = 1.0
+                        da[i] = 0.0
+                        db[i] = 0.0
+                h_last = h
+            step = p[k] - p[k - 1]
+            dstep = dp[k] - dp[k - 1]
+            for i in range(m):
+                g[i] = a[i] * g[i] + da[i] * q[i] + db[i] * step
+                q[i] = a[i] * q[i] + b[i] * step
+                r[i] = a[i] * r[i] + b[i] * dstep
+        s = e_inf * p[k]
+        sc = e_inf * dp[k]
+        for i in range(m):
+            s += e[i] * q[i]
+            sc += e[i] * r[i]
+            jac[k, 2 + i] = c * q[i]
+            jac[k, 2 + m + i] = c * e[i] * g[i]
+        out[k] = c * s
+        jac[k, 0] = c * sc
+        jac[k, 1] = c * p[k]
+    return out, jac
