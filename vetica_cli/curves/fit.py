@@ -11,9 +11,12 @@ Steps (one curve):
 3. **Indentation** from the record: ``δ = (contact - h) - F/k`` (the tip sits above its
    undeflected place by the deflection ``F/k``; ``h`` increases away from the sample).
 4. **Model**: Lee–Radok's force for that indentation history on the record's own time axis
-   (:mod:`.leeradok`), fitted to the measured force over the approach (from as far before the
-   contact as the contact is before the end of the approach) and the whole dwell, by
-   least squares in ``(contact, ln e_inf, ln e_i, ln tau_i)``, several starts per arm count.
+   (:mod:`.leeradok`), run from as far before the contact as the contact is before the end of
+   the approach, fitted by least squares in ``(contact, ln e_inf, ln e_i, ln tau_i)`` (several
+   starts per arm count) to the measured force over approach and dwell (window ``all``), or
+   over the dwell only with the approach as loading history (window ``dwell``, the default:
+   the contact is then the one of the selected ``all`` fit, held fixed; the dwell alone hardly
+   constrains it).
    A stress-relaxation curve (height held) and a creep curve (force held, depth grows) go
    through the same model and the same residual: the force the model predicts for the
    measured indentation history.
@@ -234,9 +237,10 @@ def fit_curve(curve, tip_radius: float, nu: float = 0.5, arms=ARM_COUNTS, criter
     ``criterion``; with ``with_traces`` also ``{"t", "force", arms: model force}`` over the fit
     window for figures.  CurveError when the curve cannot be fitted."""
     se_contact = 0.0
-    if window == "dwell" and contact is None:  # the contact from the approach (one-arm fit of approach and dwell)
-        first = fit_arms(Problem(curve, tip_radius, nu, None, "all"), 1)
-        contact, se_contact = first["contact"], first["se_contact"]
+    if window == "dwell" and contact is None:  # the contact from the approach: the selected fit of approach and dwell
+        first = fit_curve(curve, tip_radius, nu, arms, criterion, None, "all")
+        chosen = next(r for r in first if r["selected"])
+        contact, se_contact = chosen["contact"], chosen["se_contact"]
     prob = Problem(curve, tip_radius, nu, contact, window)
     rows, traces, previous = [], {"t": prob.t, "force": prob.f, "segment": prob.segment}, None
     for n in sorted(arms):
