@@ -23,7 +23,7 @@ LAYERS = (
     {"__main__"},
     {"cli"},
     {"plots"},
-    {"scan", "study", "advise", "bench", "report"},
+    {"scan", "study", "advise", "bench", "report", "curves"},
     {"rows", "batch"},
     {"extraction", "simulation"},
     {"surfaces", "signals"},

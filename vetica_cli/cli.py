@@ -535,6 +535,39 @@ def advise(
     typer.echo(json.dumps(advice_json(adv, figure), allow_nan=False) if json_out else format_advice(adv, figure))
 
 
+@app.command()
+@user_errors
+def fit(
+    curves: List[Path] = typer.Argument(..., help="Force-curve files (stress relaxation or creep) or folders of them."),
+    tip_radius: Optional[float] = typer.Option(None, "--tip-radius", help="Radius R [m] of the spherical tip (required)."),
+    nu: float = typer.Option(0.5, "--nu", help="Poisson ratio of the sample (default 0.5, incompressible)."),
+    height: str = typer.Option("measured", "--height", help="Height channel: measured (closed-loop sensor) or piezo."),
+    criterion: str = typer.Option("bic", "--criterion", help="Arm-count selection: bic or aic."),
+    window: str = typer.Option("dwell", "--window",
+                               help="Residuals on the dwell (approach as loading history; contact from the approach) or all."),
+    output: Path = typer.Option(Path("fit.parquet"), "-o", "--output", help="Parquet table to write (checked first)."),
+    figures: Optional[Path] = typer.Option(None, "--figures", help="Folder for the figures (fits, histograms, map)."),
+    jobs: int = typer.Option(2, "--jobs", "-j", help="Parallel worker processes.",
+                             callback=checked("an integer >= 1", lambda v: v >= 1)),
+    quiet: bool = typer.Option(False, "--quiet", "-q", help="No progress bar or summary."),
+):
+    """Fit the viscoelastic Hertz model (Lee-Radok, E(t) = e_inf + sum e_i exp(-t/tau_i), 1-3 arms)
+    to force curves with a dwell read through afmformats (pip install -e ".[formats]").
+
+    One row per curve and arm count: e_inf, e_i [Pa], tau_i [s] (tau_1 < tau_2 < ...), their
+    standard errors, contact, AIC, BIC, selected, status, error; units in the Parquet metadata.
+    """
+    from .curves.batch import fit_files
+
+    df = fit_files(curves, tip_radius, output, figures, nu=nu, height=height, criterion=criterion, window=window,
+                   jobs=jobs, progress=not quiet)  # fmt: skip
+    if not quiet:
+        sel = df[df["selected"]]
+        bad = int((df.groupby(["file", "curve"])["status"].first() != "ok").sum())
+        typer.echo(f"{output}: {len(sel)} curves fitted, {bad} failed; arms chosen ({criterion}): "
+                   + ", ".join(f"{n}: {int((sel['arms'] == n).sum())}" for n in (1, 2, 3)))  # fmt: skip
+
+
 def main():  # pragma: no cover - console script entry
     try:
         app()
