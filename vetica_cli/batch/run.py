@@ -184,11 +184,12 @@ def run_batch(output: Path, jobs: list[Job], task: Callable, split: Callable[[Jo
 
     bar = bar or Bar()
     expected = {k: v for j in jobs for k, v in j.parts.items()}
-    launcher, own = open_launcher(backend, n_jobs, scheduler, launcher, serial_estimate, serial_below_s, note,
-                                  f"the {len(expected)} {what}")  # fmt: skip
     pdir = parts_dir(output)
+    own = False
     try:
-        with output_lock(output, bar.name):
+        with output_lock(output, bar.name):  # before any note or worker: a second batch on the output says only that
+            launcher, own = open_launcher(backend, n_jobs, scheduler, launcher, serial_estimate, serial_below_s, note,
+                                          f"the {len(expected)} {what}")  # fmt: skip
             done, report = scan_parts(pdir, expected, resume, fingerprint, check)
             if report.note():
                 note(report.note())

@@ -91,7 +91,8 @@ def extract_many(df, meta: dict | None, force: str, methods: dict, *, contact=No
                           tap_windows=all(m.tap_windows for m in ms.values()), **record_kw)  # fmt: skip
     for key, m in ms.items():
         if record.model.key not in m.surface_models:
-            able = [k for k, other in METHODS.items() if record.model.key in other.surface_models]
+            able = [k for k, other in METHODS.items() if record.model.key in other.surface_models
+                    and set(record.model.parameter_keys) <= set(other.quantities(record.model))]  # estimates its parameters
             raise InputError(
                 f"method {m.key!r} cannot extract this record's surface, {record.model.describe(record.surface)}"
                 f"{': ' + m.surface_note if m.surface_note else ''} (it extracts: {', '.join(m.surface_models)})"
