@@ -25,6 +25,7 @@ from . import fullfit as _fullfit  # noqa: F401  (registers 'full')
 from .material import ContactModel, contact_metadata, contact_model, material_entries, tap_contact
 from .record import FORCES, SOURCES, Record, build_record
 from .result import Estimate, ExtractionResult, Spread
+from .sanity import check
 from .uncertainty import calibrate
 
 
@@ -100,6 +101,7 @@ def extract_many(df, meta: dict | None, force: str, methods: dict, *, contact=No
     for key, m in ms.items():
         res = m.run(record, opts[key])
         calibrate(res, record, m, opts[key])  # a standard error for every estimate (.uncertainty)
+        check(res, record)  # identifiability and sanity checks: no silent wrong answer (.sanity)
         add_material(res, record, cm, radius_source)
         out[key] = res
     return out

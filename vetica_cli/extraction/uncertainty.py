@@ -7,12 +7,16 @@ result by :func:`vetica_cli.extraction.extract_many` after the method ran).
   per-tap standard deviation, ``n`` the taps with a value), scaled by
   ``t(0.975, n-1)/1.96`` so that +-2 sigma is the 95 % interval of a mean of ``n``
   values (1.18 for nine taps).  ``Z1`` enters every creep interval alike, so its
-  error does not average out over taps: the method is run once more with Z1 moved
-  by ``sigma_Z1`` and each quantity's change is its Z1 term; ``sigma_Z1``
+  error does not average out over taps: the method is run twice more with Z1 moved
+  by +-2 ``sigma_Z1`` and half the larger change of each quantity is its Z1 term
+  (a secant, so non-linear dependences are not linearised away); ``sigma_Z1``
   = the scatter of the steady taps' contact positions (Z1 is one more contact
   position, read the same way, so it scatters as they do: detector noise, the
   force minimum's jitter, the cantilever's thermal drift) and, for Z1 from thesis
-  eq. 84 (``a0 + Fa/Kg``), the standard errors of the adhesion and of Kg.  The taps'
+  eq. 84 (``a0 + Fa/Kg``), the standard errors of the adhesion and of Kg and half the
+  bracket ``Fa/Kr - Fa/Kg`` between the glassy and the rubbery lift of the pulled
+  surface (eq. 84 assumes the glassy one; which one holds depends on how long the
+  pull acted, which the record does not say).  The taps'
   scatter of tau_c reaches every quantity the way Z1 does (Z1 acts through tau_c,
   so the same rerun gives ``d q/d tau_c``, Kr's refit included); those of Kg and Kr
   are propagated through :func:`~vetica_cli.extraction.vetica.sls_elements`
@@ -49,8 +53,11 @@ def t_factor(n: int) -> float:
     return float(t.ppf(0.975, n - 1) / 1.959963984540054)
 
 
-def z1_sigma(record, taps) -> float:
-    """1-sigma of Z1 [m] (module docstring); 0 for a Z1 the user gave."""
+def z1_sigma(record, taps, kr: float | None = None) -> float:
+    """1-sigma of Z1 [m] (module docstring); 0 for a Z1 the user gave.  For eq. 84 with
+    the pull, the lift's model uncertainty too: the surface meets the tip between its
+    glassy lift ``Fa/Kg`` and its rubbery lift ``Fa/Kr`` (``kr``: stage 2's Kr), so half
+    that bracket is added in quadrature (unbounded without a Kr)."""
     source = str(record.info.get("z1_source", ""))
     if source == "given" or record.z1 is None:
         return 0.0
@@ -66,7 +73,10 @@ def z1_sigma(record, taps) -> float:
         kgi = stage1b_kg(record.z, record.f, taps, 10)
         kgi = kgi[np.isfinite(kgi)]
         s_kg = float(np.std(kgi, ddof=1)) / math.sqrt(len(kgi)) if len(kgi) > 1 else math.inf
-        return math.sqrt(scatter**2 + (s_fa / kg) ** 2 + (fa * s_kg / kg**2) ** 2) if kg > 0 else math.inf
+        if not (kg > 0 and kr is not None and 0 < kr <= kg):
+            return math.inf
+        bracket = 0.5 * fa * (1.0 / kr - 1.0 / kg)
+        return math.sqrt(scatter**2 + (s_fa / kg) ** 2 + (fa * s_kg / kg**2) ** 2 + bracket**2)
     return scatter
 
 
@@ -100,19 +110,23 @@ def tap_sigmas(res: ExtractionResult, record, method, options) -> tuple[dict, di
         n = sp.n if sp else 0
         rel[s] = (sp.std / math.sqrt(n) * t_factor(n) / abs(values[s])) if n >= 2 and sp.std is not None else math.inf
     taps = find_taps(record.f)
-    s_z1 = z1_sigma(record, taps) if record.z1 is not None else 0.0
-    # the method once more with Z1 moved: how every quantity follows Z1, and through it tau_c
+    s_z1 = z1_sigma(record, taps, values["k_r"]) if record.z1 is not None else 0.0
+    # the method twice more with Z1 moved by +-2 sigma: how every quantity follows Z1 (a secant
+    # over the 95 % range, so a quantity that depends on Z1 non-linearly, e.g. cd when tau_c and
+    # Kr move in opposite directions, gets the larger of the two changes), and through it tau_c
     grad_z1 = {}
     if record.z1 is not None and math.isfinite(s_z1):
-        h = s_z1 if s_z1 > 0 else 1e-13
-        try:
-            moved = method.run(dataclasses.replace(record, z1=record.z1 + h), options).estimates
-        except Exception:  # noqa: BLE001 - a moved Z1 the method refuses: no coupling term
-            moved = {}
+        h = 2.0 * s_z1 if s_z1 > 0 else 1e-13
+        moved = []
+        for sign in (1.0, -1.0):
+            try:
+                moved.append(method.run(dataclasses.replace(record, z1=record.z1 + sign * h), options).estimates)
+            except Exception:  # noqa: BLE001 - a moved Z1 the method refuses: that side gives no term
+                moved.append({})
         for q, e in est.items():
-            v2 = moved[q].value if q in moved else None
-            if e.value and v2:
-                grad_z1[q] = (v2 - e.value) / (h * abs(e.value))  # d ln q / d Z1 [1/m]
+            changes = [m[q].value - e.value for m in moved if q in m and m[q].value and e.value]
+            if changes:
+                grad_z1[q] = max(changes, key=abs) / (h * abs(e.value))  # d ln q / d Z1 [1/m]
     g_tau = grad_z1.get("tau_c")
     sls = log_gradients(values)
     sig = {}
@@ -129,8 +143,8 @@ def tap_sigmas(res: ExtractionResult, record, method, options) -> tuple[dict, di
         sig[q] = math.sqrt(sum(x * x for x in terms)) if all(math.isfinite(x) for x in terms) else math.inf
         if not math.isfinite(s_z1):
             sig[q] = math.inf
-    info = {"source": "spread over taps (standard error of the tap means, t-scaled), Z1 term by a rerun with Z1 "
-                      "moved by its 1-sigma", "z1_sigma_m": s_z1}  # fmt: skip
+    info = {"source": "spread over taps (standard error of the tap means, t-scaled), Z1 term by reruns with Z1 "
+                      "moved by +-2 sigma", "z1_sigma_m": s_z1}  # fmt: skip
     return sig, info
 
 
