@@ -9,6 +9,11 @@ Checks, each against something the record itself shows:
 
 * **parameter at a bound** -- VETICA's stage 2 puts ``Kr`` in ``(0, Kg)``; at either
   end the least squares found no interior minimum (``k_r, k_inf, k0, cd, tau_r``).
+* **condition of stage 1a** -- ``tau_c = -dt/ln r`` from the creep ``1 - r`` between
+  taps; below ``CREEP_MIN`` the ratio's relative error is amplified by ``~1/(1 - r)``
+  (the condition number) and a dashpot that barely creeps also barely relaxes in a
+  contact, so everything but Kg is flagged (seen: 16:1 and 64:1 at cd 1e-2 and 1e-1
+  kg/s, cd +13 .. +29 % with a 1-sigma of 1-2 %).
 * **uncertainty** -- a relative 1-sigma above 100 % (the record does not determine the
   quantity).
 * **residual against the noise floor** -- the model must explain the force to the
@@ -61,6 +66,19 @@ def noise_floor(x: np.ndarray) -> float:
     return float(1.4826 * np.median(np.abs(d2 - np.median(d2))) / math.sqrt(6.0))
 
 
+def _creep(record) -> float | None:
+    """Median creep fraction ``1 - (Z(i+1) - Z1)/(Z'i - Z1)`` between taps (thesis eq. 73's ratio)."""
+    from ..signals.taps import find_taps
+
+    if record.z1 is None:
+        return None
+    taps = find_taps(record.f)
+    z, z1 = record.z, record.z1
+    c = [1.0 - (z[taps.contact[i + 1]] - z1) / (z[taps.separation[i]] - z1)
+         for i in range(len(taps.contact) - 1) if z[taps.separation[i]] != z1]  # fmt: skip
+    return float(np.median(c)) if c else None
+
+
 def _flag(res: ExtractionResult, names, reason: str) -> None:
     est = dict(res.estimates)
     for q in names:
@@ -87,6 +105,13 @@ def check(res: ExtractionResult, record) -> ExtractionResult:
         kg, kr = val.get("k_g"), val.get("k_r")
         if kg and kr is not None and (kr >= kg * (1 - KR_BOUND) or kr <= kg * KR_BOUND):
             _flag(res, STAGE2, f"stage 2's Kr = {kr:.4g} N/m sits at a bound of (0, Kg = {kg:.4g} N/m)")
+        creep = _creep(record)
+        info["creep_between_taps"] = creep
+        if creep is not None and creep < CREEP_MIN:
+            _flag(res, [q for q in est if q != "k_g"],
+                  f"the surface creeps only {100 * creep:.2g} % between taps (< {100 * CREEP_MIN:g} %): stage 1a's "
+                  f"tau_c is ill-conditioned (condition number ~{1 / max(creep, 1e-300):.2g}) and the dashpot "
+                  "hardly acts within the record")  # fmt: skip
         rms = (res.diagnostics or {}).get("force_fit_rms_n")
         info["residual_n"] = rms
         if rms is not None and rms > limit:
