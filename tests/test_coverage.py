@@ -1,6 +1,6 @@
 """Coverage of the reported standard errors (extraction/uncertainty.py) over noisy replicas.
 
-One simulated record (worked-example surface, 9 periods at a 0.5 ns print step, with
+One simulated record (worked-example surface, 6 periods at a 1 ns print step, with
 its approach segment), 50 replicas of white detector noise on z_tip and f_ts at each
 of two levels, every method on each.  The 1-sigma a method reports is a statement
 about the noise, so the reference is the method's own answer on the noise-free
@@ -29,7 +29,7 @@ COVERAGE_MIN = 0.8
 
 @pytest.fixture(scope="module")
 def coverage():
-    run = simulate(load(None, {"numerics.record_cycles": 9, "numerics.dt": 0.05e-9, "numerics.print_step": 0.5e-9}))
+    run = simulate(load(None, {"numerics.record_cycles": 6, "numerics.dt": 0.05e-9, "numerics.print_step": 1e-9}))
     meta = run.metadata()
     df0 = run.frame()[["t", "z_tip", "f_ts", "segment"]]
     ref = extract_many(df0, meta, "true", {m: {} for m in METHODS})
@@ -48,6 +48,7 @@ def coverage():
                     ok = e.value is not None and e.sigma is not None and math.isfinite(e.sigma)
                     hits[(m, q)].append(ok and abs(e.value - v0) <= 2.0 * e.sigma * abs(e.value))
         out[level] = {k: float(np.mean(v)) for k, v in hits.items()}
+        print(level, {f"{m}/{q}": v for (m, q), v in out[level].items()})  # pytest -s: the coverage table
     return out
 
 

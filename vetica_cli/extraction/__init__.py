@@ -101,7 +101,7 @@ def extract_many(df, meta: dict | None, force: str, methods: dict, *, contact=No
     for key, m in ms.items():
         res = m.run(record, opts[key])
         calibrate(res, record, m, opts[key])  # a standard error for every estimate (.uncertainty)
-        check(res, record)  # identifiability and sanity checks: no silent wrong answer (.sanity)
+        check(res, record, opts[key])  # identifiability and sanity checks: no silent wrong answer (.sanity)
         add_material(res, record, cm, radius_source)
         out[key] = res
     return out

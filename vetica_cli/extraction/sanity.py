@@ -14,6 +14,11 @@ Checks, each against something the record itself shows:
   (the condition number) and a dashpot that barely creeps also barely relaxes in a
   contact, so everything but Kg is flagged (seen: 16:1 and 64:1 at cd 1e-2 and 1e-1
   kg/s, cd +13 .. +29 % with a 1-sigma of 1-2 %).
+* **stages that disagree** -- VETICA's stages 1b and 2 assume the Maxwell arm unstressed
+  at contact; ``vetica-prestress`` re-runs them with the pre-stress the record shows.
+  Where the two differ by more than 3 sigma (vetica's) and ``DISAGREE`` relative, the
+  thesis's stages are biased on this record (e.g. k_inf +13 % with the surface pull)
+  and the differing quantities of ``vetica`` are flagged.
 * **uncertainty** -- a relative 1-sigma above 100 % (the record does not determine the
   quantity).
 * **residual against the noise floor** -- the model must explain the force to the
@@ -52,7 +57,8 @@ RESIDUAL_FACTOR = 3.0  # residual RMS above this many force noise floors ...
 MODEL_FLOOR = 1e-3  # ... plus this fraction of the peak force: the model does not fit
 Z1_TOL = 0.02e-9  # [m] slack of the eq.-84 bracket
 CREEP_MIN = 0.02  # creep fraction between taps below which a fitted height and k_inf trade
-KR_BOUND = 1e-6  # Kr within this fraction of Kg from 0 or Kg: at stage 2's bound
+KR_BOUND = 1e-6
+DISAGREE = 0.02  # relative difference between vetica and vetica-prestress that counts  # Kr within this fraction of Kg from 0 or Kg: at stage 2's bound
 STAGE2 = ("k_r", "k_inf", "k0", "cd", "tau_r")
 
 
@@ -90,7 +96,31 @@ def _flag(res: ExtractionResult, names, reason: str) -> None:
     res.estimates = est
 
 
-def check(res: ExtractionResult, record) -> ExtractionResult:
+def _disagreement(res: ExtractionResult, record, options: dict) -> dict:
+    """``{quantity: relative difference}`` where ``vetica`` and ``vetica-prestress`` differ
+    beyond 3 combined sigma and :data:`DISAGREE` (module docstring)."""
+    from .base import METHODS
+
+    other = METHODS.get("vetica-prestress")
+    if other is None:
+        return {}
+    opts = other.options({k: v for k, v in (options or {}).items() if k in other.options_default})
+    try:
+        alt = other.run(record, opts).estimates  # its own sigma not computed: the test uses vetica's
+    except Exception:  # noqa: BLE001 - the other stages refuse the record: nothing to compare
+        return {}
+    out = {}
+    for q, e in res.estimates.items():
+        a = alt.get(q)
+        if e.value is None or a is None or a.value is None:
+            continue
+        rel = (e.value - a.value) / abs(a.value)
+        if abs(rel) > DISAGREE and abs(rel) > 3.0 * (e.sigma or 0.0):
+            out[q] = rel
+    return out
+
+
+def check(res: ExtractionResult, record, options: dict | None = None) -> ExtractionResult:
     """Run the checks of the module docstring on ``res`` (in place); the numbers behind
     them go to ``info['sanity']``."""
     f = np.asarray(record.f, float)
@@ -112,6 +142,12 @@ def check(res: ExtractionResult, record) -> ExtractionResult:
                   f"the surface creeps only {100 * creep:.2g} % between taps (< {100 * CREEP_MIN:g} %): stage 1a's "
                   f"tau_c is ill-conditioned (condition number ~{1 / max(creep, 1e-300):.2g}) and the dashpot "
                   "hardly acts within the record")  # fmt: skip
+        if res.method == "vetica":
+            diff = _disagreement(res, record, options)
+            info["vetica_prestress_difference"] = diff
+            for q, rel in diff.items():
+                _flag(res, [q], f"VETICA and VETICA with the pre-stress at contact differ by {100 * rel:+.3g} % "
+                                "(beyond 3 sigma): the thesis's stages are biased on this record")  # fmt: skip
         rms = (res.diagnostics or {}).get("force_fit_rms_n")
         info["residual_n"] = rms
         if rms is not None and rms > limit:
