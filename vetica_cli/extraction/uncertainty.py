@@ -12,7 +12,8 @@ result by :func:`vetica_cli.extraction.extract_many` after the method ran).
   (a secant, so non-linear dependences are not linearised away); ``sigma_Z1``
   = the scatter of the steady taps' contact positions (Z1 is one more contact
   position, read the same way, so it scatters as they do: detector noise, the
-  force minimum's jitter, the cantilever's thermal drift) and, for Z1 from thesis
+  force minimum's jitter, the cantilever's thermal drift), for Z1 from the approach
+  also the jitter of its gentler first minimum (:func:`approach_jitter`), and, for Z1 from thesis
   eq. 84 (``a0 + Fa/Kg``), the standard errors of the adhesion and of Kg and half the
   bracket ``Fa/Kr - Fa/Kg`` between the glassy and the rubbery lift of the pulled
   surface (eq. 84 assumes the glassy one; which one holds depends on how long the
@@ -77,7 +78,26 @@ def z1_sigma(record, taps, kr: float | None = None) -> float:
             return math.inf
         bracket = 0.5 * fa * (1.0 / kr - 1.0 / kg)
         return math.sqrt(scatter**2 + (s_fa / kg) ** 2 + (fa * s_kg / kg**2) ** 2 + bracket**2)
+    if record.approach is not None and source.startswith("approach"):
+        scatter = math.hypot(scatter, approach_jitter(*record.approach))
     return scatter
+
+
+JITTER_WINDOW = 200  # samples each side of the approach's force minimum searched for rivals
+
+
+def approach_jitter(z, f, i) -> float:
+    """1-sigma of the approach's first force minimum's position under force noise [m]:
+    the samples near it (``JITTER_WINDOW`` each side) whose force is within 2 noise floors
+    of the minimum could equally have been the minimum; their z range as a uniform
+    distribution, ``range/sqrt(12)``."""
+    from .sanity import noise_floor
+
+    z, f = np.asarray(z, float), np.asarray(f, float)
+    lo, hi = max(0, int(i) - JITTER_WINDOW), min(len(f), int(i) + JITTER_WINDOW + 1)
+    sf = noise_floor(f[max(0, int(i) - 5 * JITTER_WINDOW) : hi])
+    rivals = z[lo:hi][f[lo:hi] <= f[int(i)] + 2.0 * sf]
+    return float(np.ptp(rivals)) / math.sqrt(12.0) if len(rivals) > 1 else 0.0
 
 
 def log_gradients(values: dict, rel: float = 1e-6) -> dict:
