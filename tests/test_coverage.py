@@ -8,7 +8,8 @@ record (its bias against the theory, e.g. VETICA's k_inf with the surface pull, 
 a model error that no noise-driven error bar contains: the sanity checks of
 extraction/sanity.py flag it instead).  Expected: the reference within +-2 sigma in
 about 95 % of replicas; the binomial spread of a coverage over 50 replicas is ~3 %,
-so the test accepts COVERAGE_MIN .. 1.0 (see the numbers in results/noise/README.md).
+so the test accepts COVERAGE_MIN .. 1.0 (measured: 0.90 .. 1.00, 29 of 30 within 90-98 %;
+the table is in results/noise/README.md).
 """
 
 import math
@@ -24,7 +25,7 @@ METHODS = ("vetica", "vetica-prestress", "full")
 QUANTITIES = ("tau_c", "k_g", "k0", "k_inf", "cd")
 LEVELS = {"1pm+0.1nN": (1e-12, 1e-10), "0.5pm+0.3nN": (0.5e-12, 3e-10)}
 REPLICAS = 50
-COVERAGE_MIN = 0.8
+COVERAGE_MIN = 0.86  # 90 % less 1.3 binomial standard errors of a coverage over 50 replicas
 
 
 @pytest.fixture(scope="module")
