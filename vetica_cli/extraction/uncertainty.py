@@ -172,6 +172,11 @@ def calibrate(res: ExtractionResult, record, method=None, options=None) -> Extra
     """Give every estimate of ``res`` its standard error (module docstring); in place."""
     if res.method in TAP_METHODS and method is not None:
         sig, info = tap_sigmas(res, record, method, options or {})
+        for k, e in res.estimates.items():  # a stage failed: Kg keeps its taps' standard error, the rest is unbounded
+            if e.value is not None and k not in sig:
+                sp = e.spread
+                ok = k == "k_g" and sp is not None and sp.n >= 2 and sp.std is not None
+                sig[k] = sp.std / math.sqrt(sp.n) * t_factor(sp.n) / abs(e.value) if ok else math.inf
         res.estimates = {k: dataclasses.replace(e, sigma=sig.get(k, e.sigma)) if e.value is not None else e
                          for k, e in res.estimates.items()}  # fmt: skip
     else:
