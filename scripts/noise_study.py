@@ -19,7 +19,6 @@ import argparse
 import math
 import time
 
-import numpy as np
 import pandas as pd
 
 from vetica_cli.extraction import extract_many

@@ -119,7 +119,8 @@ def main(argv=None):
     for i, ratio in enumerate(args.ratios):
         for j, cd in enumerate(args.dashpots):
             ov = {"surface.k_inf": K_INF, "surface.stiffness_ratio": ratio, "surface.cd": cd,
-                  "numerics.record_cycles": 10, "numerics.print_step": args.print_step, "numerics.dt": args.dt}  # fmt: skip
+                  "numerics.record_cycles": 10, "numerics.print_step": args.print_step,
+                  "numerics.dt": args.dt}  # fmt: skip
             t0 = time.perf_counter()
             run = simulate(load(None, ov))
             df = stripped(run)

@@ -87,7 +87,8 @@ def test_thermal_noise_is_seeded_and_the_default_is_none():
     assert not np.array_equal(one.steady[:, IF], other.steady[:, IF])
     # the paddle's thermal motion (2.4 pm RMS free; the contacts stiffen it for a tenth of
     # each period) is what the force read from the paddle, k2 zp, carries as ~1.7 nN noise
-    assert np.std(one.steady[:, IP] - clean.steady[:, IP]) == pytest.approx(thermal.math.sqrt(thermal.KB * 300 / 700), rel=0.3)
+    rms_paddle = math.sqrt(thermal.KB * 300 / 700)
+    assert np.std(one.steady[:, IP] - clean.steady[:, IP]) == pytest.approx(rms_paddle, rel=0.3)
     assert np.std(one.steady[:, IF] - clean.steady[:, IF]) > 1e-12  # the true force feels it too
     assert one.observables == clean.observables  # observables from the noise-free orbit
 

@@ -57,8 +57,8 @@ RESIDUAL_FACTOR = 3.0  # residual RMS above this many force noise floors ...
 MODEL_FLOOR = 1e-3  # ... plus this fraction of the peak force: the model does not fit
 Z1_TOL = 0.02e-9  # [m] slack of the eq.-84 bracket
 CREEP_MIN = 0.02  # creep fraction between taps below which a fitted height and k_inf trade
-KR_BOUND = 1e-6
-DISAGREE = 0.02  # relative difference between vetica and vetica-prestress that counts  # Kr within this fraction of Kg from 0 or Kg: at stage 2's bound
+KR_BOUND = 1e-6  # Kr within this fraction of Kg from 0 or Kg: at stage 2's bound
+DISAGREE = 0.02  # relative difference between vetica and vetica-prestress that counts
 STAGE2 = ("k_r", "k_inf", "k0", "cd", "tau_r")
 
 

@@ -16,7 +16,8 @@ import numpy as np
 from ..core import tapping
 from .config import Config, from_dict
 
-INSTRUMENT_KEYS = ("position_noise", "force_noise", "noise_seed", "detector_bandwidth", "adc_resolution")  # numerics, post-kernel
+# numerics keys that act after the kernel
+INSTRUMENT_KEYS = ("position_noise", "force_noise", "noise_seed", "detector_bandwidth", "adc_resolution")
 
 
 def noise_free(cfg: Config) -> Config:
