@@ -33,6 +33,8 @@ from .record import FORCES, RECORD_KEYS, SOURCES, Record, RecordInputs, build_re
 
 RECORD_COLUMNS = ("t", "z_tip", "f_ts", "z_paddle", "segment")  # what any method reads of a run table
 from .result import Estimate, ExtractionResult, Spread
+from .sanity import check
+from .uncertainty import calibrate
 
 
 def extract(
@@ -101,6 +103,8 @@ def extract_many(df, meta: dict | None, force: str, methods: dict, *, contact=No
     out = {}
     for key, m in ms.items():
         res = m.run(record, opts[key])
+        calibrate(res, record, m, opts[key])  # a standard error for every estimate (.uncertainty)
+        check(res, record, opts[key])  # identifiability and sanity checks: no silent wrong answer (.sanity)
         add_material(res, record, cm, radius_source)
         out[key] = res
     return out

@@ -33,6 +33,7 @@ def format_table(res: ExtractionResult, source=None) -> str:
     head = f"{method.title} on {source}" if source is not None else method.title
     z1 = info.get("z1")
     with_sigma = any(e.sigma is not None for e in res.estimates.values())
+    with_spread = any(e.spread is not None and e.spread.n for e in res.estimates.values())
     labels = surfaces.get(res.model).quantities
     lines = [
         (
@@ -40,11 +41,14 @@ def format_table(res: ExtractionResult, source=None) -> str:
             f"Z1 = {_num(z1 * 1e9 if z1 is not None else None, '.4f')} nm ({info.get('z1_source', '?')})"
         ),
         f"{'quantity':<14}{'value':>13}{'theory':>13}{'error %':>10}   "
-        + ("fit uncertainty" if with_sigma else "spread over taps (std; min .. max)"),
+        + ("spread over taps (std; min .. max) | standard error" if with_sigma and with_spread
+           else "fit uncertainty" if with_sigma else "spread over taps (std; min .. max)"),
     ]
     for key, e in res.estimates.items():
         label = labels[key].label if key in labels else key
         extra = _sigma_text(e) if with_sigma else _spread_text(e.spread)
+        if with_sigma and with_spread:
+            extra = f"{_spread_text(e.spread)} | {extra}"
         lines.append(
             f"{label + ' [' + e.unit + ']':<14}{_num(e.value):>13}{_num(e.theory):>13}"
             f"{_num(e.error_pct, '.2f'):>10}   {extra}"
@@ -53,7 +57,7 @@ def format_table(res: ExtractionResult, source=None) -> str:
     lines += _material_lines(res)
     lines += method.detail_lines(res)
     lines += _reconstruction_lines(info)
-    for k in res.fitted:
+    for k in res.fitted or [q for q, e in res.estimates.items() if e.identifiable is False]:
         e = res.estimates[k]
         if e.reason and e.identifiable is False:
             lines.append(f"{k} not identifiable: {e.reason}")

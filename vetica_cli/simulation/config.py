@@ -122,6 +122,8 @@ class Numerics:
     force_noise: float = 0.0  # RMS noise on the recorded f_ts [N]
     noise_seed: int = 0  # seed of the noise generator (same seed -> same noise)
     detector_bandwidth: float = 0.0  # one-pole low-pass of the position detector [Hz]; 0 = infinite
+    adc_resolution: float = 0.0  # quantisation step of the recorded deflections [m]; 0 = none
+    temperature: float = 0.0  # thermal (Brownian) noise of the probe modes in the recorded periods [K]; 0 = none
 
 
 @dataclass(frozen=True)
@@ -202,6 +204,8 @@ RULES = {
     "numerics.force_noise": (_nonneg, "an RMS noise >= 0 N"),
     "numerics.noise_seed": (lambda v: 0 <= v <= MAX_SEED, f"an integer in 0..{MAX_SEED}"),
     "numerics.detector_bandwidth": (_nonneg, "a bandwidth >= 0 Hz (0 = infinite)"),
+    "numerics.adc_resolution": (_nonneg, "a quantisation step >= 0 m (0 = none)"),
+    "numerics.temperature": (lambda v: 0 <= v <= 2000, "a temperature in [0, 2000] K (0 = no thermal noise)"),
 }
 
 

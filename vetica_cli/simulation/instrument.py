@@ -16,17 +16,21 @@ import numpy as np
 from ..core import tapping
 from .config import Config, from_dict
 
-INSTRUMENT_KEYS = ("position_noise", "force_noise", "noise_seed", "detector_bandwidth")  # numerics, post-kernel
+# numerics keys that act after the kernel
+INSTRUMENT_KEYS = ("position_noise", "force_noise", "noise_seed", "detector_bandwidth", "adc_resolution")
 
 
 def noise_free(cfg: Config) -> Config:
     """``cfg`` without the instrument model (the config the kernel sees: the
-    instrument keys act only after it, in :func:`apply_instrument`)."""
+    instrument keys act only after it, in :func:`apply_instrument`).  With thermal
+    noise (``numerics.temperature``, part of the simulation) the seed stays: it
+    seeds the Brownian forces too."""
     n = cfg.numerics
-    if not any(getattr(n, k) for k in INSTRUMENT_KEYS):
+    keys = [k for k in INSTRUMENT_KEYS if not (k == "noise_seed" and n.temperature)]
+    if not any(getattr(n, k) for k in keys):
         return cfg
     d = cfg.to_dict()
-    for k in INSTRUMENT_KEYS:
+    for k in keys:
         d["numerics"][k] = 0
     return from_dict(d)
 
@@ -50,11 +54,13 @@ def _lowpass(x: np.ndarray, fc: float, ts: float, periodic: bool) -> np.ndarray:
 def apply_instrument(run, cfg: Config) -> None:
     """Detector realism on the recorded signals: a finite position-detector
     bandwidth, then white Gaussian noise of the given RMS on the deflections
-    (z_tip is rebuilt as z_base + z_cantilever + z_paddle) and on f_ts.
+    (z_tip is rebuilt as z_base + z_cantilever + z_paddle) and on f_ts, then the
+    deflections quantised to the ADC step ``numerics.adc_resolution`` (round to the
+    nearest level).
     x_surface and x_dashpot are the simulator's truth and stay noise-free.
     Seeded: the same config gives the same noise."""
     n = cfg.numerics
-    if not (n.position_noise or n.force_noise or n.detector_bandwidth):
+    if not (n.position_noise or n.force_noise or n.detector_bandwidth or n.adc_resolution):
         return
     rng = np.random.default_rng(n.noise_seed)
     ic, ip, it, ib, iff = (tapping.COLUMNS.index(c) for c in ("z_cantilever", "z_paddle", "z_tip", "z_base", "f_ts"))
@@ -66,6 +72,8 @@ def apply_instrument(run, cfg: Config) -> None:
                 arr[:, i] = _lowpass(arr[:, i], n.detector_bandwidth, n.print_step, periodic)
             if n.position_noise:
                 arr[:, i] += rng.normal(0.0, n.position_noise, len(arr))
+            if n.adc_resolution:
+                arr[:, i] = np.round(arr[:, i] / n.adc_resolution) * n.adc_resolution
         arr[:, it] = arr[:, ib] + arr[:, ic] + arr[:, ip]
         if n.force_noise:
             arr[:, iff] += rng.normal(0.0, n.force_noise, len(arr))

@@ -52,6 +52,7 @@ from ..io import check_output_file, segments_table, write_run
 from .config import Config, load
 from .instrument import apply_instrument
 from .observables import compute_observables
+from .thermal import add_thermal
 
 if TYPE_CHECKING:
     import pandas as pd
@@ -297,7 +298,8 @@ def simulate(cfg: Config) -> Run:
         settle_cycles=n.settle_cycles, tol_z=n.tol_z,
     )  # fmt: skip
     t0 = time.perf_counter()
-    rr = engine.run(engine.Kernel(st), spec)
+    kern = engine.Kernel(st)
+    rr = engine.run(kern, spec)
     wall = time.perf_counter() - t0
     run = Run(
         approach=rr.approach,
@@ -310,6 +312,7 @@ def simulate(cfg: Config) -> Run:
     )
     compute_observables(run, cfg, d)  # from the noise-free signals
     run.warnings = rr.warnings + run.warnings
+    add_thermal(run, kern, rr.window.states[0], cfg, d)  # noisy recorded periods from the noise-free orbit
     apply_instrument(run, cfg)
     return run
 

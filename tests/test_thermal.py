@@ -1,0 +1,109 @@
+"""Thermal (Brownian) noise of the probe in the recorded periods (SPEC section 15).
+
+References: equipartition ``<z^2> = kB T / k`` and the oscillator's Lorentzian
+``S_z(f) = S_F / (k^2 ((1 - r^2)^2 + (r/Q)^2))``, ``S_F = 4 kB T m w0/Q``.
+"""
+
+import math
+
+import numpy as np
+import pytest
+from scipy.signal import welch
+
+from vetica_cli.core.tapping import COLUMNS
+from vetica_cli.errors import ConfigError
+from vetica_cli.simulation import thermal
+from vetica_cli.simulation.config import load
+from vetica_cli.simulation.simulate import derive, simulate
+
+IC, IP, IT, IB, IF = (COLUMNS.index(c) for c in ("z_cantilever", "z_paddle", "z_tip", "z_base", "f_ts"))
+
+# A free probe (base 1 um above the surface, never in contact) with low Q, so that its
+# thermal correlation times 2Q/w0 (6.4 us and 0.42 us) are short against the 20 ms
+# recorded: the relative standard error of the sample variance is ~sqrt(2Q/(w0 T)) <= 2 %.
+FREE = {"operation.base_height": 1e-6, "probe.q1": 1.0, "probe.q2": 1.0, "numerics.dt": 1e-9,
+        "numerics.print_step": 10e-9, "numerics.record_cycles": 1000}  # fmt: skip
+
+
+@pytest.fixture(scope="module")
+def free_runs():
+    clean = simulate(load(None, FREE))
+    cfg = load(None, {**FREE, "numerics.temperature": 300.0, "numerics.noise_seed": 3})
+    return cfg, clean, simulate(cfg)
+
+
+def test_free_probe_variance_matches_equipartition(free_runs):
+    """Deflection minus the noise-free periodic motion: variance kB T/k within 5 % for the
+    cantilever (k1 = 10 N/m, 20 pm RMS) and 3 % for the paddle (k2 = 700 N/m, 2.4 pm RMS);
+    standard errors ~2 % and ~0.5 %."""
+    cfg, clean, noisy = free_runs
+    assert noisy.steady.shape == clean.steady.shape
+    for col, k, rtol in ((IC, cfg.probe.k1, 0.05), (IP, cfg.probe.k2, 0.03)):
+        dz = noisy.steady[:, col] - clean.steady[:, col]
+        assert np.var(dz) == pytest.approx(thermal.KB * 300.0 / k, rel=rtol)
+    # z_tip is the sum of its parts; a free probe feels only the (tiny) attraction
+    np.testing.assert_allclose(noisy.steady[:, IT], noisy.steady[:, IB] + noisy.steady[:, IC] + noisy.steady[:, IP])
+
+
+def test_free_probe_spectrum_matches_the_lorentzian(free_runs):
+    """Welch PSD of each mode's thermal motion against the oscillator's Lorentzian, mean
+    ratio over 0.5-1.5 f0 within 6 % (cantilever: ~15 averaged segments) and 3 % (paddle)."""
+    cfg, clean, noisy = free_runs
+    d = derive(cfg)
+    for col, (m, k, q), rtol in zip((IC, IP), thermal.modes(cfg, d), (0.06, 0.03)):
+        dz = noisy.steady[:, col] - clean.steady[:, col]
+        f0 = math.sqrt(k / m) / (2 * math.pi)
+        nps = int(2 ** math.ceil(math.log2(30 / (f0 * d.print_step))))
+        f, psd = welch(dz, fs=1 / d.print_step, nperseg=nps)
+        band = (f > 0.5 * f0) & (f < 1.5 * f0)
+        ratio = psd[band] / thermal.displacement_psd(f[band], m, k, q, 300.0)
+        assert band.sum() >= 20
+        assert ratio.mean() == pytest.approx(1.0, abs=rtol)
+
+
+def test_noisy_kernel_at_negligible_temperature_reproduces_the_orbit():
+    """The noisy recording kernel (plain Verlet) started on the noise-free orbit stays on it:
+    at 1e-9 K (thermal RMS 4e-17 m) its periods match the orbit's within 1 pm in z_tip and
+    1 % of the peak force in f_ts (contact onsets can differ by one fine step)."""
+    ov = {"numerics.record_cycles": 2, "numerics.dt": 0.05e-9, "numerics.print_step": 0.5e-9}
+    a = simulate(load(None, ov)).steady
+    b = simulate(load(None, {**ov, "numerics.temperature": 1e-9})).steady
+    assert a.shape == b.shape
+    assert np.abs(a[:, IT] - b[:, IT]).max() < 1e-12
+    assert np.abs(a[:, IF] - b[:, IF]).max() < 0.01 * np.abs(a[:, IF]).max()
+
+
+def test_thermal_noise_is_seeded_and_the_default_is_none():
+    """Same seed, same record; another seed, another record; temperature 0 leaves the run
+    as it was (bit for bit)."""
+    ov = {"numerics.record_cycles": 1, "numerics.dt": 0.05e-9, "numerics.print_step": 0.5e-9}
+    clean = simulate(load(None, ov))
+    assert "thermal" not in clean.info
+    one = simulate(load(None, {**ov, "numerics.temperature": 300.0, "numerics.noise_seed": 1}))
+    again = simulate(load(None, {**ov, "numerics.temperature": 300.0, "numerics.noise_seed": 1}))
+    other = simulate(load(None, {**ov, "numerics.temperature": 300.0, "numerics.noise_seed": 2}))
+    np.testing.assert_array_equal(one.steady, again.steady)
+    np.testing.assert_array_equal(one.approach, again.approach)
+    assert not np.array_equal(one.steady[:, IF], other.steady[:, IF])
+    # the paddle's thermal motion (2.4 pm RMS free; the contacts stiffen it for a tenth of
+    # each period) is what the force read from the paddle, k2 zp, carries as ~1.7 nN noise
+    rms_paddle = math.sqrt(thermal.KB * 300 / 700)
+    assert np.std(one.steady[:, IP] - clean.steady[:, IP]) == pytest.approx(rms_paddle, rel=0.3)
+    assert np.std(one.steady[:, IF] - clean.steady[:, IF]) > 1e-12  # the true force feels it too
+    assert one.observables == clean.observables  # observables from the noise-free orbit
+
+
+def test_adc_quantises_the_deflections():
+    """ADC step 1 pm: every recorded deflection is a whole number of steps."""
+    ov = {"numerics.record_cycles": 1, "numerics.dt": 0.05e-9, "numerics.print_step": 0.5e-9,
+          "numerics.adc_resolution": 1e-12}  # fmt: skip
+    run = simulate(load(None, ov))
+    for col in (IC, IP):
+        q = run.steady[:, col] / 1e-12
+        np.testing.assert_allclose(q, np.round(q), atol=1e-6)
+
+
+@pytest.mark.parametrize("key,value", [("numerics.temperature", -1.0), ("numerics.adc_resolution", -1e-12)])
+def test_bad_thermal_keys_are_refused(key, value):
+    with pytest.raises(ConfigError, match=key.replace(".", r"\.")):
+        load(None, {key: value})

@@ -1,0 +1,185 @@
+"""A standard error for every method's estimates (:func:`calibrate`, applied to each
+result by :func:`vetica_cli.extraction.extract_many` after the method ran).
+
+* ``vetica``, ``vetica-prestress`` -- **spread over taps**.  Each tap (creep interval)
+  is one measurement of ``tau_c`` (stage 1a), ``Kg`` (stage 1b) and ``Kr`` (stage 2);
+  the method's value is their mean, so its standard error is ``s/sqrt(n)`` (``s`` the
+  per-tap standard deviation, ``n`` the taps with a value), scaled by
+  ``t(0.975, n-1)/1.96`` so that +-2 sigma is the 95 % interval of a mean of ``n``
+  values (1.18 for nine taps).  ``Z1`` enters every creep interval alike, so its
+  error does not average out over taps: the method is run twice more with Z1 moved
+  by +-2 ``sigma_Z1`` and half the larger change of each quantity is its Z1 term
+  (a secant, so non-linear dependences are not linearised away); ``sigma_Z1``
+  = the scatter of the steady taps' contact positions (Z1 is one more contact
+  position, read the same way, so it scatters as they do: detector noise, the
+  force minimum's jitter, the cantilever's thermal drift), for Z1 from the approach
+  also the jitter of its gentler first minimum (:func:`approach_jitter`), and, for Z1 from thesis
+  eq. 84 (``a0 + Fa/Kg``), the standard errors of the adhesion and of Kg and half the
+  bracket ``Fa/Kr - Fa/Kg`` between the glassy and the rubbery lift of the pulled
+  surface (eq. 84 assumes the glassy one; which one holds depends on how long the
+  pull acted, which the record does not say).  The taps'
+  scatter of tau_c reaches every quantity the way Z1 does (Z1 acts through tau_c,
+  so the same rerun gives ``d q/d tau_c``, Kr's refit included); those of Kg and Kr
+  are propagated through :func:`~vetica_cli.extraction.vetica.sls_elements`
+  (log-gradients; Kr's dependence on the Kg it was fitted with is not included).
+  Stages independent.  A quantity measured on fewer than two taps has an unbounded sigma.
+* ``full`` -- **the fit's Jacobian and residual** (``s^2 (J^T J)^-1``,
+  :mod:`.fullfit.uncertainty`), kept as the method computes it.
+
+Relative sigmas (fractions), as :class:`~vetica_cli.extraction.result.Estimate` holds
+them; ``info['uncertainty']`` says which source and the Z1 term.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+
+import numpy as np
+
+from ..signals.taps import find_taps
+from .result import ExtractionResult
+
+TAP_METHODS = ("vetica", "vetica-prestress")
+STAGES = ("tau_c", "k_g", "k_r")  # per-tap measurements the tap methods average
+
+
+def t_factor(n: int) -> float:
+    """``t(0.975, n - 1) / 1.96``: the standard error of a mean of ``n`` values scaled so
+    that +-2 sigma is its 95 % interval (inf below two values)."""
+    if n < 2:
+        return math.inf
+    from scipy.stats import t
+
+    return float(t.ppf(0.975, n - 1) / 1.959963984540054)
+
+
+def z1_sigma(record, taps, kr: float | None = None) -> float:
+    """1-sigma of Z1 [m] (module docstring); 0 for a Z1 the user gave.  For eq. 84 with
+    the pull, the lift's model uncertainty too: the surface meets the tip between its
+    glassy lift ``Fa/Kg`` and its rubbery lift ``Fa/Kr`` (``kr``: stage 2's Kr), so half
+    that bracket is added in quadrature (unbounded without a Kr)."""
+    source = str(record.info.get("z1_source", ""))
+    if source == "given" or record.z1 is None:
+        return 0.0
+    zc = record.z[taps.contact]
+    scatter = float(np.std(zc, ddof=1)) if len(zc) > 1 else math.inf
+    if source.startswith("thesis eq. 84") and "Fa(a0)/Kg" in source:
+        fc = record.f[taps.contact]
+        fa = -float(np.median(fc))
+        kg = (record.z1 - record.a0) and fa / (record.z1 - record.a0)
+        s_fa = float(np.std(fc, ddof=1)) / math.sqrt(len(fc)) if len(fc) > 1 else math.inf
+        from .vetica import stage1b_kg
+
+        kgi = stage1b_kg(record.z, record.f, taps, 10)
+        kgi = kgi[np.isfinite(kgi)]
+        s_kg = float(np.std(kgi, ddof=1)) / math.sqrt(len(kgi)) if len(kgi) > 1 else math.inf
+        if not (kg > 0 and kr is not None and 0 < kr <= kg):
+            return math.inf
+        bracket = 0.5 * fa * (1.0 / kr - 1.0 / kg)
+        return math.sqrt(scatter**2 + (s_fa / kg) ** 2 + (fa * s_kg / kg**2) ** 2 + bracket**2)
+    if record.approach is not None and source.startswith("approach"):
+        scatter = math.hypot(scatter, approach_jitter(*record.approach))
+    return scatter
+
+
+JITTER_WINDOW = 200  # samples each side of the approach's force minimum searched for rivals
+
+
+def approach_jitter(z, f, i) -> float:
+    """1-sigma of the approach's first force minimum's position under force noise [m]:
+    the samples near it (``JITTER_WINDOW`` each side) whose force is within 2 noise floors
+    of the minimum could equally have been the minimum; their z range as a uniform
+    distribution, ``range/sqrt(12)``."""
+    from .sanity import noise_floor
+
+    z, f = np.asarray(z, float), np.asarray(f, float)
+    lo, hi = max(0, int(i) - JITTER_WINDOW), min(len(f), int(i) + JITTER_WINDOW + 1)
+    sf = noise_floor(f[max(0, int(i) - 5 * JITTER_WINDOW) : hi])
+    rivals = z[lo:hi][f[lo:hi] <= f[int(i)] + 2.0 * sf]
+    return float(np.ptp(rivals)) / math.sqrt(12.0) if len(rivals) > 1 else 0.0
+
+
+def log_gradients(values: dict, rel: float = 1e-6) -> dict:
+    """``d ln q / d ln s`` of every quantity ``q`` of ``sls_elements`` against each stage
+    ``s`` of :data:`STAGES` (central differences)."""
+    from .vetica import sls_elements
+
+    base = [values[s] for s in STAGES]
+    out = {}
+    for j, _ in enumerate(STAGES):
+        up, dn = list(base), list(base)
+        up[j] *= 1 + rel
+        dn[j] *= 1 - rel
+        qu, qd = sls_elements(*up), sls_elements(*dn)
+        for q in qu:
+            g = (math.log(abs(qu[q])) - math.log(abs(qd[q]))) / (2 * rel) if qu[q] and qd[q] else math.nan
+            out.setdefault(q, [0.0] * len(STAGES))[j] = g
+    return out
+
+
+def tap_sigmas(res: ExtractionResult, record, method, options) -> tuple[dict, dict]:
+    """Relative sigmas of a tap method's quantities and the bookkeeping (module docstring)."""
+    est = res.estimates
+    values = {s: est[s].value for s in STAGES if s in est}
+    if len(values) < len(STAGES) or any(v is None or v == 0 for v in values.values()):
+        return {}, {"source": "spread over taps", "note": "a stage gave no value"}
+    rel = {}
+    for s in STAGES:
+        sp = est[s].spread
+        n = sp.n if sp else 0
+        rel[s] = (sp.std / math.sqrt(n) * t_factor(n) / abs(values[s])) if n >= 2 and sp.std is not None else math.inf
+    taps = find_taps(record.f)
+    s_z1 = z1_sigma(record, taps, values["k_r"]) if record.z1 is not None else 0.0
+    # the method twice more with Z1 moved by +-2 sigma: how every quantity follows Z1 (a secant
+    # over the 95 % range, so a quantity that depends on Z1 non-linearly, e.g. cd when tau_c and
+    # Kr move in opposite directions, gets the larger of the two changes), and through it tau_c
+    grad_z1 = {}
+    if record.z1 is not None and math.isfinite(s_z1):
+        h = 2.0 * s_z1 if s_z1 > 0 else 1e-13
+        moved = []
+        for sign in (1.0, -1.0):
+            try:
+                moved.append(method.run(dataclasses.replace(record, z1=record.z1 + sign * h), options).estimates)
+            except Exception:  # noqa: BLE001 - a moved Z1 the method refuses: that side gives no term
+                moved.append({})
+        for q, e in est.items():
+            changes = [m[q].value - e.value for m in moved if q in m and m[q].value and e.value]
+            if changes:
+                grad_z1[q] = max(changes, key=abs) / (h * abs(e.value))  # d ln q / d Z1 [1/m]
+    g_tau = grad_z1.get("tau_c")
+    sls = log_gradients(values)
+    sig = {}
+    for q, e in est.items():
+        if e.value is None or q not in sls:
+            continue
+        gz = grad_z1.get(q)
+        if gz is not None and g_tau:
+            via_tau = gz / g_tau * rel["tau_c"]  # the taps' tau_c scatter reaches q as Z1 does
+        else:
+            via_tau = sls[q][0] * rel["tau_c"]
+        terms = [via_tau, sls[q][1] * rel["k_g"], sls[q][2] * rel["k_r"], (gz or 0.0) * s_z1]
+        terms = [x for x in terms if x]
+        sig[q] = math.sqrt(sum(x * x for x in terms)) if all(math.isfinite(x) for x in terms) else math.inf
+        if not math.isfinite(s_z1):
+            sig[q] = math.inf
+    info = {"source": "spread over taps (standard error of the tap means, t-scaled), Z1 term by reruns with Z1 "
+                      "moved by +-2 sigma", "z1_sigma_m": s_z1}  # fmt: skip
+    return sig, info
+
+
+def calibrate(res: ExtractionResult, record, method=None, options=None) -> ExtractionResult:
+    """Give every estimate of ``res`` its standard error (module docstring); in place."""
+    if res.method in TAP_METHODS and method is not None:
+        sig, info = tap_sigmas(res, record, method, options or {})
+        for k, e in res.estimates.items():  # a stage failed: Kg keeps its taps' standard error, the rest is unbounded
+            if e.value is not None and k not in sig:
+                sp = e.spread
+                ok = k == "k_g" and sp is not None and sp.n >= 2 and sp.std is not None
+                sig[k] = sp.std / math.sqrt(sp.n) * t_factor(sp.n) / abs(e.value) if ok else math.inf
+        res.estimates = {k: dataclasses.replace(e, sigma=sig.get(k, e.sigma)) if e.value is not None else e
+                         for k, e in res.estimates.items()}  # fmt: skip
+    else:
+        info = {"source": "the fit's Jacobian and residual"}
+    res.info = {**res.info, "uncertainty": info}
+    return res

@@ -1,0 +1,143 @@
+"""Thermal (Brownian) noise of the probe in the recorded periods (SPEC section 15).
+
+At ``numerics.temperature`` T > 0 each probe mode (stiffness k, mass m, quality
+factor Q, angular resonance w0 = sqrt(k/m)) feels a white random force of one-sided
+power spectral density ``S_F = 4 kB T m w0 / Q`` (fluctuation-dissipation); the
+kernel draws it per fine step as a Gaussian of variance ``S_F / (2 dt)``
+(:mod:`vetica_cli.core.thermal`).  A free mode then fluctuates with
+``<z^2> = kB T / k`` (equipartition) and the Lorentzian spectrum
+``S_z(f) = S_F |1/(k (1 - (w/w0)^2 + i w/(Q w0)))|^2``.
+
+How this fits the noise-free steady state (SPEC 10): the orbit solver (or the
+transient) still finds the *noise-free* periodic orbit, and it stays the
+reference every "steady" claim is about (the proof, the observables and the
+energy balance are computed on it).  The recorded periods are then re-run with
+the noise: from the orbit's state at the start of the recorded window, plus a
+draw of each free mode's equilibrium fluctuation (``zc, zp`` with variance
+``kB T/k``, ``vc, vp`` with ``kB T/m``: the stationary state of the noise the
+oscillators would have accumulated over their ring-down times ``2Q/w0``, 32 and
+21 drive periods for the default probe, far longer than any affordable
+settling), ``SETTLE_CYCLES`` noisy periods are run unrecorded (the contact's
+share of the dynamics settles in a few taps) and then ``numerics.record_cycles``
+noisy periods are recorded at the print step, their times the real ones (the
+window starts ``SETTLE_CYCLES`` periods after the noise-free one).  The first-
+approach window gets the free probe's thermal motion added to ``zc`` and ``zp``
+(the exact sampled Ornstein-Uhlenbeck oscillator: exact by superposition while
+out of contact, which is where Z1 is read; its f_ts stays the noise-free force).
+
+Seeded by ``numerics.noise_seed`` (the detector noise of
+:mod:`.instrument` comes after and uses the same seed through its own generator).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from ..core import tapping
+from ..core import thermal as kernel
+
+KB = 1.380649e-23  # Boltzmann constant [J/K] (SI, exact)
+SETTLE_CYCLES = 2  # noisy periods run before the recorded ones
+_SEED_SALT = 0x7E57  # the thermal generator's stream differs from the detector noise's
+
+
+def force_psd(m: float, k: float, q: float, temperature: float) -> float:
+    """One-sided PSD of the Brownian force on a mode, ``S_F = 4 kB T m w0/Q`` [N^2/Hz]."""
+    return 4.0 * KB * temperature * m * math.sqrt(k / m) / q
+
+
+def step_sigma(m: float, k: float, q: float, temperature: float, dt: float) -> float:
+    """RMS of the per-step Gaussian force, ``sqrt(S_F / (2 dt))`` [N]."""
+    return math.sqrt(force_psd(m, k, q, temperature) / (2.0 * dt))
+
+
+def displacement_psd(f, m: float, k: float, q: float, temperature: float):
+    """One-sided PSD of a free mode's thermal displacement at frequency ``f`` [m^2/Hz]
+    (the Lorentzian of the oscillator's transfer function)."""
+    w0 = math.sqrt(k / m)
+    r = 2 * np.pi * np.asarray(f, float) / w0
+    return force_psd(m, k, q, temperature) / (k * k * ((1 - r * r) ** 2 + (r / q) ** 2))
+
+
+def sampled_flow(m: float, k: float, q: float, temperature: float, h: float):
+    """``(phi, cov)``: the exact transition of a free mode's thermal state ``(z, v)`` over an
+    interval ``h`` (``phi = exp(A h)``) and the covariance of its noise increment,
+    ``Sigma - phi Sigma phi^T`` with the equilibrium ``Sigma = diag(kB T/k, kB T/m)``."""
+    from scipy.linalg import expm
+
+    c = math.sqrt(k * m) / q
+    phi = expm(np.array([[0.0, 1.0], [-k / m, -c / m]]) * h)
+    sig = np.diag([KB * temperature / k, KB * temperature / m])
+    cov = sig - phi @ sig @ phi.T
+    return phi, 0.5 * (cov + cov.T)
+
+
+def free_motion(rng, m, k, q, temperature, h, n) -> np.ndarray:
+    """``n`` samples, ``h`` apart, of a free mode's thermal displacement, started in equilibrium."""
+    phi, cov = sampled_flow(m, k, q, temperature, h)
+    chol = np.linalg.cholesky(cov + 1e-300 * np.eye(2))
+    w = rng.standard_normal((n, 2)) @ chol.T
+    x0 = rng.standard_normal(2) * np.sqrt([KB * temperature / k, KB * temperature / m])
+    return kernel.linear_flow(phi, w, x0)
+
+
+def modes(cfg, d):
+    """``[(m, k, Q), ...]`` of the cantilever and the paddle."""
+    p = cfg.probe
+    return [(d.m1, p.k1, p.q1), (d.m2, p.k2, p.q2)]
+
+
+def thermal_record(kern, s0, cfg, d, rng) -> np.ndarray:
+    """The recorded periods with the Brownian forces (module docstring), from the
+    noise-free state ``s0`` at the start of the recorded window."""
+    temp = cfg.numerics.temperature
+    st = kern.setup
+    p, a, emi = kern.coef[0], kern.coef[1], kern.coef[2]
+    (m1, k1, q1), (m2, k2, q2) = modes(cfg, d)
+    s = np.array(s0, float).copy()
+    s[tapping.S_ZC] += rng.normal(0.0, math.sqrt(KB * temp / k1))
+    s[tapping.S_VC] += rng.normal(0.0, math.sqrt(KB * temp / m1))
+    s[tapping.S_ZP] += rng.normal(0.0, math.sqrt(KB * temp / k2))
+    s[tapping.S_VP] += rng.normal(0.0, math.sqrt(KB * temp / m2))
+    sig1 = step_sigma(m1, k1, q1, temp, st.dt)
+    sig2 = step_sigma(m2, k2, q2, temp, st.dt)
+    nt = kern.nt
+    buf = np.zeros((d.n_steady, 7 + kern.n_arms))
+    pos = -1
+    origin = 0
+    for cyc in range(SETTLE_CYCLES + cfg.numerics.record_cycles):
+        if cyc == SETTLE_CYCLES:
+            pos = 0
+            origin = int(s[tapping.S_IDX])
+        fb1 = rng.normal(0.0, sig1, nt)
+        fb2 = rng.normal(0.0, sig2, nt)
+        pos = kernel.brownian_steps(s, fb1, fb2, p, a, emi, buf, st.stride, origin, pos)
+    return buf[:pos]
+
+
+def add_thermal(run, kern, s0, cfg, d) -> None:
+    """Replace ``run.steady`` by the noisy recorded periods and add the free probe's thermal
+    motion to the first-approach window (module docstring).  Nothing at T = 0."""
+    temp = cfg.numerics.temperature
+    if not temp:
+        return
+    rng = np.random.default_rng([cfg.numerics.noise_seed, _SEED_SALT])
+    run.steady = thermal_record(kern, s0, cfg, d, rng)
+    ap = run.approach
+    if len(ap):
+        ic, ip, it, ib = (tapping.COLUMNS.index(c) for c in ("z_cantilever", "z_paddle", "z_tip", "z_base"))
+        for col, (m, k, q) in zip((ic, ip), modes(cfg, d)):
+            ap[:, col] += free_motion(rng, m, k, q, temp, d.print_step, len(ap))
+        ap[:, it] = ap[:, ib] + ap[:, ic] + ap[:, ip]
+    (m1, k1, q1), (m2, k2, q2) = modes(cfg, d)
+    run.info["thermal"] = {
+        "temperature_K": temp,
+        "settle_cycles": SETTLE_CYCLES,
+        "t_record_start": float(run.steady[0, 0]) if len(run.steady) else None,
+        "rms_cantilever_m": math.sqrt(KB * temp / k1),
+        "rms_paddle_m": math.sqrt(KB * temp / k2),
+        "force_psd_cantilever_N2_per_Hz": force_psd(m1, k1, q1, temp),
+        "force_psd_paddle_N2_per_Hz": force_psd(m2, k2, q2, temp),
+    }
