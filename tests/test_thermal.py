@@ -1,4 +1,4 @@
-"""Thermal (Brownian) noise of the probe in the recorded periods (SPEC section 15).
+"""Thermal (Brownian) noise of the probe in the recorded periods (fluctuation-dissipation).
 
 References: equipartition ``<z^2> = kB T / k`` and the oscillator's Lorentzian
 ``S_z(f) = S_F / (k^2 ((1 - r^2)^2 + (r/Q)^2))``, ``S_F = 4 kB T m w0/Q``.

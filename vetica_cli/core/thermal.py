@@ -1,4 +1,4 @@
-"""Fine Verlet steps with a Brownian force on each probe mode (SPEC section 15).
+"""Fine Verlet steps with a Brownian force on each probe mode (fluctuation-dissipation).
 
 The same probe and surface physics as :func:`.tapping.fine_steps` (and its
 coefficient arrays ``p, a, emi``), written as plain velocity Verlet so that a
@@ -16,7 +16,7 @@ contact the arms creep by the exact coupled step (``Xd += emi Xd + g Fa``) with
 the surface at the fixed point of :func:`.tapping.surface_position`; in contact
 ``X = z_tip - a0`` and each arm relaxes exactly towards the linearly moving
 target; contact when the gap reaches ``a0``, separation when the surface would
-have to hold the tip with more than the adhesion -- the rules of SPEC 3 / 11.
+have to hold the tip with more than the adhesion -- the rules of the SLS and Wiechert models.
 
 Only for the recorded periods of a run at ``numerics.temperature > 0``: one
 period costs ``steps_per_period`` fine steps (no far-field propagation, whose

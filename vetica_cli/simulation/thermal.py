@@ -1,4 +1,4 @@
-"""Thermal (Brownian) noise of the probe in the recorded periods (SPEC section 15).
+"""Thermal (Brownian) noise of the probe in the recorded periods (fluctuation-dissipation).
 
 At ``numerics.temperature`` T > 0 each probe mode (stiffness k, mass m, quality
 factor Q, angular resonance w0 = sqrt(k/m)) feels a white random force of one-sided
@@ -8,7 +8,7 @@ kernel draws it per fine step as a Gaussian of variance ``S_F / (2 dt)``
 ``<z^2> = kB T / k`` (equipartition) and the Lorentzian spectrum
 ``S_z(f) = S_F |1/(k (1 - (w/w0)^2 + i w/(Q w0)))|^2``.
 
-How this fits the noise-free steady state (SPEC 10): the orbit solver (or the
+How this fits the noise-free steady state (the periodic steady state): the orbit solver (or the
 transient) still finds the *noise-free* periodic orbit, and it stays the
 reference every "steady" claim is about (the proof, the observables and the
 energy balance are computed on it).  The recorded periods are then re-run with
