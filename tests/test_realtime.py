@@ -180,3 +180,22 @@ def test_extract_cli_stage2_option(tmp_path):
     assert out["info"]["diagnostics"]["stage2"] == "sines" and out["info"]["timing_s"]["total"] > 0
     bad = CliRunner().invoke(app, ["extract", str(path), "--stage2", "fast"])
     assert bad.exit_code == 2 and "stage2 'fast' not allowed; choose one of: closed, sines" in bad.output
+
+
+def test_warm_start_outside_the_bounds_scans_them():
+    """A fixed-point iteration of vetica-prestress may move Kg below the previous Kr; the warm
+    start then has no bracket inside (0, Kg) and must scan the bounds (it read past an empty
+    scan and divided by zero: 65 rows of the method_dashpot study failed).  Reference: the
+    same tap solved cold (no guess) gives the same Kr to the solver's tolerance."""
+    from vetica_cli.core.superposition import solve_kr
+
+    h, kg, kr_true, tau_c = 1e-10, 60.0, 4.0, 7.7e-6
+    u = np.arange(200) * h
+    delta = 1e-9 * np.sin(np.pi * u / u[-1])
+    y, dy = np.empty_like(u), np.empty_like(u)
+    superpose(delta, h, tau_c * kr_true / kg, y, dy)
+    force = -(kr_true * delta + (kg - kr_true) * y)
+    cold = solve_kr(delta, force, h, kg, tau_c, 0.0, -1.0, 0.0, 0.0, False, 16, 1e-10)
+    warm = solve_kr(delta, force, h, kg, tau_c, 0.0, 1.01 * kg, 0.0, 0.0, False, 0, 1e-10)
+    assert math.isfinite(warm[0]) and 0 < warm[0] < kg
+    assert warm[0] == pytest.approx(cold[0], rel=1e-6)

@@ -223,6 +223,8 @@ def solve_kr(delta, f, h, kg, tau_c, fc, kr_guess, sa, sb, fit_sigma, n_scan, rt
             _cost(delta, f, h, kg, kr, tau_c, fc, scale, sa, sb, fit_sigma, y, dy, out)
             return kr, out[2], scale * math.sqrt(out[0] / n), calls + 1
         n_scan = 16  # no bracket near the guess: scan the bounds
+    if n_scan < 2:  # a warm start whose guess lies outside the bounds (Kg moved below it): scan them
+        n_scan = 16
     xs = np.exp(np.linspace(math.log(lo), math.log(hi), n_scan))
     if lo < kr_guess < hi:
         xs = np.unique(np.append(xs, kr_guess))
