@@ -655,3 +655,60 @@ def run_prescribed(x, g, w, e_inf_s, e_s, eta_s, zs, dt, ud0=None, energy=True):
     x = np.asarray(x, float)
     radius = np.where(hi > 0, x[np.maximum(hi - 1, 0)], 0.0)
     return f, radius, o, ud
+
+
+class MDRKernel:
+    """The MDR kernel with its coefficients, in the interface of :class:`.engine.Kernel`
+    (the engine's approach, orbit solver, proof and recording use it unchanged).
+
+    ``setup`` is an :class:`.engine.KernelSetup` whose surface is the element node per
+    unit length: ``k_inf = E_inf*``, ``k = E_a*`` [Pa], ``cd = eta_a* = E_a* tau_a`` [Pa s];
+    ``x, g, w`` the element grid (:func:`element_grid`).  The state holds every element's
+    dashpots (``n_state = M N``); the record holds the centre element's dashpots and the
+    contact radius (``n_rec = N + 1``)."""
+
+    def __init__(self, setup, x, g, w):
+        from . import engine
+
+        self.setup = setup
+        self.x, self.g, self.w = (np.ascontiguousarray(v, dtype=float) for v in (x, g, w))
+        self.m_el = len(self.g)
+        p, _a, _emi, lad, _lemi, _lg, lad_rec, _lemi_r, _lg_r = setup.build()
+        q, arm, vec, vi, lam, urow, sm = surface_tables(setup.k_inf, setup.k, setup.cd, setup.dt)
+        p = p.copy()
+        fa0 = setup.hr6 / setup.a0**2
+        p[P_FA0] = fa0
+        self.coef = (p, self.g, self.w, self.x, q, arm, vec, vi, lam, sm, urow, lad, lad_rec)
+        self.n_arms = len(setup.k)
+        self.n_state = self.m_el * self.n_arms
+        self.n_rec = self.n_arms + 1
+        self.state_tau = np.tile(np.asarray(setup.cd) / np.asarray(setup.k), self.m_el)
+        self.el_off = T.NO_BASE + 2 * self.n_arms
+        self.nt = setup.steps_per_period
+        self.period_s = setup.steps_per_period * setup.dt
+        self.periods = 0
+        self._nobuf = engine.record_buffer(2, self.n_rec)
+
+    def new_outputs(self) -> np.ndarray:
+        return new_outputs(self.m_el, self.n_arms)
+
+    def advance_raw(self, s, n_steps, zb_step, buf, rec, energy, o) -> None:
+        p, g, w, x, q, arm, vec, vi, lam, sm, urow, lad, lad_rec = self.coef
+        advance(s, n_steps, zb_step, p, g, w, x, q, arm, vec, vi, lam, sm, urow, lad, lad_rec, buf, rec, energy, o,
+                self.el_off)  # fmt: skip
+
+    def stretch(self, o) -> np.ndarray:
+        """Per arm the element's mean-stretch integral of largest magnitude [m s] (the proof's
+        claim: no element's dashpot carries a mean force)."""
+        el = o[self.el_off : self.el_off + self.n_state].reshape(self.m_el, self.n_arms)
+        idx = np.argmax(np.abs(el), axis=0)
+        return el[idx, np.arange(self.n_arms)]
+
+    def advance(self, s, n_steps=None, zb_step=0.0, buf=None, rec=None, energy=False):
+        o = self.new_outputs()
+        if rec is None:
+            rec = T.new_recorder()
+        self.advance_raw(s, self.nt if n_steps is None else n_steps, zb_step, self._nobuf if buf is None else buf,
+                         rec, energy, o)  # fmt: skip
+        self.periods += 1
+        return o
