@@ -174,8 +174,8 @@ def _u_free(ud, i, arm, kg):
 @njit(cache=True)
 def surface_step(zs, n, dt, ud, inc, ulast, tlast, hi_prev, g, w, q, arm, vec, vi, lam, sm, o, energy, el_off, tmp):
     """The elements at step ``n`` with the tip's surface at ``zs`` (= z_tip - a0) over the
-    centre [m]: contact tests, imposed displacements, dashpot steps, releases (module
-    docstring).  Elements beyond the geometric reach (``g_i > -zs``) that were not in
+    centre [m]: contact tests (against the free position after step ``n - 1``), imposed
+    displacements, dashpot steps over step ``n``, releases (module docstring).  Elements beyond the geometric reach (``g_i > -zs``) that were not in
     contact are not touched (they catch up lazily).  Returns ``(sum of f_i [N], 1 + index
     of the outermost element in contact, 0 if none)``."""
     n_arms = ud.shape[1]
@@ -191,9 +191,11 @@ def surface_step(zs, n, dt, ud, inc, ulast, tlast, hi_prev, g, w, q, arm, vec, v
             if g[i] > dgeo:
                 i += 1
                 continue
-            if tlast[i] < n:
-                _free_advance(ud, i, (n - tlast[i]) * dt, w[i], arm, vec, vi, lam, sm, o, energy, el_off, tmp)
-                tlast[i] = n
+            # the contact test against the element's position after the previous step (as the
+            # sls kernel's gap), from which the contact step then starts
+            if tlast[i] < n - 1:
+                _free_advance(ud, i, (n - 1 - tlast[i]) * dt, w[i], arm, vec, vi, lam, sm, o, energy, el_off, tmp)
+                tlast[i] = n - 1
             uf = _u_free(ud, i, arm, kg)
             if ut > uf:
                 i += 1
@@ -360,13 +362,14 @@ def fine_steps(s, n_end, zb_step, p, g, w, xpos, q, arm, vec, vi, lam, sm, buf, 
                 o[O_NSEP] += 1.0
                 o[O_ZSEP_LAST] = z_tip
                 o[O_TSEP_LAST] = n * dt
+            # the gap to the surface after the previous step (as the sls kernel), then the surface now
+            d = z_tip - x
+            fa = vdw_force(d, fa, hr6, ihr6)
+            fts = -fa
             if tlast[0] < n:
                 _free_advance(ud, 0, (n - tlast[0]) * dt, w[0], arm, vec, vi, lam, sm, o, energy, el_off, tmp)
                 tlast[0] = n
             x = _u_free(ud, 0, arm, kg)
-            d = z_tip - x
-            fa = vdw_force(d, fa, hr6, ihr6)
-            fts = -fa
         q_now = z_tip - zb
         hc += hdt * (q_old * cw_old + q_now * cw)
         hs -= hdt * (q_old * sw_old + q_now * sw)
