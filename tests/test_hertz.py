@@ -172,7 +172,7 @@ def test_lazy_closed_form_recovery_equals_stepping():
         o = mdr.new_outputs(4, 2)
         tmp = np.empty(2)
         for _ in range(steps):
-            mdr._free_advance(ud, 0, 1e-6 / steps, w[0], arm, vec, vi, lam, sm, o, True, T.NO_BASE + 4, tmp)
+            mdr.free_advance(ud, 0, 1e-6 / steps, w[0], arm, vec, vi, lam, sm, o, True, T.NO_BASE + 4, tmp)
         res.append((ud[0].copy(), o[T.O_DDASH], o[T.NO_BASE + 4]))
     assert np.allclose(res[0][0], res[1][0], rtol=1e-12, atol=0)
     assert res[0][1] == pytest.approx(res[1][1], rel=1e-12)

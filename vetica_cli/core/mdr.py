@@ -56,7 +56,7 @@ from .tapping import (
     EPS_STEP, O_CSTEPS, O_D1, O_D2, O_DDASH, O_FAR, O_FINE, O_FMAX, O_FMIN, O_HC, O_HS, O_NCONT, O_NSEP,
     O_QMAX, O_QMIN, O_REJECT, O_T_FC, O_TCONT_LAST, O_TSEP_LAST, O_WDRIVE, O_WTS, O_XM, O_Z_FC, O_ZCONT,
     O_ZCONT_LAST, O_ZSEP_LAST, R_ACTIVE, R_FC, R_ORIGIN, R_STRIDE, S_CONTACT, S_IDX, S_VC, S_VP, S_XD, S_ZB,
-    S_ZC, S_ZP, _extrema, _hermite_extrema, _project, _store, vdw_force,
+    S_ZC, S_ZP, far_extrema, hermite_extrema, project_harmonic, store_sample, vdw_force,
 )  # fmt: skip
 
 # rows of the per-arm table ARM (N columns): modulus E_a* [Pa], E_a* er, 1 - er, phi - er, eta_a* [Pa s]
@@ -127,8 +127,8 @@ def surface_tables(e_inf_s: float, e_s, eta_s, h: float):
     return q, arm, np.ascontiguousarray(vec), np.ascontiguousarray(vi), lam, urow, np.ascontiguousarray(sm)
 
 
-@njit(cache=True)
-def _free_advance(ud, i, h, w_i, arm, vec, vi, lam, sm, o, energy, el_off, c):
+@njit(cache=True, inline="always")
+def free_advance(ud, i, h, w_i, arm, vec, vi, lam, sm, o, energy, el_off, c):
     """Element ``i`` out of contact over ``h`` [s], exactly: ``ud_i <- V exp(LAM h) VI ud_i``.
     With ``energy``: the per-arm dashpot dissipation ``w_i eta_a int ud_a'^2`` and the
     element's stretch integrals ``int (u - ud_a) dt`` in closed form."""
@@ -171,7 +171,7 @@ def _u_free(ud, i, arm, kg):
     return s / kg
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def surface_step(zs, n, dt, ud, inc, ulast, tlast, hi_prev, g, w, q, arm, vec, vi, lam, sm, o, energy, el_off, tmp):
     """The elements at step ``n`` with the tip's surface at ``zs`` (= z_tip - a0) over the
     centre [m]: contact tests (against the free position after step ``n - 1``), imposed
@@ -194,7 +194,7 @@ def surface_step(zs, n, dt, ud, inc, ulast, tlast, hi_prev, g, w, q, arm, vec, v
             # the contact test against the element's position after the previous step (as the
             # sls kernel's gap), from which the contact step then starts
             if tlast[i] < n - 1:
-                _free_advance(ud, i, (n - 1 - tlast[i]) * dt, w[i], arm, vec, vi, lam, sm, o, energy, el_off, tmp)
+                free_advance(ud, i, (n - 1 - tlast[i]) * dt, w[i], arm, vec, vi, lam, sm, o, energy, el_off, tmp)
                 tlast[i] = n - 1
             uf = _u_free(ud, i, arm, kg)
             if ut > uf:
@@ -232,7 +232,7 @@ def _catch_up(ud, inc, tlast, n, dt, w, arm, vec, vi, lam, sm, o, energy, el_off
     """Every element out of contact advanced (exactly) to step ``n``."""
     for i in range(ud.shape[0]):
         if inc[i] == 0 and tlast[i] < n:
-            _free_advance(ud, i, (n - tlast[i]) * dt, w[i], arm, vec, vi, lam, sm, o, energy, el_off, tmp)
+            free_advance(ud, i, (n - tlast[i]) * dt, w[i], arm, vec, vi, lam, sm, o, energy, el_off, tmp)
             tlast[i] = n
 
 
@@ -256,7 +256,7 @@ def _contacts_at(s, ud, g, arm, kg, a0):
 
 
 @njit(cache=True, fastmath={"contract"}, error_model="numpy")
-def fine_steps(s, n_end, zb_step, p, g, w, xpos, q, arm, vec, vi, lam, sm, buf, r, o, energy, far_ok, el_off):
+def fine_steps(s, n_end, zb_step, p, g, w, xpos, q, arm, vec, vi, lam, sm, urow, buf, r, o, energy, far_ok, el_off):
     """Fine Verlet steps (the probe map of :func:`.tapping.fine_steps`) with the MDR surface,
     until ``n_end`` or, when ``far_ok``, until the tip is out of contact beyond the exit gap
     at a recording-grid point."""
@@ -282,6 +282,12 @@ def fine_steps(s, n_end, zb_step, p, g, w, xpos, q, arm, vec, vi, lam, sm, buf, 
     kg = q[Q_KG]
     rec = np.empty(n_arms + 1)
     tmp = np.empty(n_arms)
+    # out of contact the centre element's free position (the attraction's gap) comes from its
+    # modal coordinates advanced by exp(LAM dt) a step; the element itself is left to catch up
+    # exactly when it is next looked at
+    e1 = np.exp(lam * dt)
+    cx = np.zeros(n_arms)
+    cx_ok = False
 
     n = int(s[S_IDX])
     inc, ulast, hi = _contacts_at(s, ud, g, arm, kg, a0)
@@ -340,12 +346,17 @@ def fine_steps(s, n_end, zb_step, p, g, w, xpos, q, arm, vec, vi, lam, sm, buf, 
         z_tip = base + ef * fts_old
         zs = z_tip - a0
         was = contact
-        fsum, hi = surface_step(zs, n, dt, ud, inc, ulast, tlast, hi, g, w, q, arm, vec, vi, lam, sm, o, energy, el_off, tmp)
+        if hi > 0 or g[0] <= -zs:  # an element within reach (else none can touch: skip the loop)
+            fsum, hi = surface_step(zs, n, dt, ud, inc, ulast, tlast, hi, g, w, q, arm, vec, vi, lam, sm, o, energy,
+                                    el_off, tmp)  # fmt: skip
+        else:
+            fsum = 0.0
         contact = hi > 0
         if contact:
             fts = -fsum - fa0
             fa = fa0
             x = zs
+            cx_ok = False
             o[O_CSTEPS] += 1.0
             if not was:
                 o[O_NCONT] += 1.0
@@ -366,10 +377,19 @@ def fine_steps(s, n_end, zb_step, p, g, w, xpos, q, arm, vec, vi, lam, sm, buf, 
             d = z_tip - x
             fa = vdw_force(d, fa, hr6, ihr6)
             fts = -fa
-            if tlast[0] < n:
-                _free_advance(ud, 0, (n - tlast[0]) * dt, w[0], arm, vec, vi, lam, sm, o, energy, el_off, tmp)
-                tlast[0] = n
-            x = _u_free(ud, 0, arm, kg)
+            if cx_ok:
+                for j in range(n_arms):
+                    cx[j] *= e1[j]
+            else:
+                for j in range(n_arms):
+                    acc = 0.0
+                    for a in range(n_arms):
+                        acc += vi[j, a] * ud[0, a]
+                    cx[j] = acc * math.exp(lam[j] * (n - tlast[0]) * dt)
+                cx_ok = True
+            x = 0.0
+            for j in range(n_arms):
+                x += urow[j] * cx[j]
         q_now = z_tip - zb
         hc += hdt * (q_old * cw_old + q_now * cw)
         hs -= hdt * (q_old * sw_old + q_now * sw)
@@ -397,13 +417,16 @@ def fine_steps(s, n_end, zb_step, p, g, w, xpos, q, arm, vec, vi, lam, sm, buf, 
         if on_grid:
             to_grid = stride
         if r[R_ACTIVE] and on_grid:
-            if inc[0] == 0 and tlast[0] < n:
-                _free_advance(ud, 0, (n - tlast[0]) * dt, w[0], arm, vec, vi, lam, sm, o, energy, el_off, tmp)
-                tlast[0] = n
             for a in range(n_arms):
-                rec[a] = ud[0, a]
+                if contact or not cx_ok:
+                    rec[a] = ud[0, a]
+                else:
+                    acc = 0.0
+                    for j in range(n_arms):
+                        acc += vec[a, j] * cx[j]
+                    rec[a] = acc
             rec[n_arms] = xpos[hi - 1] if hi > 0 else 0.0
-            _store(buf, r, n * dt, z_tip, zc, zp, zb, fts, zs if inc[0] else _u_free(ud, 0, arm, kg), rec)
+            store_sample(buf, r, n * dt, z_tip, zc, zp, zb, fts, x, rec)
         if far_ok and not contact and on_grid:
             if z_tip - x > d_exit:
                 break
@@ -515,9 +538,9 @@ def _far(s, n_end, zb_step, p, g, w, xpos, q, arm, vec, vi, lam, sm, urow, lad, 
             ring = 0.0 if rec_mode else 2.0 * math.sqrt(zp * zp + (vp1 / w2) ** 2) + curv * (abs(zc) + abs(zc1)) * h * h / 8.0
             if not rec_mode and (qmx + ring >= o[O_QMAX] or qmn - ring <= o[O_QMIN] or qmn - ring <= floor):
                 if h * w2 < 0.1:
-                    qmn, qmx = _hermite_extrema(q0, vc1 + vp1, q1, vc2 + vp2, h)
+                    qmn, qmx = hermite_extrema(q0, vc1 + vp1, q1, vc2 + vp2, h)
                 else:
-                    qmn, qmx = _extrema(h, zc, vc1, zp, vp1, cw, sw, p, q0, q1)
+                    qmn, qmx = far_extrema(h, zc, vc1, zp, vp1, cw, sw, p, q0, q1)
             if d1 > dsw and qmn > floor:
                 accepted = True
                 break
@@ -530,7 +553,7 @@ def _far(s, n_end, zb_step, p, g, w, xpos, q, arm, vec, vi, lam, sm, urow, lad, 
             o[O_HC] += hh * ((z_tip - zb) * cw + (z1 - zb1) * cw1)
             o[O_HS] -= hh * ((z_tip - zb) * sw + (z1 - zb1) * sw1)
         else:
-            _project(o, lad[lev], zc, zc - zpart0, vc1 - vpart0, zp, vp1, cw, sw, h, zdrive, lam1, wd1, lam2, wd2)
+            project_harmonic(o, lad[lev], zc, zc - zpart0, vc1 - vpart0, zp, vp1, cw, sw, h, zdrive, lam1, wd1, lam2, wd2)
         if qmx > o[O_QMAX]:
             o[O_QMAX] = qmx
         if qmn < o[O_QMIN]:
@@ -557,12 +580,12 @@ def _far(s, n_end, zb_step, p, g, w, xpos, q, arm, vec, vi, lam, sm, urow, lad, 
                     acc += vec[a, j] * c0[j] * math.exp(lam[j] * hrel)
                 rec[a] = acc
             rec[n_arms] = 0.0
-            _store(buf, r, n * dt, z_tip, zc, zp, zb, -fa, x, rec)
+            store_sample(buf, r, n * dt, z_tip, zc, zp, zb, -fa, x, rec)
             if rec_mode and not r[R_ACTIVE]:
                 break
     # the elements (all free) catch up exactly
     for i in range(m_el):
-        _free_advance(ud, i, (n - n0) * dt, w[i], arm, vec, vi, lam, sm, o, energy, el_off, tmp)
+        free_advance(ud, i, (n - n0) * dt, w[i], arm, vec, vi, lam, sm, o, energy, el_off, tmp)
     s[S_ZC], s[S_VC], s[S_ZP], s[S_VP], s[S_ZB] = zc, vc, zp, vp, zb
     s[S_IDX] = n
     s[S_CONTACT] = 0.0
@@ -603,7 +626,7 @@ def advance(s, n_steps, zb_step, p, g, w, xpos, q, arm, vec, vi, lam, sm, urow, 
             if moved and recording and r[R_ACTIVE] == 0:
                 continue
         far_ok = hybrid and (lad_rec.shape[0] > 0 or r[R_ACTIVE] == 0)
-        fine_steps(s, n_end, zb_step, p, g, w, xpos, q, arm, vec, vi, lam, sm, buf, r, o, energy, far_ok, el_off)
+        fine_steps(s, n_end, zb_step, p, g, w, xpos, q, arm, vec, vi, lam, sm, urow, buf, r, o, energy, far_ok, el_off)
 
 
 @njit(cache=True)

@@ -74,3 +74,10 @@ def run_hertz(cfg, st: engine.KernelSetup, spec: engine.RunSpec):
             f"tap ({acc:.2g}) after {passes} runs"
         )
     return rr, info
+
+
+def kernel_of_run(cfg, st: engine.KernelSetup, run) -> mdr.MDRKernel:
+    """The MDR kernel on the element grid a hertz run used (its metadata ``kernel.mdr``)."""
+    info = run.info["mdr"]
+    x, g, w = mdr.element_grid(cfg.probe.tip_radius, info["x_max_m"], int(info["elements"]))
+    return mdr.MDRKernel(st, x, g, w)

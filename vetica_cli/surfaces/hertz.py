@@ -74,7 +74,7 @@ class Hertz(SurfaceModel):
     }
     rules: ClassVar[dict[str, Rule]] = {
         "e_inf": (positive, "a modulus > 0 Pa"),
-        "nu": (_nu_ok, "a Poisson ratio in (-1, 0.5]"),
+        "nu": (_nu_ok, "a Poisson ratio > -1 and <= 0.5"),
     }
     common_defaults: ClassVar[dict[str, Any]] = {"vdw_on_surface": False}
     theory_source = "Prony-series modulus of the hertz surface (SPEC 13)"
