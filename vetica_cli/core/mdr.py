@@ -79,19 +79,28 @@ def hertz_force_grid(g: np.ndarray, w: np.ndarray, e_star: float, delta) -> np.n
     return e_star * np.sum(w[None, :] * np.clip(d[:, None] - g[None, :], 0.0, None), axis=1)
 
 
-def auto_elements(radius: float, delta_max: float, rel: float = 1e-3, margin: float = 1.5) -> tuple[int, float]:
-    """``(M, x_max)`` for ``elements: auto``: the grid reaches ``margin`` times the contact
-    radius ``a = sqrt(R delta_max)`` of the deepest tap, and ``M`` is the smallest count
-    whose elastic force is within ``rel`` of Hertz's ``4/3 E* sqrt(R) delta^1.5`` at every
-    depth in ``[0.9, 1] delta_max`` (checked on 41 depths: the error oscillates as elements
-    enter; the Hertz ratio is independent of E*)."""
-    a = math.sqrt(radius * delta_max)
-    x_max = margin * a
-    deltas = np.linspace(0.9, 1.0, 41) * delta_max
+def grid_error(radius: float, g: np.ndarray, w: np.ndarray, lo: float, hi: float) -> float:
+    """Largest relative error of the grid's elastic force against Hertz's ``4/3 E* sqrt(R) delta^1.5``
+    for ``delta`` in ``[lo, hi]`` (independent of E*).  Between two elements' touch-down depths
+    ``g_i`` the grid's force is linear in ``delta`` and Hertz's convex: the error's extremes are
+    at the ``g_i`` and inside the intervals, so 801 depths and every ``g_i`` in the range are
+    evaluated."""
+    deltas = np.concatenate([np.linspace(lo, hi, 801), g[(g > lo) & (g < hi)]])
     exact = 4.0 / 3.0 * math.sqrt(radius) * deltas**1.5
+    return float(np.max(np.abs(hertz_force_grid(g, w, 1.0, deltas) / exact - 1.0)))
+
+
+def auto_elements(radius: float, delta_hi: float, rel: float = 1e-3, margin: float = 1.5,
+                  delta_lo: float | None = None) -> tuple[int, float]:  # fmt: skip
+    """``(M, x_max)`` for ``elements: auto``: the grid reaches ``margin`` times the contact
+    radius ``sqrt(R delta_hi)``, and ``M`` is the smallest count whose elastic force is within
+    ``rel`` of Hertz at every depth in ``[delta_lo, delta_hi]`` (default ``delta_lo = 0.9
+    delta_hi``: the deepest tenth of the deepest tap; :func:`grid_error`)."""
+    lo = 0.9 * delta_hi if delta_lo is None else delta_lo
+    x_max = margin * math.sqrt(radius * delta_hi)
     for m in range(4, 4000):
         _, g, w = element_grid(radius, x_max, m)
-        if np.max(np.abs(hertz_force_grid(g, w, 1.0, deltas) / exact - 1.0)) <= rel:
+        if grid_error(radius, g, w, lo, delta_hi) <= rel:
             return m, x_max
     raise ValueError("no element count up to 4000 reaches the requested accuracy")
 
