@@ -360,6 +360,14 @@ def extract(
         None, "--prestress", help="vetica-prestress: auto (adhesion if the surface feels the pull, else creep), "
         "adhesion, creep or fit.",
     ),
+    fit_model: Optional[str] = typer.Option(
+        None, "--fit-model", help="--method full: the surface model fitted (sls, wiechert, hertz); default: the "
+        "file's surface, else sls.",
+    ),
+    nu: Optional[float] = typer.Option(
+        None, "--nu", help="--method full with hertz: the sample's Poisson ratio (default: metadata, else 0.5 assumed).",
+        callback=checked("a Poisson ratio > -1 and <= 0.5", lambda v: -1 < v <= 0.5),
+    ),
 ):  # fmt: skip
     """Extract k0, k_inf, cd (and tau_c, Kg, Kr, tau_r) from a run with VETICA
     or another registered method (--method; full fits the SLS or Wiechert surface
@@ -382,7 +390,7 @@ def extract(
     from .extraction.format import format_table, to_json
     from .extraction.material import parse_contact
 
-    given = {"arms": arms, "hamaker": hamaker, "tip_radius": tip_radius}
+    given = {"arms": arms, "hamaker": hamaker, "tip_radius": tip_radius, "fit_model": fit_model, "nu": nu}
     opts = {k: v for k, v in given.items() if v is not None}
     if prestress is not None:
         opts["prestress"] = prestress

@@ -662,6 +662,43 @@ def prescribed(zs, dt, ud, g, w, q, arm, vec, vi, lam, sm, o, energy, el_off):
     return f_out, hi_out
 
 
+@njit(cache=True)
+def prescribed_centre(zs, dt, ud, g, w, q, arm, vec, vi, lam, sm, urow, o):
+    """:func:`prescribed` (no energy bookkeeping) that also returns the centre element's position
+    at every step (imposed in contact, free out of it): the gap of the attraction is
+    ``z_tip - s0 - u_centre``.  Returns ``(force, 1 + outermost element in contact, u_centre)``."""
+    m_el, n_arms = ud.shape
+    el_off = T.NO_BASE + 2 * n_arms
+    inc = np.zeros(m_el, np.int64)
+    ulast = np.zeros(m_el)
+    tlast = np.zeros(m_el, np.int64)
+    f_out = np.zeros(len(zs))
+    hi_out = np.zeros(len(zs), np.int64)
+    uc = np.zeros(len(zs))
+    tmp = np.empty(n_arms)
+    kg = q[Q_KG]
+    uc[0] = _u_free(ud, 0, arm, kg)
+    hi = 0
+    for n in range(1, len(zs)):
+        if hi > 0 or g[0] <= -zs[n]:
+            fsum, hi = surface_step(zs[n], n, dt, ud, inc, ulast, tlast, hi, g, w, q, arm, vec, vi, lam, sm, o, False,
+                                    el_off, tmp)  # fmt: skip
+        else:
+            fsum = 0.0
+        f_out[n] = -fsum
+        hi_out[n] = hi
+        if inc[0]:
+            uc[n] = zs[n] + g[0]
+        else:
+            if tlast[0] < n:
+                free_advance(ud, 0, (n - tlast[0]) * dt, w[0], arm, vec, vi, lam, sm, o, False, el_off, tmp)
+                tlast[0] = n
+            uc[n] = _u_free(ud, 0, arm, kg)
+    _catch_up(ud, inc, tlast, len(zs) - 1, dt, w, arm, vec, vi, lam, sm, o, False, el_off, tmp)
+    _ = urow
+    return f_out, hi_out, uc
+
+
 # ----------------------------------------------------------------------------- Python side
 
 
