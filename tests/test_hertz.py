@@ -247,3 +247,19 @@ def test_simulate_issue_config_reaches_a_proven_periodic_state():
     e = run.energy
     assert e["drive_work"] - e["cantilever_damping"] - e["paddle_damping"] == pytest.approx(
         e["sample_dissipation"], rel=1e-3, abs=1e-3)  # fmt: skip
+
+
+@pytest.mark.slow
+def test_whole_cycle_fit_recovers_its_own_hertz_record_within_1_percent():
+    """``extract --method full`` on a noise-free record of the hertz model (the issue's surface,
+    true force) fits the hertz model named by the metadata: e_inf, e_1, tau_1 within 1 % of the
+    generating values, each with a finite 1-sigma (R and nu from the metadata)."""
+    from vetica_cli.extraction import extract
+
+    run = simulate(load("configs/hertz.yaml", {"numerics.record_cycles": 2}))
+    res = extract(run.frame(), run.metadata(), force="true", method="full")
+    assert res.model == "hertz" and res.info["constants"]["nu"]["source"] == "metadata"
+    for name in ("e_inf", "e_1", "tau_1", "e_g"):
+        e = res.estimates[name]
+        assert e.theory is not None and abs(e.error_pct) < 1.0, (name, e)
+        assert e.sigma is not None and 0.0 < e.sigma < 0.01, (name, e)

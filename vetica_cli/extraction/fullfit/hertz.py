@@ -46,7 +46,7 @@ from ...signals.taps import find_taps
 from ... import surfaces
 from ..result import ExtractionResult, estimates
 
-FIT_PERIODS = 2  # drive periods of the window fitted
+FIT_PERIODS = 1  # drive periods of the window fitted (its periodic state is the record's)
 NEAR_STRIDE = 2  # residual every NEAR_STRIDE-th sample within NEAR_GAP of the surface
 FAR_STRIDE = 64
 NEAR_GAP = 3e-9  # [m]
@@ -195,7 +195,7 @@ def run_hertz_fit(record, opts: dict, consts: dict, method_key: str) -> Extracti
     best = None
     for _, x in scan[:2]:
         fwd.ud = None
-        fit = solve(x, 1, 40)
+        fit = solve(x, 1, 30)
         if best is None or fit.cost < best.cost:
             best = fit
     k = 1
@@ -219,7 +219,7 @@ def run_hertz_fit(record, opts: dict, consts: dict, method_key: str) -> Extracti
             fit = solve(x, k, 60)
             if best is None or fit.cost < best.cost:
                 best = fit
-    fit = solve(best.x, n_arms, 60)  # polish
+    fit = solve(best.x, n_arms, 60) if n_arms > 1 else best  # polish the arms together
     res, jac = fit.fun, fit.jac
     e_inf, e, tau, s0 = _theta_values(fit.x, n_arms, fit_hr)
     order = np.argsort(tau)
