@@ -317,10 +317,10 @@ def fine_steps(s, n_end, zb_step, p, g, w, xpos, q, arm, vec, vi, lam, sm, urow,
                 fsum += w[i] * f
         fts = -fsum - fa0
         fa = fa0
-        x = z_tip - a0
+        x = z_tip - a0 + g[0]
     else:
         x = _u_free(ud, 0, arm, kg)
-        fa = hr6 / ((z_tip - x) * (z_tip - x))
+        fa = hr6 / ((z_tip + g[0] - x) * (z_tip + g[0] - x))
         fts = -fa
     vcp = vc - bv1 * fts
     vpp = vp - bv2 * fts
@@ -364,7 +364,7 @@ def fine_steps(s, n_end, zb_step, p, g, w, xpos, q, arm, vec, vi, lam, sm, urow,
         if contact:
             fts = -fsum - fa0
             fa = fa0
-            x = zs
+            x = zs + g[0]  # the centre element, held by the tip
             cx_ok = False
             o[O_CSTEPS] += 1.0
             if not was:
@@ -382,8 +382,10 @@ def fine_steps(s, n_end, zb_step, p, g, w, xpos, q, arm, vec, vi, lam, sm, urow,
                 o[O_NSEP] += 1.0
                 o[O_ZSEP_LAST] = z_tip
                 o[O_TSEP_LAST] = n * dt
-            # the gap to the surface after the previous step (as the sls kernel), then the surface now
-            d = z_tip - x
+            # the gap between the tip's surface over the centre element and that element after the
+            # previous step (as the sls kernel's gap; the contact test's own measure, so the
+            # attraction is Fa(a0) exactly at contact and release), then the surface now
+            d = z_tip + g[0] - x
             fa = vdw_force(d, fa, hr6, ihr6)
             fts = -fa
             if cx_ok:
@@ -437,7 +439,7 @@ def fine_steps(s, n_end, zb_step, p, g, w, xpos, q, arm, vec, vi, lam, sm, urow,
             rec[n_arms] = xpos[hi - 1] if hi > 0 else 0.0
             store_sample(buf, r, n * dt, z_tip, zc, zp, zb, fts, x, rec)
         if far_ok and not contact and on_grid:
-            if z_tip - x > d_exit:
+            if z_tip + g[0] - x > d_exit:
                 break
     _catch_up(ud, inc, tlast, n, dt, w, arm, vec, vi, lam, sm, o, energy, el_off, tmp)
     o[O_QMAX], o[O_QMIN], o[O_FMAX], o[O_FMIN] = qmax, qmin, fmax, fmin
@@ -501,7 +503,8 @@ def _far(s, n_end, zb_step, p, g, w, xpos, q, arm, vec, vi, lam, sm, urow, lad, 
     n = n0
     zc, vc, zp, vp, zb = s[S_ZC], s[S_VC], s[S_ZP], s[S_VP], s[S_ZB]
     z_tip = zb + zc + zp
-    x = _centre_u(c0, urow, lam, 0.0)
+    g0 = g[0]
+    x = _centre_u(c0, urow, lam, 0.0) - g0  # the centre element's surface less g0: the gap is z_tip - x
     fa = hr6 / ((z_tip - x) * (z_tip - x))
     th = omega * (n % nt) * dt
     cw, sw = math.cos(th), math.sin(th)
@@ -535,7 +538,7 @@ def _far(s, n_end, zb_step, p, g, w, xpos, q, arm, vec, vi, lam, sm, urow, lad, 
             vp2 = lad[lev, L_P10] * zp + lad[lev, L_P11] * vp1
             zb1 = zb + zb_step * lad[lev, L_N]
             z1 = zb1 + zc1 + zp1
-            x1 = _centre_u(c0, urow, lam, (n + int(lad[lev, L_N]) - n0) * dt)
+            x1 = _centre_u(c0, urow, lam, (n + int(lad[lev, L_N]) - n0) * dt) - g0
             d1 = z1 - x1
             fa1 = vdw_force(d1, fa, hr6, ihr6) if d1 > 0.0 else fa
             vc3 = vc2 - hh * fa1 / m1
@@ -589,7 +592,7 @@ def _far(s, n_end, zb_step, p, g, w, xpos, q, arm, vec, vi, lam, sm, urow, lad, 
                     acc += vec[a, j] * c0[j] * math.exp(lam[j] * hrel)
                 rec[a] = acc
             rec[n_arms] = 0.0
-            store_sample(buf, r, n * dt, z_tip, zc, zp, zb, -fa, x, rec)
+            store_sample(buf, r, n * dt, z_tip, zc, zp, zb, -fa, x + g0, rec)
             if rec_mode and not r[R_ACTIVE]:
                 break
     # the elements (all free) catch up exactly
@@ -605,7 +608,7 @@ def _far(s, n_end, zb_step, p, g, w, xpos, q, arm, vec, vi, lam, sm, urow, lad, 
 def _gap(s, ud, arm, kg, a0, g):
     """Gap of the apex to the centre element's free position (the contact flag off)."""
     z_tip = s[S_ZB] + s[S_ZC] + s[S_ZP]
-    return z_tip - _u_free(ud, 0, arm, kg)
+    return z_tip + g[0] - _u_free(ud, 0, arm, kg)
 
 
 @njit(cache=True)
