@@ -184,7 +184,10 @@ def main() -> None:
                 for m in methods:
                     r = df[(df.model == model) & (df.tau_f1 == x) & (df.method == m) & (df.claim == q)]
                     e = float(r.error_pct.iloc[0]) if len(r) else math.nan
-                    cells.append(f"{e:+.3g}" if math.isfinite(e) else (str(r.status.iloc[0]) if len(r) else "-"))
+                    if len(r) and not math.isfinite(float(r.truth.iloc[0])):
+                        cells.append("n/a")  # no truth or stated equivalent for this claim (README)
+                    else:
+                        cells.append(f"{e:+.3g}" if math.isfinite(e) else (str(r.status.iloc[0]) if len(r) else "-"))
                 lines.append(f"| {model} | {x:g} | " + " | ".join(cells) + " |")
         lines.append("")
     (out / "table.md").write_text("\n".join(lines))
