@@ -398,6 +398,14 @@ def extract(
         None, "--stage2", help="vetica, vetica-prestress: closed (compiled superposition of the samples, default) or "
         "sines (the thesis's sum-of-sines fit).",
     ),
+    fit_model: Optional[str] = typer.Option(
+        None, "--fit-model", help="--method full: the surface model fitted (sls, wiechert, hertz); default: the "
+        "file's surface, else sls.",
+    ),
+    nu: Optional[float] = typer.Option(
+        None, "--nu", help="--method full with hertz: the sample's Poisson ratio (default: metadata, else 0.5 assumed).",
+        callback=checked("a Poisson ratio > -1 and <= 0.5", lambda v: -1 < v <= 0.5),
+    ),
 ):  # fmt: skip
     """Extract k0, k_inf, cd (and tau_c, Kg, Kr, tau_r) from a run with VETICA
     or another registered method (--method; full fits the SLS or Wiechert surface
@@ -428,7 +436,7 @@ def extract(
         raise InputError(f"--method {method!r} is not allowed; choose one of: {', '.join(METHODS)}")
     flags = {"arms": arms, "hamaker": hamaker, "tip_radius": tip_radius, "prestress": prestress,  # the options' own flags
              "free_amplitude": free_amplitude, "k1": k1, "q1": q1, "drive_frequency": drive_frequency,
-             "drive_t0": drive_t0, "stage2": stage2}  # fmt: skip  (--f1 reaches observables as the record's f1)
+             "drive_t0": drive_t0, "stage2": stage2, "fit_model": fit_model, "nu": nu}  # fmt: skip  (--f1 reaches observables as the record's f1)
     opts = {"kg_points": kg_points, **{k: v for k, v in flags.items() if v is not None}}
     if fit_range is not None:
         lo_hi = _numbers("--fit-range", fit_range)

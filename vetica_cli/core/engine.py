@@ -125,15 +125,30 @@ class Kernel:
         self.nt = setup.steps_per_period
         self.period_s = setup.steps_per_period * setup.dt
         self.periods = 0  # period evaluations (kernel calls of one period)
-        self._nobuf = record_buffer(2, self.n_arms)
+        # surface models with more dashpots than arms (the MDR elements of core.mdr) override these
+        self.n_state = self.n_arms  # dashpot entries of the state vector
+        self.n_rec = self.n_arms  # recorded columns after the seven of tapping.COLUMNS[:-1]
+        self.state_tau = np.asarray(setup.cd) / np.asarray(setup.k)  # relaxation time of each dashpot entry [s]
+        self._nobuf = record_buffer(2, self.n_rec)
+
+    def new_outputs(self) -> np.ndarray:
+        return T.new_outputs(self.n_arms)
+
+    def advance_raw(self, s, n_steps, zb_step, buf, rec, energy, o) -> None:
+        """The compiled kernel's ``advance`` on ``s`` (no bookkeeping)."""
+        T.advance(s, n_steps, zb_step, *self.coef, buf, rec, energy, o)
+
+    def stretch(self, o) -> np.ndarray:
+        """Per arm the mean-stretch integral ``int (X - Xd_i) dt`` [m s] of the outputs ``o``."""
+        return o[T.NO_BASE : T.NO_BASE + self.n_arms]
 
     def advance(self, s, n_steps=None, zb_step=0.0, buf=None, rec=None, energy=False):
         """Advance ``s`` in place; returns the output vector (``T.O_*``)."""
-        o = T.new_outputs(self.n_arms)
+        o = self.new_outputs()
         if rec is None:
             rec = T.new_recorder()
-        T.advance(s, self.nt if n_steps is None else n_steps, zb_step, *self.coef,
-                  self._nobuf if buf is None else buf, rec, energy, o)  # fmt: skip
+        self.advance_raw(s, self.nt if n_steps is None else n_steps, zb_step, self._nobuf if buf is None else buf,
+                         rec, energy, o)  # fmt: skip
         self.periods += 1
         return o
 
@@ -227,7 +242,7 @@ def approach(kern: Kernel, s, ctrl: Controller, n_ring: int, max_periods: int, s
     per_samples = kern.nt / stride
     back = int(math.ceil(0.5 * n_ring / per_samples)) + 1
     snaps: deque = deque(maxlen=back + 1)
-    ring = record_buffer(max(n_ring, 2), kern.n_arms)
+    ring = record_buffer(max(n_ring, 2), kern.n_rec)
     rec = T.new_recorder(stride=stride, origin=0, ring=True, active=False)
     history = []
     k = 0
@@ -314,13 +329,13 @@ class _Scaled:
     def __init__(self, kern: Kernel, template):
         st = kern.setup
         w2 = math.sqrt(st.k2 / st.m2)
-        n = kern.n_arms
+        n = kern.n_state
         period = kern.period_s
         self.template = template.copy()
         self.scale = np.concatenate([[L_UNIT, L_UNIT * st.omega, L_UNIT, L_UNIT * w2], np.full(n, L_UNIT), [L_UNIT]])
         decay_c = 0.5 * st.c1 / st.m1 * period
         decay_p = 0.5 * st.c2 / st.m2 * period
-        tau = np.asarray(st.cd) / np.asarray(st.k)
+        tau = kern.state_tau
         rates = np.concatenate([[decay_c, decay_c, decay_p, decay_p], period / tau])
         self.weight = 1.0 / -np.expm1(-rates)
         # the solver works on the drift per period of the probe (its rows are then as large as
@@ -601,13 +616,13 @@ def record_periods(kern: Kernel, s, cycles: int):
     (``cycles + 1`` rows)."""
     st = kern.setup
     n_samples = int(round(cycles * kern.nt / st.stride))
-    buf = record_buffer(n_samples, kern.n_arms)
+    buf = record_buffer(n_samples, kern.n_rec)
     rec = T.new_recorder(stride=st.stride, origin=int(s[T.S_IDX]), ring=False, active=True)
-    total = T.new_outputs(kern.n_arms)
+    total = kern.new_outputs()
     states = [s.copy()]
     for _ in range(cycles):
-        o = T.new_outputs(kern.n_arms)
-        T.advance(s, kern.nt, 0.0, *kern.coef, buf, rec, True, o)
+        o = kern.new_outputs()
+        kern.advance_raw(s, kern.nt, 0.0, buf, rec, True, o)
         kern.periods += 1
         states.append(s.copy())
         _accumulate(total, o)
@@ -642,7 +657,7 @@ def proof(kern: Kernel, states, o, a_sp: float, fixed_base: bool) -> dict:
     sc = _Scaled(kern, states[0])
     amp = amplitude(o, cycles * kern.period_s)
     drift = max(float(np.max(np.abs(sc.residual(a, b, amp, a_sp)[:-1]))) for a, b in zip(states[:-1], states[1:]))
-    xm = o[T.NO_BASE : T.NO_BASE + kern.n_arms] / (cycles * kern.period_s)
+    xm = kern.stretch(o) / (cycles * kern.period_s)
     return {
         "state_change_m": drift * L_UNIT,
         "mean_arm_stretch_m": [float(v) for v in xm],
@@ -719,7 +734,7 @@ def run(kern: Kernel, spec: RunSpec) -> RunResult:
     or ``max_time (orbit solver failed)``."""
     st = kern.setup
     fixed_base = not spec.controller_on
-    s = new_state(spec.zc0, spec.vc0, 0.0, 0.0, spec.zb0, kern.n_arms)
+    s = new_state(spec.zc0, spec.vc0, 0.0, 0.0, spec.zb0, kern.n_state)
     ctrl = Controller(st.a_sp, spec.kp, spec.ki, kern.nt, st.dt, spec.approach_rate, spec.controller_on)
     warnings: list = []
     info: dict = {"steady_method": spec.steady}

@@ -943,3 +943,10 @@ def new_recorder(stride: int = 1, origin: int = 0, ring: bool = False, active: b
     r[R_ACTIVE] = int(active)
     r[R_LEFT] = -1
     return r
+
+
+# public names of the helpers the MDR surface kernel (core.mdr) shares with this one
+store_sample = _store
+hermite_extrema = _hermite_extrema
+far_extrema = _extrema
+project_harmonic = _project

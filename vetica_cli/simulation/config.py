@@ -290,12 +290,13 @@ def _surface(raw: dict) -> Surface:
             raise ConfigError(f"unknown key {key!r}; allowed in surface: {', '.join(allowed)}")
     if items:
         values = model.set_items(values, items)
-    return Surface(params=model.complete(values), model=model.key, **common)
+    return Surface(params=model.complete(values), model=model.key, **{**model.common_defaults, **common})
 
 
 def defaults(model: str = DEFAULT_MODEL) -> dict:
     """The default config as nested dicts, with the default parameters of surface ``model``."""
-    return Config(surface=Surface(params=surfaces.get(model).parse({}), model=model)).to_dict()
+    m = surfaces.get(model)
+    return Config(surface=Surface(params=m.parse({}), model=model, **m.common_defaults)).to_dict()
 
 
 @functools.lru_cache(maxsize=None)
@@ -309,6 +310,7 @@ MAX_RECORD_SAMPLES = 5e7  # recorded steady samples (8 float64 columns: 3.2 GB i
 
 def _check_cross(cfg: Config) -> None:
     """Checks that involve more than one key."""
+    cfg.surface.surface_model.check_config(cfg)
     n = cfg.numerics
     if n.print_step < n.dt:
         raise ConfigError(
@@ -325,6 +327,11 @@ def _check_cross(cfg: Config) -> None:
         raise ConfigError(
             f"probe.f2: {p.f2!r} is not allowed; expected above probe.f1 ({p.f1!r} Hz): the torsional resonance lies "
             "above the flexural one (thesis 2.4.2: f2 = 15 f1)"
+        )
+    if n.temperature > 0 and cfg.surface.model == "hertz":
+        raise ConfigError(
+            f"numerics.temperature: {n.temperature!r} is not allowed with surface.model hertz; expected 0 (the thermal "
+            "recording kernel integrates the flat-punch surfaces sls and wiechert only)"
         )
     amp = cfg.operation.free_amplitude
     if n.approach_gap > amp:

@@ -60,15 +60,20 @@ if TYPE_CHECKING:
 SEGMENTS = ("approach", "steady")
 
 
-def columns(n_arms: int) -> list[str]:
-    """Recorded columns: the SLS's ``x_dashpot``, or ``x_dashpot_1..N`` for several arms."""
+EXTRA_UNITS = {"contact_radius": "m"}  # recorded columns some surface models add after the dashpots (hertz)
+
+
+def columns(n_arms: int, extra: tuple = ()) -> list[str]:
+    """Recorded columns: the SLS's ``x_dashpot``, or ``x_dashpot_1..N`` for several arms,
+    then the model's ``extra`` columns (hertz: ``contact_radius``)."""
     base = list(tapping.COLUMNS[:-1])
-    return base + (["x_dashpot"] if n_arms == 1 else [f"x_dashpot_{i + 1}" for i in range(n_arms)])
+    return base + (["x_dashpot"] if n_arms == 1 else [f"x_dashpot_{i + 1}" for i in range(n_arms)]) + list(extra)
 
 
-def units(n_arms: int) -> dict:
+def units(n_arms: int, extra: tuple = ()) -> dict:
     u = {"t": "s", "z_tip": "m", "z_cantilever": "m", "z_paddle": "m", "z_base": "m", "f_ts": "N", "x_surface": "m"}
     u.update({c: "m" for c in columns(n_arms)[7:]})
+    u.update({c: EXTRA_UNITS[c] for c in extra})
     u["segment"] = ""  # a label, no unit (what it means: SEGMENT_MEANING, metadata 'descriptions')
     return u
 
@@ -176,10 +181,11 @@ class Run:
     warnings: list = field(default_factory=list)
     wall_s: float = 0.0
     timing_s: dict = field(default_factory=dict)  # kernel wall time: approach, steady, record, total [s]
+    extra_columns: tuple = ()  # recorded columns after the dashpots (hertz: contact_radius)
 
     @property
     def n_arms(self) -> int:
-        return self.steady.shape[1] - 7
+        return self.steady.shape[1] - 7 - len(self.extra_columns)
 
     @property
     def steady_ok(self) -> bool:
@@ -191,7 +197,7 @@ class Run:
         import pandas as pd
 
         parts = (self.approach, self.steady)
-        data = {name: np.concatenate([p[:, j] for p in parts]) for j, name in enumerate(columns(self.n_arms))}
+        data = {name: np.concatenate([p[:, j] for p in parts]) for j, name in enumerate(columns(self.n_arms, self.extra_columns))}
         codes = np.repeat(np.arange(len(parts), dtype=np.int8), [len(p) for p in parts])
         data["segment"] = pd.Categorical.from_codes(codes, categories=list(SEGMENTS))
         return pd.DataFrame(data, copy=False)
@@ -199,12 +205,12 @@ class Run:
     def arrow(self):
         """Both segments as one Arrow table (the columns of :meth:`frame`), one chunk per
         segment; the recorded columns are contiguous, so no sample is copied."""
-        return segments_table(columns(self.n_arms), [self.approach, self.steady], list(SEGMENTS))
+        return segments_table(columns(self.n_arms, self.extra_columns), [self.approach, self.steady], list(SEGMENTS))
 
     def metadata(self) -> dict:
         return {
             "params": self.params,
-            "units": units(self.n_arms),  # each a unit a unit library parses ('' for none)
+            "units": units(self.n_arms, self.extra_columns),  # each a unit a unit library parses ('' for none)
             "descriptions": {"segment": SEGMENT_MEANING},
             "version": __version__,
             "stop_reason": self.stop_reason,
@@ -298,8 +304,16 @@ def simulate(cfg: Config) -> Run:
         settle_cycles=n.settle_cycles, tol_z=n.tol_z,
     )  # fmt: skip
     t0 = time.perf_counter()
-    kern = engine.Kernel(st)
-    rr = engine.run(kern, spec)
+    extra: tuple = ()
+    kern = None
+    if cfg.surface.model == "hertz":  # its own kernel (MDR elements); no thermal recording (config refuses T > 0)
+        from .hertz import run_hertz
+
+        rr, mdr_info = run_hertz(cfg, st, spec)
+        extra = ("contact_radius",)
+    else:
+        kern = engine.Kernel(st)
+        rr = engine.run(kern, spec)
     wall = time.perf_counter() - t0
     run = Run(
         approach=rr.approach,
@@ -309,10 +323,14 @@ def simulate(cfg: Config) -> Run:
         params=cfg.to_dict(),
         wall_s=wall,
         timing_s=rr.info["timing_s"],
+        extra_columns=extra,
     )
+    if extra:
+        run.info["mdr"] = mdr_info
     compute_observables(run, cfg, d)  # from the noise-free signals
     run.warnings = rr.warnings + run.warnings
-    add_thermal(run, kern, rr.window.states[0], cfg, d)  # noisy recorded periods from the noise-free orbit
+    if kern is not None:
+        add_thermal(run, kern, rr.window.states[0], cfg, d)  # noisy recorded periods from the noise-free orbit
     apply_instrument(run, cfg)
     return run
 

@@ -9,6 +9,7 @@ from . import (
     sls,  # noqa: F401  (registers "sls")
     wiechert,  # noqa: F401  (registers "wiechert")
 )
+from . import hertz  # noqa: F401, I001  (registers "hertz"; after the others: the registry keeps their order)
 from .base import COMMON_KEYS, DEFAULT_MODEL, MODELS, CommonKey, DerivedKey, Quantity, SurfaceModel, get, register
 
 __all__ = [

@@ -125,6 +125,7 @@ class SurfaceModel(ABC):
     derived_keys: ClassVar[dict[str, DerivedKey]] = {}  # e.g. stiffness_ratio -> k0 = ratio * k_inf
     theory_source: ClassVar[str]  # what the theory values are, for the table units
     item_help: ClassVar[str] = ""  # the dotted item keys (item_key), for messages, e.g. "surface.arms.<i>.cd"
+    common_defaults: ClassVar[dict[str, Any]] = {}  # COMMON_KEYS defaults the model changes (hertz: no pull on the surface)
 
     @property
     def config_keys(self) -> tuple[str, ...]:
@@ -218,6 +219,9 @@ class SurfaceModel(ABC):
     def describe(self, params: dict) -> str:
         """The surface in a few words for messages, e.g. 'an SLS (one relaxation time)'."""
         return f"a {self.name} surface"
+
+    def check_config(self, cfg) -> None:
+        """Checks of the whole config that concern the model (ConfigError); default none."""
 
 
     # ---- linear response to a small harmonic displacement (the AM-AFM energy balance): what the instrument's loss

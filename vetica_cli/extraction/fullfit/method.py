@@ -233,11 +233,11 @@ class FullFit(ExtractionMethod):
         "fitted to every sample"
     )
     title = "whole-cycle fit"
-    surface_models = ("sls", "wiechert")
+    surface_models = ("sls", "wiechert", "hertz")
     options_default: ClassVar[dict[str, Any]] = {
         "kg_points": 10, "start": None, "fit_hamaker": None, "near_stride": 4, "far_stride": 256, "scan": True,
         "fit_offset": True, "state": "auto", "substeps": None, "arms": None, "hamaker": None, "tip_radius": None,
-        "a0": None, "vdw_on_surface": None,
+        "a0": None, "vdw_on_surface": None, "fit_model": None, "nu": None,
     }  # fmt: skip
     option_specs = (
         KG_POINTS,
@@ -279,6 +279,11 @@ class FullFit(ExtractionMethod):
             raise InputError(f"vdw_on_surface {opts['vdw_on_surface']!r} not allowed; expected true, false or auto")
         if opts["fit_hamaker"] not in (None, True, False):
             raise InputError(f"fit_hamaker {opts['fit_hamaker']!r} not allowed; expected true, false or auto")
+        if opts["fit_model"] is not None and opts["fit_model"] not in self.surface_models:
+            raise InputError(f"fit-model {opts['fit_model']!r} not allowed; expected one of: {', '.join(self.surface_models)}")
+        nu = opts["nu"]
+        if nu is not None and (isinstance(nu, bool) or not isinstance(nu, (int, float)) or not -1.0 < nu <= 0.5):
+            raise InputError(f"nu {nu!r} not allowed; expected a Poisson ratio > -1 and <= 0.5")
         return opts
 
     def run(self, record: Record, options: dict) -> ExtractionResult:
@@ -286,6 +291,13 @@ class FullFit(ExtractionMethod):
         ``H R``, the surface pull) to the record (:mod:`vetica_cli.extraction.fullfit`)."""
         opts = dict(options)
         consts = surface_constants(record, opts)
+        target = opts["fit_model"] or (record.model.key if record.model.key in self.surface_models else "sls")
+        if target == "hertz":  # the sphere on a generalized-Maxwell half-space (fullfit.hertz)
+            from .hertz import run_hertz_fit
+
+            return run_hertz_fit(record, opts, consts, self.key)
+        if opts["fit_model"] is not None and opts["arms"] is None and record.model.key != opts["fit_model"]:
+            opts["arms"] = 1 if opts["fit_model"] == "sls" else 2  # the linear fit of another model's record
         vdw_known = consts["vdw_on_surface"][0]
         choices = [bool(vdw_known)] if vdw_known is not None else [True, False]
         results = [self._run_one(record, opts, consts, vdw) for vdw in choices]
@@ -452,7 +464,8 @@ class FullFit(ExtractionMethod):
         lines = ["fitted: " + ", ".join(fitted)]
         known = []
         for name, text, unit, scale in (("a0", "a0", "nm", 1e9), ("tip_radius", "tip radius", "nm", 1e9),
-                                        ("hamaker", "H", "J", 1.0), ("vdw_on_surface", "surface pull", "", 1.0)):  # fmt: skip
+                                        ("hamaker", "H", "J", 1.0), ("vdw_on_surface", "surface pull", "", 1.0),
+                                        ("nu", "nu", "", 1.0)):  # fmt: skip
             e = c.get(name)
             if not e or e["source"].startswith("fitted") or e["value"] is None:
                 continue
