@@ -47,6 +47,17 @@ KG_POINTS = Option("kg_points", "int", "", "samples of the contact's initial slo
                    (lambda v: 2 <= v <= 10_000, "an integer in 2..10000"))  # fmt: skip
 
 
+FIXED_COST = 0.1  # part of a method's seconds_per_point that does not scale with the record's samples
+
+
+def record_cost_scale(record_cycles: float, print_step: float) -> float:
+    """An extraction's cost relative to its ``seconds_per_point`` (a record of 10 periods at
+    0.125 ns): a fixed part (taps, stages, checks; measured 5-17 % of the reference cost for
+    the tap methods and the whole-cycle fit, 2-8 % for the observables and the DMT fit) plus
+    a part in proportion to the record's samples."""
+    return FIXED_COST + (1.0 - FIXED_COST) * (record_cycles / 10.0) * (0.125e-9 / print_step)
+
+
 class ExtractionMethod(ABC):
     """Base of every extraction method (one subclass per module; see the module docstring)."""
 

@@ -579,7 +579,7 @@ class Vetica(ExtractionMethod):
                                       "superposition fit (default: from the creep)", (lambda v: v > 0, "a stiffness > 0 N/m")),
                     Option("stage2", "str", "", "closed (compiled superposition of the samples) or sines (the thesis's "
                            "sum-of-sines fit)", one_of(*STAGE2)))  # fmt: skip
-    seconds_per_point = 0.1  # both forces, 10 periods at 0.125 ns: 0.07 CPU s measured (stage2 closed; sines: 0.42)
+    seconds_per_point = 0.45  # both forces, 10 periods at 0.125 ns: 0.44 CPU s measured with standard errors and checks
 
     def run(self, record: Record, options: dict) -> ExtractionResult:
         ex = vetica(record.t, record.z, record.f, record.z1, kg_points=options["kg_points"],

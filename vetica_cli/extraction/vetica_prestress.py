@@ -375,7 +375,7 @@ class VeticaPrestress(ExtractionMethod):
                                                  "stage2": "closed"}  # fmt: skip
     option_specs = (*get("vetica").option_specs,
                     Option("prestress", "str", "", "how the Maxwell arm's pre-stress at contact is found", one_of(*PRESTRESS)))  # fmt: skip
-    seconds_per_point = 0.15  # both forces, 10 periods at 0.125 ns: 0.11 CPU s measured (stage2 closed; sines: 0.51)
+    seconds_per_point = 0.55  # both forces, 10 periods at 0.125 ns: 0.53 CPU s measured with standard errors and checks
 
     def options(self, given: dict) -> dict:
         opts = super().options(given)

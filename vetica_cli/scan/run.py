@@ -44,6 +44,7 @@ from ..rows.schema import STATUSES
 from ..simulation.jit import compile_notice
 from ..batch.progress import duration
 from ..extraction import get as get_method
+from ..extraction.base import record_cost_scale
 from .analysis import summary_markdown
 from .config import ScanConfig, dump, load_scan
 from .line import LineItem, LineTask
@@ -221,7 +222,7 @@ def dry_run_text(cfg: ScanConfig, output: Path, jobs: int) -> str:
     n = cfg.point.numerics
     # a record's cost scales with its samples: record_cycles / print_step, from the reference size of
     # the methods' seconds_per_point (10 periods at 0.125 ns, both force sources: halved for one)
-    scale = (n.record_cycles / 10) * (0.125e-9 / n.print_step)
+    scale = record_cost_scale(n.record_cycles, n.print_step)
     per_record = scale * (SECONDS_PER_RECORD + sum(get_method(m).seconds_per_point / 2 for m in cfg.scan.methods))
     for p in cfg.scan.passes():
         periods = round(p.pixel_time / period) if p.steady == "transient" else 40

@@ -11,6 +11,7 @@ from pathlib import Path
 
 from ..checks import number
 from ..extraction import METHODS, get
+from ..extraction.base import record_cost_scale
 from ..simulation.config import Numerics, Probe
 from ..simulation.instrument import INSTRUMENT_KEYS
 from ..batch.parts import parts_dir
@@ -19,15 +20,17 @@ from ..rows.plan import group
 from .grid import Grid
 from ..batch.progress import duration  # noqa: F401  (re-exported: the sweep's and scan's estimates)
 
-# Measured on the project machine (2 cores, `vetica bench`, worked example): a hybrid drive period
-# costs ~0.09 of the fine steps of a period at NS_PER_STEP each (the tip is within the switch gap of
-# the surface for ~9 % of it), a recorded one RECORD_NS per print-step sample more; an orbit solve
-# with its approach takes ORBIT_PERIODS periods (p90 over the study grid), a transient up to
-# numerics.max_time.  Each extraction method states its own seconds per point
-# (ExtractionMethod.seconds_per_point, both force sources).  Used only for estimates.
-NS_PER_STEP = 11.0
-NEAR_FRACTION = 0.09
-RECORD_NS = 50.0
+# Measured on the project machine (2 cores, `vetica bench` and whole points of the print-step
+# study, worked example): a hybrid drive period costs ~0.10 of the fine steps of a period at
+# NS_PER_STEP each (the tip is within the switch gap of the surface for ~10 % of it), a recorded
+# one RECORD_NS per print-step sample more (the kernel's recording, the table and its
+# observables: 0.35 s for 1.86 M samples); an orbit solve with its approach takes ORBIT_PERIODS
+# periods (p90 over the study grid), a transient up to numerics.max_time.  Each extraction
+# method states its own seconds per point (ExtractionMethod.seconds_per_point, both force
+# sources, scaled by extraction.base.record_cost_scale).  Used only for estimates.
+NS_PER_STEP = 18.0
+NEAR_FRACTION = 0.10
+RECORD_NS = 190.0
 ORBIT_PERIODS = 60
 
 # keys the kernel-time estimate reads (section.name -> default), and keys that never need a
@@ -43,6 +46,9 @@ COST_KEYS = {
 }
 SHARING_KEYS = (*EXTRACT_KEYS, *(f"numerics.{k}" for k in INSTRUMENT_KEYS))
 EXACT_COMBOS = 20000  # cost combinations summed one by one; above, a regular sample of them is scaled
+
+
+RECORD_KEYS = ("numerics.record_cycles", "numerics.print_step")  # an extraction's cost scales with its record's samples
 
 
 def kernel_seconds_of(f1, dt, print_step, record_cycles, integrator, steady, max_time) -> float:
@@ -151,14 +157,19 @@ def grid_cost(g: Grid) -> Cost:
     kernel_s = others * _sum_over([f for f, c in zip(sim_factors, costly) if c], kernel)
 
     base_ext = {k: _base_value(g, k, d) for k, (_, d) in EXTRACT_KEYS.items()}
+    base_ext.update({k: base_cost[k] for k in RECORD_KEYS})
 
     def extract(assign: dict) -> float:
-        v = {**base_ext, **{k: x for k, x in assign.items() if k in EXTRACT_KEYS}}
-        return get(v["extract.method"]).seconds_per_point * len(point_sources(v["extract.force"])) / 2
+        v = {**base_ext, **{k: x for k, x in assign.items() if k in EXTRACT_KEYS or k in RECORD_KEYS}}
+        try:
+            scale = record_cost_scale(number(v["numerics.record_cycles"]), number(v["numerics.print_step"]))
+        except (TypeError, ValueError, ZeroDivisionError, OverflowError):
+            return 0.0  # an invalid value: the point checks report it
+        return get(v["extract.method"]).seconds_per_point * len(point_sources(v["extract.force"])) / 2 * scale
 
     ext_factors = []
     for f in g.factors:  # a factor's keys are its first assignment's; most factors hold no extraction key
-        keys = [k for k in f[0] if k in EXTRACT_KEYS]
+        keys = [k for k in f[0] if k in EXTRACT_KEYS or k in RECORD_KEYS]
         ext_factors.append([{k: a[k] for k in keys} for a in f] if keys else [{}] * len(f))
     used = [any(f) for f in ext_factors]
     rest = math.prod(len(f) for f, u in zip(ext_factors, used) if not u)
@@ -172,7 +183,9 @@ def study_core_seconds(study) -> float:
     for task in group(study.points):
         total += kernel_seconds(task.points[0].config)
         for p in task.points:
-            total += get(p.method).seconds_per_point * len(point_sources(p.force)) / 2
+            n = p.config.numerics
+            total += (get(p.method).seconds_per_point * len(point_sources(p.force)) / 2
+                      * record_cost_scale(n.record_cycles, n.print_step))  # fmt: skip
     return total
 
 
