@@ -68,6 +68,17 @@ def test_margin_is_the_smallest_headroom_against_the_limits():
     assert math.isnan(margin({"tau_c": 1.0, "k0": None, "k_inf": 0.0, "cd": 0.0}))
 
 
+def test_margin_counts_the_error_bar():
+    """min(1 - (|error| + 2 sigma)/limit): 1 % error with a 1.5 % sigma on cd leaves
+    1 - 4/5 = 0.2; an unknown or unbounded sigma leaves no margin; zero sigmas give the error-only margin."""
+    errs = {"tau_c": 3.0, "k0": 0.0, "k_inf": 0.0, "cd": 1.0}
+    sig = {"tau_c": 0.0, "k0": 0.0, "k_inf": 0.0, "cd": 1.5}
+    assert margin(errs, sig) == pytest.approx(0.2)
+    assert math.isnan(margin(errs, {**sig, "k0": float("inf")}))  # an unbounded error bar: not recovered
+    assert math.isnan(margin(errs, {**sig, "k0": None}))
+    assert margin(errs, dict.fromkeys(errs, 0.0)) == pytest.approx(margin(errs))
+
+
 def test_knobs_default_within_the_thesis_ranges_and_are_checked():
     vals = knob_values(None)
     for key, knob in KNOBS.items():
@@ -107,7 +118,9 @@ def test_advice_rows_scores_and_settings(small_advice):
         assert r["status"] == "ok"
         assert r["score"] == pytest.approx(min(r["vetica-prestress.margin"], r["full.margin"]))
         errs = {q: r[f"full.{q}_err_pct"] for q in ("tau_c", "k0", "k_inf", "cd")}
-        assert r["full.margin"] == pytest.approx(margin(errs))
+        sigs = {q: r[f"full.{q}_sigma_pct"] for q in ("tau_c", "k0", "k_inf", "cd")}
+        assert r["full.margin"] == pytest.approx(margin(errs, sigs))
+        assert r["recovered"] == (r["score"] > 0 and not r["full.flagged"] and not r["vetica-prestress.flagged"])
     settings = adv.settings()
     assert settings and [s["score"] for s in settings] == sorted((s["score"] for s in settings), reverse=True)
     assert all(s["score"] > 0 for s in settings)
@@ -154,9 +167,10 @@ def test_cli_json_settings_go_straight_back_to_simulate(tmp_path):
     png = tmp_path / "map.png"
     r = runner.invoke(app, ["advise", "--k-inf", "4", "--k0", "128", "--cd", "3e-5", "--f1", "50e3",
                             "--setpoint", "0.7", "--print-step", "1e-9", "--k2", "700", "--force", "true",
-                            "--jobs", "1", "-o", str(png), "--json"])  # fmt: skip
+                            "--temperature", "0", "--jobs", "1", "-o", str(png), "--json"])  # fmt: skip
     assert r.exit_code == 0, r.output
     out = json.loads(r.output)
+    assert out["temperature_k"] == 0.0
     assert png.is_file() and out["figure"] == str(png)
     assert out["settings"], out
     best = out["settings"][0]
@@ -164,3 +178,12 @@ def test_cli_json_settings_go_straight_back_to_simulate(tmp_path):
     r2 = runner.invoke(app, ["simulate", *sets, "--set", "numerics.record_cycles=2", "-o", str(tmp_path / "r.parquet"),
                              "-q"])  # fmt: skip
     assert r2.exit_code == 0, r2.output
+
+
+@pytest.mark.parametrize("args, fragment", [(["--temperature", "-3"], "[0, 2000] K"),
+                                            (["--temperature", "warm"], "--temperature 'warm'"),
+                                            (["--set", "numerics.temperature=10"], "--temperature")])  # fmt: skip
+def test_cli_bad_temperature_exits_2_before_any_work(tmp_path, args, fragment):
+    r = runner.invoke(app, ["advise", "--k-inf", "4", "--k0", "64", "--cd", "3e-3", "-o", str(tmp_path / "a.png"), *args])
+    assert r.exit_code == 2 and len(r.output.strip().splitlines()) == 1 and fragment in r.output, r.output
+    assert not list(tmp_path.iterdir())

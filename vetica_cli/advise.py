@@ -10,13 +10,23 @@ experimentalist's knobs within the thesis's ranges (:data:`KNOBS`: drive frequen
 with the periodic-orbit solver, extracts every record with each method asked for, and
 ranks the settings by their margin:
 
-    margin of a method = min(1 - |tau_c error|/30 %, 1 - |p error|/5 % for p in k0, k_inf, cd)
+    margin of a method = min(1 - (|q error| + 2 sigma_q)/limit_q) over q = tau_c (limit 30 %),
+                         k0, k_inf, cd (5 % each); sigma_q the method's relative 1-sigma [%]
     score of a setting = the smallest margin over the methods
 
-so a setting *recovers the material* (score > 0) when every method keeps the
-retardation time within the acceptance regime's 30 % (thesis fig. 52,
-:data:`vetica_cli.rows.schema.ACCEPT_ERR_PCT`) and each element within 5 %, and
-only a setting whose record is a proven periodic state counts.
+so a setting *recovers the material* (score > 0 and no estimate flagged) when every
+method keeps the retardation time within the acceptance regime's 30 % (thesis fig. 52,
+:data:`vetica_cli.rows.schema.ACCEPT_ERR_PCT`) and each element within 5 %, its error
+bar included, none of those estimates is flagged by the sanity checks (``unidentified``,
+:mod:`vetica_cli.extraction.sanity`), and the record is a proven periodic state.
+
+**Noise.**  The records carry the instrument's thermal noise (``temperature``, 300 K by
+default on the command line: the Brownian force on both probe modes from the
+fluctuation-dissipation theorem, :mod:`vetica_cli.simulation.thermal`; 0 = noise-free,
+the thesis's records).  One noisy record per setting: the error of that one record could
+be small by luck, so the margin counts the method's own 2-sigma with it -- a setting is
+advised when the error *and* the error bar fit within the limits, which is what the
+user will see on their instrument.
 
 The cost: one simulation per setting, grouped by the print-step policy every batch
 follows (:func:`vetica_cli.rows.plan.group`: points share a simulation only when they
@@ -158,13 +168,14 @@ def knob_values(given: dict | None) -> dict:
     return out
 
 
-def margin(errors: dict) -> float:
-    """``min(1 - |error|/limit)`` over :data:`LIMITS` (positive = recovered); nan when an
-    error is unknown."""
+def margin(errors: dict, sigmas: dict | None = None) -> float:
+    """``min(1 - (|error| + 2 sigma)/limit)`` over :data:`LIMITS` (positive = recovered;
+    errors and ``sigmas`` in %, no sigma = 0); nan when an error or a given sigma is unknown."""
     vals = [errors.get(k) for k in LIMITS]
-    if any(v is None or not math.isfinite(v) for v in vals):
+    sig = [0.0 if sigmas is None else sigmas.get(k) for k in LIMITS]
+    if any(v is None or not math.isfinite(v) for v in vals + sig):
         return math.nan
-    return min(1.0 - abs(v) / lim for v, lim in zip(vals, LIMITS.values()))
+    return min(1.0 - (abs(v) + 2.0 * s) / lim for v, s, lim in zip(vals, sig, LIMITS.values()))
 
 
 @dataclass(frozen=True)
@@ -193,12 +204,15 @@ def advise_task(item: dict) -> list[dict]:
         for m in methods:
             for q in LIMITS:
                 row[f"{m}.{q}_err_pct"] = math.nan
+                row[f"{m}.{q}_sigma_pct"] = math.nan
             row[f"{m}.margin"] = math.nan
+            row[f"{m}.flagged"] = ""
         if run is not None:
             _extract_row(row, run, methods, force)
         margins = [row[f"{m}.margin"] for m in methods]
         row["score"] = min(margins) if row["status"] == "ok" and all(math.isfinite(v) for v in margins) else math.nan
-        row["recovered"] = bool(row["score"] > 0) if math.isfinite(row["score"]) else False
+        flagged = any(row[f"{m}.flagged"] for m in methods)
+        row["recovered"] = bool(row["score"] > 0 and not flagged) if math.isfinite(row["score"]) else False
         rows.append(row)
     return rows
 
@@ -222,9 +236,12 @@ def _extract_row(row: dict, run, methods, force: str) -> None:
                 errors.append(f"{m}: {type(exc).__name__}: {exc}")
                 continue
         errs = {q: res.estimates[q].error_pct for q in LIMITS}
+        sigs = {q: None if res.estimates[q].sigma is None else 100.0 * res.estimates[q].sigma for q in LIMITS}
         for q, v in errs.items():
             row[f"{m}.{q}_err_pct"] = math.nan if v is None else float(v)
-        row[f"{m}.margin"] = margin(errs)
+            row[f"{m}.{q}_sigma_pct"] = math.nan if sigs[q] is None else float(sigs[q])
+        row[f"{m}.margin"] = margin(errs, sigs)
+        row[f"{m}.flagged"] = ",".join(q for q in LIMITS if res.estimates[q].identifiable is False)
     row["extract_wall_s"] = time.perf_counter() - t0
     row["error"] = "; ".join(" ".join(e.split())[:300] for e in errors)
 
@@ -273,7 +290,8 @@ def advise(material: Material, overrides: dict | None = None, knobs: dict | None
            methods=DEFAULT_METHODS, force: str = "reconstructed", jobs: int = 2, progress: bool = False) -> Advice:  # fmt: skip
     """Run the advice study (module docstring) and rank its settings.
 
-    ``overrides``: ``--set`` keys of the probe, operation, numerics or surface attraction;
+    ``overrides``: ``--set`` keys of the probe, operation, numerics or surface attraction
+    (``numerics.temperature`` [K]: the thermal noise of the records, 0 = none);
     ``knobs``: ``{knob key: values}`` replacing :data:`KNOBS` defaults; ``methods``:
     registered extraction methods that must all recover the material; ``force``: the
     force source extracted ('reconstructed' is what an instrument has).  Every setting is
@@ -349,12 +367,14 @@ def format_advice(adv: Advice, figure=None, top: int = 10) -> str:
         f"material: {adv.material.given} (tau_c {th['tau_c']:.4g} s, tau_r {th['tau_r']:.4g} s)",
         (
             f"criteria: tau_c error < {ACCEPT_ERR_PCT:g} %, k0, k_inf, cd within {PARAM_LIMIT_PCT:g} %, for "
-            f"{' and '.join(adv.methods)} ({adv.force} force); score = smallest margin min(1 - |error|/limit) over "
-            "the methods"
+            f"{' and '.join(adv.methods)} ({adv.force} force), error bar (2 sigma) included and no estimate "
+            "flagged; score = smallest margin min(1 - (|error| + 2 sigma)/limit) over the methods"
         ),
+        (f"records: thermal noise at {temperature_of(adv):g} K (one noisy record per setting)" if temperature_of(adv)
+         else "records: noise-free (temperature 0 K; an instrument's are not: --temperature 300)"),
         f"{len(t)} settings ({adv.simulations} simulations, {RECORD_CYCLES} periods each) in {adv.wall_s:.1f} s on "
         f"{adv.jobs} worker(s): "
-        + ", ".join(f"{m} recovers {int((t[f'{m}.margin'] > 0).sum())}" for m in adv.methods)
+        + ", ".join(f"{m} recovers {recovered_by(t, m)}" for m in adv.methods)
         + f"; all of them: {int(t['recovered'].sum())}",
     ]
     n_bad = int((t["status"] != "ok").sum())
@@ -379,11 +399,24 @@ def format_advice(adv: Advice, figure=None, top: int = 10) -> str:
     return "\n".join(lines)
 
 
+def recovered_by(t: pd.DataFrame, m: str) -> int:
+    """Settings where method ``m`` alone recovers the material (margin > 0, nothing flagged)."""
+    return int(((t[f"{m}.margin"] > 0) & (t[f"{m}.flagged"] == "")).sum())
+
+
+def temperature_of(adv: Advice) -> float:
+    """The records' temperature [K] (0: noise-free)."""
+    return float((adv.base.get("numerics") or {}).get("temperature", 0.0) or 0.0)
+
+
 def _setting_line(rank: int, r, methods) -> str:
     errs = "   ".join(
         "/".join("-" if not math.isfinite(r[f"{m}.{q}_err_pct"]) else f"{r[f'{m}.{q}_err_pct']:+.2g}" for q in LIMITS)
         for m in methods
     )
+    flags = "; ".join(f"{m} flags {r[f'{m}.flagged']}" for m in methods if r[f"{m}.flagged"])
+    if flags:
+        errs += f"   ({flags})"
     score = "-" if not math.isfinite(r["score"]) else f"{r['score']:.3f}"
     return (f"{rank:>4} {score:>6} {r['probe.f1'] / 1e3:>9g} {r['operation.setpoint']:>9g} "
             f"{r['numerics.print_step'] * 1e9:>8g} {r['probe.k2']:>9g}   {errs}")  # fmt: skip
@@ -404,13 +437,14 @@ def advice_json(adv: Advice, figure=None) -> dict:
         "criteria": {
             "tau_c_err_pct": ACCEPT_ERR_PCT,
             "parameter_err_pct": PARAM_LIMIT_PCT,
-            "score": "min over methods of min(1 - |error|/limit)",
+            "score": "min over methods of min(1 - (|error| + 2 sigma)/limit); recovered: score > 0 and no estimate flagged",
         },  # fmt: skip
         "methods": list(adv.methods),
         "force": adv.force,
         "knobs": {k: list(v) for k, v in adv.knobs.items()},
         "evaluated": len(t),
-        "recovered_by": {m: int((t[f"{m}.margin"] > 0).sum()) for m in adv.methods},
+        "recovered_by": {m: recovered_by(t, m) for m in adv.methods},
+        "temperature_k": temperature_of(adv),
         "figure": None if figure is None else str(figure),
         "wall_s": adv.wall_s,
     }

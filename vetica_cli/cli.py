@@ -496,6 +496,8 @@ def advise(
     k2: Optional[str] = typer.Option(None, "--k2", help="Paddle stiffnesses, N/m; default 200,700."),
     methods: str = typer.Option("vetica-prestress,full", "--methods", help="Methods that must all recover the material."),
     force: str = typer.Option("reconstructed", "--force", help="Force analysed: reconstructed (as measured) or true."),
+    temperature: str = typer.Option("300", "--temperature", help="Thermal noise of the records, K (0 = noise-free, "
+                                    "the thesis's records; an instrument's are at ~300 K)."),  # fmt: skip
     set_: Optional[List[str]] = typer.Option(None, "--set", help="Probe/operation/numerics key of the base, e.g. "
                                              "--set probe.k1=5 (not a knob, not the material)."),  # fmt: skip
     jobs: int = typer.Option(2, "--jobs", "-j", help="Parallel workers (processes), one core each."),
@@ -508,7 +510,9 @@ def advise(
     drive frequency (f2 = 15 f1), set point, print step and paddle stiffness within the
     thesis's ranges, each setting simulated to its periodic state and extracted by every
     method of --methods; prints the settings under which all of them recover the material
-    (tau_c error < 30 %, k0, k_inf, cd within 5 %), ranked by margin, and draws the map.
+    (tau_c error < 30 %, k0, k_inf, cd within 5 %, each with its 2-sigma error bar, and no
+    estimate flagged), ranked by margin, and draws the map.  The records carry the thermal
+    noise of --temperature (300 K by default).
     The keys of --json's settings can be passed to vetica simulate --set.
     """
     import json
@@ -520,6 +524,11 @@ def advise(
     from .advise import advise as run_advice
 
     overrides = parse_set(set_)
+    if "numerics.temperature" in overrides:
+        from .errors import ConfigError
+
+        raise ConfigError("--set numerics.temperature: give the records' temperature with --temperature")
+    overrides["numerics.temperature"] = _number("--temperature", temperature)
     cm = contact_for(overrides, parse_contact(contact))
     material = material_from(_number("--k-inf", k_inf), _number("--k0", k0), _number("--cd", cd),
                              _number("--e-glassy", e_glassy), _number("--e-rubbery", e_rubbery),

@@ -64,21 +64,35 @@ def displacement_psd(f, m: float, k: float, q: float, temperature: float):
 def sampled_flow(m: float, k: float, q: float, temperature: float, h: float):
     """``(phi, cov)``: the exact transition of a free mode's thermal state ``(z, v)`` over an
     interval ``h`` (``phi = exp(A h)``) and the covariance of its noise increment,
-    ``Sigma - phi Sigma phi^T`` with the equilibrium ``Sigma = diag(kB T/k, kB T/m)``."""
+    ``int_0^h exp(A s) Q exp(A^T s) ds`` with the Langevin force's intensity
+    ``Q = diag(0, 2 c kB T/m^2)`` (which equals ``Sigma - phi Sigma phi^T`` with the
+    equilibrium ``Sigma = diag(kB T/k, kB T/m)``), by Van Loan's block exponential: the
+    difference form loses every digit when ``h`` is a small fraction of the period (the
+    position variance grows as ``h^3``) and can turn indefinite."""
     from scipy.linalg import expm
 
     c = math.sqrt(k * m) / q
-    phi = expm(np.array([[0.0, 1.0], [-k / m, -c / m]]) * h)
-    sig = np.diag([KB * temperature / k, KB * temperature / m])
-    cov = sig - phi @ sig @ phi.T
+    a = np.array([[0.0, 1.0], [-k / m, -c / m]])
+    qn = np.diag([0.0, 2.0 * c * KB * temperature / (m * m)])
+    big = np.zeros((4, 4))
+    big[:2, :2], big[:2, 2:], big[2:, 2:] = -a, qn, a.T
+    e = expm(big * h)
+    phi = e[2:, 2:].T
+    cov = phi @ e[:2, 2:]
     return phi, 0.5 * (cov + cov.T)
+
+
+def _sqrt_psd(cov: np.ndarray) -> np.ndarray:
+    """A square root ``L`` with ``L L^T = cov`` of a positive semi-definite 2 x 2 covariance
+    (eigenvalues below zero by round-off clipped to zero)."""
+    w, v = np.linalg.eigh(cov)
+    return v * np.sqrt(np.clip(w, 0.0, None))
 
 
 def free_motion(rng, m, k, q, temperature, h, n) -> np.ndarray:
     """``n`` samples, ``h`` apart, of a free mode's thermal displacement, started in equilibrium."""
     phi, cov = sampled_flow(m, k, q, temperature, h)
-    chol = np.linalg.cholesky(cov + 1e-300 * np.eye(2))
-    w = rng.standard_normal((n, 2)) @ chol.T
+    w = rng.standard_normal((n, 2)) @ _sqrt_psd(cov).T
     x0 = rng.standard_normal(2) * np.sqrt([KB * temperature / k, KB * temperature / m])
     return kernel.linear_flow(phi, w, x0)
 
