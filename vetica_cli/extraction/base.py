@@ -47,6 +47,11 @@ KG_POINTS = Option("kg_points", "int", "", "samples of the contact's initial slo
                    (lambda v: 2 <= v <= 10_000, "an integer in 2..10000"))  # fmt: skip
 
 
+KG_WINDOW = Option("kg_window", "str", "", "stage 1b's window: noise (the thesis's kg_points samples where the record's "
+                   "noise allows them, a window grown from the noise otherwise) or thesis (always kg_points)",
+                   (lambda v: v in ("noise", "thesis"), "one of: noise, thesis"))  # fmt: skip
+
+
 FIXED_COST = 0.1  # part of a method's seconds_per_point that does not scale with the record's samples
 
 

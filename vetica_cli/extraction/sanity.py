@@ -50,6 +50,7 @@ import math
 
 import numpy as np
 
+from ..signals.slopes import NOISE_SAMPLES, noise_floor  # noqa: F401  (re-exported: the white-noise RMS of a signal)
 from .result import ExtractionResult
 
 REL_LIMIT = 1.0  # relative 1-sigma above which a quantity is not determined
@@ -60,26 +61,6 @@ CREEP_MIN = 0.02  # creep fraction between taps below which a fitted height and 
 KR_BOUND = 1e-6  # Kr within this fraction of Kg from 0 or Kg: at stage 2's bound
 DISAGREE = 0.02  # relative difference between vetica and vetica-prestress that counts
 STAGE2 = ("k_r", "k_inf", "k0", "cd", "tau_r")
-
-
-NOISE_SAMPLES = 8192  # second differences the noise floor's median is taken over (evenly spread)
-
-
-def noise_floor(x: np.ndarray) -> float:
-    """RMS of the white noise on a sampled signal, from its second differences
-    (``var(x[i+1] - 2x[i] + x[i-1]) = 6 sigma^2`` for white noise; median absolute
-    deviation for robustness against the contact kinks).  Longer records use
-    :data:`NOISE_SAMPLES` second differences evenly spread over the record (each one of
-    three consecutive samples): the median's relative standard error is then ~1.4 %,
-    and its cost no longer grows with the record."""
-    x = np.asarray(x, float)
-    n = len(x)
-    if n < 5:
-        return 0.0
-    step = max(1, (n - 2) // NOISE_SAMPLES)
-    i = np.arange(1, n - 1, step)
-    d2 = x[i + 1] - 2.0 * x[i] + x[i - 1]
-    return float(1.4826 * np.median(np.abs(d2 - np.median(d2))) / math.sqrt(6.0))
 
 
 def _creep(record) -> float | None:

@@ -63,7 +63,7 @@ import numpy as np
 from ..checks import one_of
 from ..errors import InputError
 from ..signals.taps import Taps, contact_slopes, find_taps
-from .base import KG_POINTS, ExtractionMethod, Option, register
+from .base import KG_POINTS, KG_WINDOW, ExtractionMethod, Option, register
 from .record import Record
 from .result import ExtractionResult, Spread, estimates
 
@@ -96,11 +96,12 @@ def stage1a_tau_c(t: np.ndarray, z: np.ndarray, taps: Taps, z1: float) -> np.nda
     return np.array(out)
 
 
-def stage1b_kg(z: np.ndarray, f: np.ndarray, taps: Taps, points: int = 10) -> np.ndarray:
+def stage1b_kg(z: np.ndarray, f: np.ndarray, taps: Taps, points: int = 10, window: str = "noise") -> np.ndarray:
     """Glassy stiffness of each tap: ``-dF/dz_tip`` fitted over ``points``
-    samples after the contact minimum (thesis 4.3.2, eq. 86) [N/m]
-    (:func:`vetica_cli.signals.taps.contact_slopes`)."""
-    return contact_slopes(z, f, taps, points)
+    samples after the contact minimum (thesis 4.3.2, eq. 86) [N/m], over a window grown
+    from the record's noise where the thesis's is too short for it (``window``,
+    :func:`vetica_cli.signals.taps.contact_slopes`)."""
+    return contact_slopes(z, f, taps, points, window)
 
 
 # ----------------------------------------------------------------------------- stage 2
@@ -394,7 +395,7 @@ def _mean(values: np.ndarray) -> float:
     return float(np.nanmean(values)) if np.any(np.isfinite(values)) else math.nan
 
 
-def _stage1(t, z, f, z1, kg_points, taps: Taps | None = None):
+def _stage1(t, z, f, z1, kg_points, taps: Taps | None = None, kg_window: str = "noise"):
     """Taps, then stages 1a and 1b: ``(taps, tau_c per interval, Kg per tap, warnings)``."""
     taps = find_taps(f) if taps is None else taps
     n_taps = len(taps.contact)
@@ -412,7 +413,7 @@ def _stage1(t, z, f, z1, kg_points, taps: Taps | None = None):
     pk = np.diff(taps.peak)
     if len(pk) and np.ptp(pk) > 0.1 * np.median(pk):
         warnings.append("irregular tap spacing (chatter or several contacts per drive period?)")
-    return taps, stage1a_tau_c(t, z, taps, z1), stage1b_kg(z, f, taps, kg_points), warnings
+    return taps, stage1a_tau_c(t, z, taps, z1), stage1b_kg(z, f, taps, kg_points, kg_window), warnings
 
 
 def _stage1_warnings(tau_c: float, kg: float, z1: float, kg_points: int) -> list[str]:
@@ -507,6 +508,7 @@ def vetica(
     kr_guess: float | None = None,
     stage2: str = "closed",
     taps: Taps | None = None,
+    kg_window: str = "noise",
 ) -> VeticaResult:
     """Run VETICA stages 1a, 1b and 2 on a record of consecutive taps.
 
@@ -529,7 +531,7 @@ def vetica(
     if kg_points < 2:
         raise InputError(f"kg_points {kg_points} not allowed; expected an integer >= 2")
     t0 = time.perf_counter()
-    taps, tau_c_i, kg_i, warnings = _stage1(t, z, f, z1, kg_points, taps)
+    taps, tau_c_i, kg_i, warnings = _stage1(t, z, f, z1, kg_points, taps, kg_window)
     n_taps = len(taps.contact)
     t1 = time.perf_counter()
     tau_c, kg = _mean(tau_c_i), _mean(kg_i)
@@ -574,16 +576,17 @@ class Vetica(ExtractionMethod):
     surface_models = ("sls",)
     tap_windows = True  # the force is read only around the contacts (and the approach's first contact)
     surface_note = "VETICA assumes one relaxation time (thesis 3.3)"
-    options_default: ClassVar[dict[str, Any]] = {"kg_points": 10, "kr_guess": None, "stage2": "closed"}
+    options_default: ClassVar[dict[str, Any]] = {"kg_points": 10, "kr_guess": None, "stage2": "closed", "kg_window": "noise"}
     option_specs = (KG_POINTS, Option("kr_guess", "float", "N/m", "start of the rubbery stiffness Kr in the "
                                       "superposition fit (default: from the creep)", (lambda v: v > 0, "a stiffness > 0 N/m")),
                     Option("stage2", "str", "", "closed (compiled superposition of the samples) or sines (the thesis's "
-                           "sum-of-sines fit)", one_of(*STAGE2)))  # fmt: skip
+                           "sum-of-sines fit)", one_of(*STAGE2)), KG_WINDOW)  # fmt: skip
     seconds_per_point = 0.45  # both forces, 10 periods at 0.125 ns: 0.44 CPU s measured with standard errors and checks
 
     def run(self, record: Record, options: dict) -> ExtractionResult:
         ex = vetica(record.t, record.z, record.f, record.z1, kg_points=options["kg_points"],
-                    kr_guess=options["kr_guess"], stage2=options["stage2"], taps=record.taps)  # fmt: skip
+                    kr_guess=options["kr_guess"], stage2=options["stage2"], taps=record.taps,
+                    kg_window=options["kg_window"])  # fmt: skip
         units = {k: q.unit for k, q in self.quantities(record.model).items()}
         timing = {"reconstruction": record.reconstruction_s, **ex.timing_s,
                   "total": time.perf_counter() - record.t_start}  # fmt: skip

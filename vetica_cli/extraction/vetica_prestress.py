@@ -280,8 +280,8 @@ def _stages(fits, mode, z1, kg, tau_c, kr_guess, s_of_tap):
 
 
 def vetica_prestress(t, z, f, z1: float, kg_points: int = 10, kr_guess: float | None = None,
-                     prestress: str = "adhesion", stage2: str = "closed", taps: Taps | None = None
-                     ) -> PrestressResult:  # fmt: skip
+                     prestress: str = "adhesion", stage2: str = "closed", taps: Taps | None = None,
+                     kg_window: str = "noise") -> PrestressResult:  # fmt: skip
     """Run VETICA with the pre-stress (module docstring) on a record of consecutive taps.
 
     ``prestress``: ``adhesion``, ``creep`` or ``fit`` (the method resolves ``auto``).
@@ -305,7 +305,7 @@ def vetica_prestress(t, z, f, z1: float, kg_points: int = 10, kr_guess: float | 
             f"too few taps: {n_taps} complete tap(s) in the record ({taps.incomplete} cut by its ends), need at least 2"
         )
     tau_c_i = stage1a_tau_c(t, z, taps, z1)
-    kg_thesis_i = stage1b_kg(z, f, taps, kg_points)
+    kg_thesis_i = stage1b_kg(z, f, taps, kg_points, kg_window)
     tau_c, kg0 = _mean(tau_c_i), _mean(kg_thesis_i)
     problem = None
     if not math.isfinite(tau_c):
@@ -372,7 +372,7 @@ class VeticaPrestress(ExtractionMethod):
     surface_models = ("sls",)
     tap_windows = True  # the force is read only around the contacts (and the approach's first contact)
     options_default: ClassVar[dict[str, Any]] = {"kg_points": 10, "kr_guess": None, "prestress": "auto",
-                                                 "stage2": "closed"}  # fmt: skip
+                                                 "stage2": "closed", "kg_window": "noise"}  # fmt: skip
     option_specs = (*get("vetica").option_specs,
                     Option("prestress", "str", "", "how the Maxwell arm's pre-stress at contact is found", one_of(*PRESTRESS)))  # fmt: skip
     seconds_per_point = 0.55  # both forces, 10 periods at 0.125 ns: 0.53 CPU s measured with standard errors and checks
@@ -397,7 +397,7 @@ class VeticaPrestress(ExtractionMethod):
             source = mode
         ex = vetica_prestress(record.t, record.z, record.f, record.z1, kg_points=options["kg_points"],
                               kr_guess=options["kr_guess"], prestress=mode, stage2=options["stage2"],
-                              taps=record.taps)  # fmt: skip
+                              taps=record.taps, kg_window=options["kg_window"])  # fmt: skip
         units = {k: q.unit for k, q in self.quantities(record.model).items()}
         timing = {
             "reconstruction": record.reconstruction_s,

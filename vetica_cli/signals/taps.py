@@ -138,11 +138,20 @@ def first_contact_minimum(f: np.ndarray) -> int:
     return start + int(np.argmin(before[start:stop]))
 
 
-def contact_slopes(z: np.ndarray, f: np.ndarray, taps: Taps, points: int = 10) -> np.ndarray:
-    """Initial contact slope of each tap, ``-dF/dz_tip`` [N/m]: a straight-line fit of the
-    force against the tip position over the ``points`` samples after the contact minimum
-    (thesis 4.3.2, eq. 86: VETICA's stage 1b, the glassy stiffness Kg).  nan for a tap whose
+KG_WINDOWS = ("noise", "thesis")  # stage 1b's window: chosen from the record's noise, or the thesis's
+
+
+def contact_slopes(z: np.ndarray, f: np.ndarray, taps: Taps, points: int = 10, window: str = "noise") -> np.ndarray:
+    """Initial contact slope of each tap, ``-dF/dz_tip`` [N/m] (thesis 4.3.2, eq. 86: VETICA's
+    stage 1b, the glassy stiffness Kg).  ``window='thesis'``: a straight-line fit of the
+    force against the tip position over the ``points`` samples after the contact minimum;
+    ``'noise'`` (default): the same wherever the record's noise allows it, a window grown
+    from the noise otherwise (:mod:`vetica_cli.signals.slopes`).  nan for a tap whose
     contact is shorter than ``points`` samples."""
+    if window == "noise":
+        from .slopes import noise_aware_slopes
+
+        return noise_aware_slopes(z, f, taps.contact, taps.separation, points)[0]
     out = []
     for ic, isep in zip(taps.contact, taps.separation):
         a, b = ic + 1, ic + 1 + points
