@@ -21,6 +21,10 @@ Checks, each against something the record itself shows:
   and the differing quantities of ``vetica`` are flagged.
 * **uncertainty** -- a relative 1-sigma above 100 % (the record does not determine the
   quantity).
+* **what a flagged stage feeds** -- VETICA's stage 2 and the elements are computed from
+  stage 1a's ``tau_c`` and stage 1b's ``Kg``: a flag on either (other than the disagreement
+  between the two VETICA variants) flags ``Kr, k0, k_inf, cd, tau_r`` too, whatever their
+  own propagated sigma says (seen: tau_c at 1.04 sigma, cd +26 % at 6 % sigma, unflagged).
 * **residual against the noise floor** -- the model must explain the force to the
   record's noise: stage 2's force residual (VETICA: largest over taps) or the
   whole-cycle fit's RMS residual above ``RESIDUAL_FACTOR`` x the force noise floor
@@ -186,5 +190,12 @@ def check(res: ExtractionResult, record, options: dict | None = None) -> Extract
         if e.value is not None and e.sigma is not None and not (e.sigma <= REL_LIMIT):
             if e.identifiable is not False:
                 _flag(res, [q], f"relative 1-sigma {e.sigma:.3g} > {REL_LIMIT:g}")
+    if res.method in ("vetica", "vetica-prestress"):  # stage 2 and the elements are computed from tau_c and Kg
+        for stage in ("tau_c", "k_g"):
+            e = res.estimates.get(stage)
+            if e is not None and e.value is not None and e.identifiable is False and not str(e.reason).startswith(
+                    "VETICA and VETICA with"):  # fmt: skip
+                _flag(res, [q for q in STAGE2 if q in res.estimates],
+                      f"computed from {stage}, which the record does not determine ({e.reason})")
     res.info = {**res.info, "sanity": info}
     return res

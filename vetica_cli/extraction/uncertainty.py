@@ -24,7 +24,9 @@ result by :func:`vetica_cli.extraction.extract_many` after the method ran).
   (log-gradients; Kr's dependence on the Kg it was fitted with is not included).
   Stages independent.  A quantity measured on fewer than two taps has an unbounded sigma.
 * ``full`` -- **the fit's Jacobian and residual** (``s^2 (J^T J)^-1``,
-  :mod:`.fullfit.uncertainty`), kept as the method computes it.
+  :mod:`.fullfit.uncertainty`), kept as the method computes it; when the record's Z1 is
+  thesis eq. 84's estimate (no approach segment), the fit's surface height is pinned to
+  it, so a Z1 term is added as for the tap methods (:func:`z1_term`).
 
 Relative sigmas (fractions), as :class:`~vetica_cli.extraction.result.Estimate` holds
 them; ``info['uncertainty']`` says which source and the Z1 term.
@@ -138,9 +140,11 @@ def tap_sigmas(res: ExtractionResult, record, method, options) -> tuple[dict, di
     if record.z1 is not None and math.isfinite(s_z1):
         h = 2.0 * s_z1 if s_z1 > 0 else 1e-13
         moved = []
+        kr = est["k_r"].value if "k_r" in est else None
+        warm = {**options, "kr_guess": kr} if "kr_guess" in options and kr and kr > 0 else options  # start at this Kr
         for sign in (1.0, -1.0):
             try:
-                moved.append(method.run(dataclasses.replace(record, z1=record.z1 + sign * h), options).estimates)
+                moved.append(method.run(dataclasses.replace(record, z1=record.z1 + sign * h), warm).estimates)
             except Exception:  # noqa: BLE001 - a moved Z1 the method refuses: that side gives no term
                 moved.append({})
         for q, e in est.items():
@@ -181,5 +185,42 @@ def calibrate(res: ExtractionResult, record, method=None, options=None) -> Extra
                          for k, e in res.estimates.items()}  # fmt: skip
     else:
         info = {"source": "the fit's Jacobian and residual"}
+        if method is not None and str(record.info.get("z1_source", "")).startswith("thesis eq. 84"):
+            info.update(z1_term(res, record, method, options or {}))
     res.info = {**res.info, "uncertainty": info}
     return res
+
+
+def z1_term(res: ExtractionResult, record, method, options) -> dict:
+    """A fit that takes Z1 from thesis eq. 84 (``a0 + Fa/Kg``, the record has no approach)
+    pins its surface height to an estimate uncertain by the lift bracket: the fit is run
+    twice more with Z1 moved by +-2 ``sigma_Z1`` (:func:`z1_sigma`) and half the larger
+    change of each quantity is added in quadrature to its sigma (in place; as the tap
+    methods' Z1 term).  Returns the bookkeeping for ``info['uncertainty']``."""
+    est = res.estimates
+    kr = next((est[q].value for q in ("k_inf", "k_r") if q in est and est[q].value), None)
+    try:
+        s_z1 = z1_sigma(record, find_taps(record.f), kr)
+    except Exception:  # noqa: BLE001 - no taps to judge Z1 by: the estimate stands unbounded
+        s_z1 = math.inf
+    if not (math.isfinite(s_z1) and s_z1 > 0):
+        if not math.isfinite(s_z1):
+            res.estimates = {k: dataclasses.replace(e, sigma=math.inf) if e.value is not None else e for k, e in est.items()}
+        return {"z1_sigma_m": s_z1, "z1_term": "Z1 from thesis eq. 84, its sigma unbounded" if not math.isfinite(s_z1)
+                else "none (Z1 exact)"}  # fmt: skip
+    moved = []
+    for sign in (1.0, -1.0):
+        try:
+            moved.append(method.run(dataclasses.replace(record, z1=record.z1 + sign * 2.0 * s_z1), options).estimates)
+        except Exception:  # noqa: BLE001 - a moved Z1 the fit refuses: that side gives no term
+            moved.append({})
+    out = {}
+    for q, e in est.items():
+        changes = [m[q].value - e.value for m in moved if q in m and m[q].value is not None and e.value]
+        if not changes or e.value is None:
+            continue
+        term = 0.5 * max(abs(c) for c in changes) / abs(e.value)  # the +-2 sigma secant, halved: 1 sigma
+        base = e.sigma if e.sigma is not None else 0.0
+        out[q] = dataclasses.replace(e, sigma=math.sqrt(base * base + term * term))
+    res.estimates = {**est, **out}
+    return {"z1_sigma_m": s_z1, "z1_term": "refits with Z1 (thesis eq. 84) moved by +-2 sigma"}

@@ -148,15 +148,8 @@ def contact_slopes(z: np.ndarray, f: np.ndarray, taps: Taps, points: int = 10, w
     ``'noise'`` (default): the same wherever the record's noise allows it, a window grown
     from the noise otherwise (:mod:`vetica_cli.signals.slopes`).  nan for a tap whose
     contact is shorter than ``points`` samples."""
-    if window == "noise":
-        from .slopes import noise_aware_slopes
+    from .slopes import contact_slopes_thesis, noise_aware_slopes
 
+    if window == "noise":
         return noise_aware_slopes(z, f, taps.contact, taps.separation, points)[0]
-    out = []
-    for ic, isep in zip(taps.contact, taps.separation):
-        a, b = ic + 1, ic + 1 + points
-        if b > isep:
-            out.append(np.nan)
-            continue
-        out.append(-np.polyfit(z[a:b], f[a:b], 1)[0])
-    return np.array(out, dtype=float)
+    return contact_slopes_thesis(z, f, taps.contact, taps.separation, points)
