@@ -154,6 +154,8 @@ BAD = [
     ("disk with a corner", {"feature": {"shape": "disk", "center": [0, 0], "radius": 1e-7, "size": DEL}}, "unknown key 'sample.features.0.corner'"),
     ("rectangle size", {"feature": {"size": [1e-7, -1e-7]}}, "sample.features.0.size: -1e-07 is not allowed; expected lengths > 0 m"),
     ("feature surface", {"feature": {"surface": {"cd": 0}}}, "sample.features.0.surface.cd: 0 is not allowed"),
+    ("hertz feature", {"feature": {"surface": {"model": "hertz", "e_inf": 5e8, "arms": [{"e": 1.5e9, "tau": 1e-6}]}}},
+     "sample.features.0.surface.model: 'hertz' is not allowed in a scan; expected one of: sls, wiechert"),
     ("feature height", {"feature": {"height": 2e-7}}, "sample.features.0.height: 2e-07 is not allowed; expected within the free amplitude"),
     ("surface section", {"top": {"surface": {"k0": 1.0}}}, "surface: a scan takes its surfaces from 'sample:'"),
     ("numerics.steady", {"top": {"numerics": {"steady": "orbit"}}}, "numerics.steady: a scan sets each pixel's steady state with scan.steady"),
