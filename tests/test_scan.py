@@ -34,6 +34,7 @@ from vetica_cli.scan.config import build, load_scan
 from vetica_cli.scan.line import LineTask
 from vetica_cli.scan.run import run_scan
 from vetica_cli.scan.sample import Raster, paint
+from vetica_cli.simulation.config import load
 from vetica_cli.simulation.simulate import simulate
 from vetica_cli.batch.lock import lock_path
 from vetica_cli.batch.parts import parts_dir
@@ -154,8 +155,6 @@ BAD = [
     ("disk with a corner", {"feature": {"shape": "disk", "center": [0, 0], "radius": 1e-7, "size": DEL}}, "unknown key 'sample.features.0.corner'"),
     ("rectangle size", {"feature": {"size": [1e-7, -1e-7]}}, "sample.features.0.size: -1e-07 is not allowed; expected lengths > 0 m"),
     ("feature surface", {"feature": {"surface": {"cd": 0}}}, "sample.features.0.surface.cd: 0 is not allowed"),
-    ("hertz feature", {"feature": {"surface": {"model": "hertz", "e_inf": 5e8, "arms": [{"e": 1.5e9, "tau": 1e-6}]}}},
-     "sample.features.0.surface.model: 'hertz' is not allowed in a scan; expected one of: sls, wiechert"),
     ("feature height", {"feature": {"height": 2e-7}}, "sample.features.0.height: 2e-07 is not allowed; expected within the free amplitude"),
     ("surface section", {"top": {"surface": {"k0": 1.0}}}, "surface: a scan takes its surfaces from 'sample:'"),
     ("numerics.steady", {"top": {"numerics": {"steady": "orbit"}}}, "numerics.steady: a scan sets each pixel's steady state with scan.steady"),
@@ -546,3 +545,33 @@ def test_scan_command_runs_end_to_end(tmp_path):
     assert math.isclose(t["pixel_time"].iloc[0], 0.3e-3)
     with pytest.raises(ConfigError):
         load_scan(tmp_path / "missing.yaml")
+
+
+HERTZ = {"model": "hertz", "e_inf": 5.0e8, "arms": [{"e": 1.5e9, "tau": 1.0e-6}], "nu": 0.5}  # the hertz model's example
+
+
+def test_a_hertz_domain_is_tapped_by_its_own_kernel_and_matches_simulate(tmp_path):
+    """A sphere-on-half-space domain in a scan line: its pixels run the MDR kernel (the same
+    element row as ``vetica simulate``'s hertz surface).  References: (1) the periodic orbit
+    of ``vetica simulate`` of that surface at the same probe and set point -- the orbit
+    pass's pixel must land on it: peak force and deepest indentation within 1 % (the scan's
+    grid is built once per line from the approach's depth, the simulation's for its measured
+    depth: both within 0.1 % of Hertz); (2) Hertz's bracket: the peak repulsion plus the DMT
+    adhesion H R/(6 a0^2) lies between (4/3) E* sqrt(R) delta^1.5 with the relaxed and with
+    the glassy modulus (E* = E/(1 - nu^2))."""
+    raw = line_config(nx=2, steady="orbit", methods=("observables",),
+                      feature={"height": 0.0, "surface": dict(HERTZ)})  # fmt: skip
+    t = run_scan(build(raw), tmp_path / "h.parquet", jobs=1, progress=False).table
+    px = t[(t["domain"] == 1)].iloc[0]
+    assert px["status"] == "ok", px["error"]
+    point = simulate(load(None, {**{f"surface.{k}": v for k, v in HERTZ.items()}, "numerics.record_cycles": 4,
+                                 "numerics.print_step": 1e-9}))  # fmt: skip
+    obs = point.metadata()["observables"]
+    probe, surf = point.params["probe"], point.params["surface"]
+    assert (probe["tip_radius"], surf["a0"], surf["hamaker"]) == (10e-9, 0.2e-9, 0.2e-18)  # the bracket's constants
+    assert px["peak_force"] == pytest.approx(obs["peak_force"], rel=1e-2)
+    assert px["max_penetration"] == pytest.approx(obs["max_penetration"], rel=1e-2)
+    r, a0, h = 10e-9, 0.2e-9, 0.2e-18
+    hertz = 4.0 / 3.0 * math.sqrt(r) * px["max_penetration"] ** 1.5 / (1 - 0.5**2)
+    pull = h * r / (6 * a0**2)
+    assert hertz * 5.0e8 < px["peak_force"] + pull < hertz * 2.0e9

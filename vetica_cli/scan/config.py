@@ -197,7 +197,7 @@ def parse_scan(raw: Any, extract: dict) -> ScanSpec:
     return ScanSpec(raster, tuple(times), tuple(steady), tuple(methods))
 
 
-SCAN_MODELS = ("sls", "wiechert")  # surface models a scan's line kernel integrates (one node under the tip)
+SCAN_MODELS = ("sls", "wiechert", "hertz")  # surface models a scan's line kernel integrates
 
 
 def _surface(key: str, raw: dict) -> dict:

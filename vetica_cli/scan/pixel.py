@@ -102,7 +102,7 @@ def first_contact_window(kern: engine.Kernel, s, ctrl: engine.Controller, n_ring
 
     Returns ``(samples in time order, periods run, time and tip position of the first
     contact)``; without a contact within ``max_periods`` the samples hold no contact."""
-    ring = engine.record_buffer(max(n_ring, 2), kern.n_arms)  # F-ordered as every buffer: no second compile
+    ring = engine.record_buffer(max(n_ring, 2), kern.n_rec)  # F-ordered as every buffer: no second compile
     rec = T.new_recorder(stride=kern.setup.stride, origin=session.step_index(s), ring=True, active=True)
     k = 0
     t_fc = z_fc = math.nan
@@ -146,20 +146,27 @@ class LineDriver:
         self.d = derive(configs[0])
         self.spec = run_spec(configs[0], self.d)
         self.kernels: dict[int, engine.Kernel] = {}
+        self.grids: dict[int, dict] = {}  # the MDR grid of each hertz material
         self.s = None
         self.ctrl = None
         self.base = math.nan  # absolute base height B [m]
 
     def kernel(self, m: int) -> engine.Kernel:
         if m not in self.kernels:
-            self.kernels[m] = engine.Kernel(kernel_setup(self.configs[m], self.d))
+            st = kernel_setup(self.configs[m], self.d)
+            if self.configs[m].surface.model == "hertz":  # a sphere on a half-space: the MDR elements
+                from ..simulation.hertz import line_kernel
+
+                self.kernels[m], self.grids[m] = line_kernel(self.configs[m], st, run_spec(self.configs[m], self.d))
+            else:
+                self.kernels[m] = engine.Kernel(st)
         return self.kernels[m]
 
     def _enter(self, m: int, h: float) -> engine.Kernel:
         """Put the tip over a fresh pixel of material ``m`` and height ``h``: the probe state
         and ``B`` carry over, ``Zb = B - h``, the surface is undeformed and out of contact."""
         kern = self.kernel(m)
-        self.s = session.enter(self.s, kern.n_arms, self.base - h)
+        self.s = session.enter(self.s, kern.n_state, self.base - h)
         return kern
 
     def _periods(self, kern, n: int) -> None:
@@ -173,7 +180,7 @@ class LineDriver:
         of ``lead_periods`` periods), then to the top of the swing.  Returns the bookkeeping."""
         kern = self.kernel(m)
         sp = self.spec
-        self.s = engine.new_state(sp.zc0, sp.vc0, 0.0, 0.0, sp.zb0, kern.n_arms)
+        self.s = engine.new_state(sp.zc0, sp.vc0, 0.0, 0.0, sp.zb0, kern.n_state)
         self.ctrl = engine.Controller(kern.setup.a_sp, sp.kp, sp.ki, kern.nt, kern.setup.dt, sp.approach_rate, True)
         ap = engine.approach(kern, self.s, self.ctrl, sp.n_ring, sp.max_periods)
         res = engine.solve_steady(kern, self.s, self.ctrl, 0.5 * sp.tol, sp.orbit_max_periods, False, True)
@@ -255,8 +262,16 @@ class LineDriver:
         instrument model of ``cfg`` applied, ready for :mod:`vetica_cli.extraction`."""
         kern = self.kernel(m)
         rr = engine.RunResult(rec.approach, rec.window.samples, rec.stop_reason, rec.info, rec.warnings, rec.window)
+        extra = ("contact_radius",) if m in self.grids else ()
         run = Run(approach=rec.approach, steady=rec.window.samples, info=run_info(rr, kern.setup, self.d),
-                  stop_reason=rec.stop_reason, params=cfg.to_dict(), wall_s=rec.wall_s)  # fmt: skip
+                  stop_reason=rec.stop_reason, params=cfg.to_dict(), wall_s=rec.wall_s, extra_columns=extra)  # fmt: skip
+        if m in self.grids:
+            from ..simulation.hertz import grid_accuracy
+
+            dmax = float(max(-(np.min(rec.window.samples[:, 1]) - kern.setup.a0), 0.0))
+            run.info["mdr"] = {**self.grids[m], "delta_max_m": dmax,
+                               "elastic_force_error_at_delta_max": grid_accuracy(cfg.probe.tip_radius, kern.g, kern.w,
+                                                                                 dmax) if dmax > 0 else None}  # fmt: skip
         compute_observables(run, cfg, self.d)
         if rec.stop_reason == PIXEL_TIME_STOP:  # the budget of a transient pixel is its pixel time
             run.warnings = [w for w in run.warnings if not w.startswith("no proven periodic state")]

@@ -56,6 +56,25 @@ def estimate_depth(st: engine.KernelSetup, spec: engine.RunSpec, radius: float) 
     return float(max(-(ap.last[T.O_QMIN] + s[T.S_ZB] - st.a0), 0.0))
 
 
+def line_kernel(cfg, st: engine.KernelSetup, spec: engine.RunSpec):
+    """The MDR kernel of a scan's ``hertz`` pixels, ``(kernel, grid info)``: the grid built as
+    :func:`run_hertz`'s first pass (the controlled approach's depth on the provisional grid,
+    ``elements: auto`` over its ``ESTIMATE_RANGE``), once per material and line; a scan's
+    pixels have no second pass (their depth differs from pixel to pixel), so the grid's elastic
+    accuracy at each pixel's deepest tap is in its row's metadata (``mdr``) instead."""
+    radius = cfg.probe.tip_radius
+    elements = cfg.surface.params["elements"]
+    est = estimate_depth(st, spec, radius)
+    lo, hi = ESTIMATE_RANGE[0] * est, ESTIMATE_RANGE[1] * est
+    if elements == "auto":
+        m, xm = mdr.auto_elements(radius, hi, margin=MARGIN, delta_lo=lo)
+    else:
+        m, xm = int(elements), MARGIN * math.sqrt(radius * hi)
+    x, g, w = mdr.element_grid(radius, xm, m)
+    info = {"elements": len(g), "x_max_m": xm, "dx_m": xm / len(g), "delta_estimate_m": est, "passes": 1}
+    return mdr.MDRKernel(st, x, g, w), info
+
+
 def run_hertz(cfg, st: engine.KernelSetup, spec: engine.RunSpec):
     """Run the hertz surface to its steady state (engine.run) on a grid checked as the module
     docstring says.  Returns ``(RunResult, grid info)``."""
