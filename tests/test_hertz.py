@@ -271,14 +271,14 @@ def test_whole_cycle_fit_recovers_two_arms_of_its_own_model_within_1_percent():
     a dented surface gives it): e_inf, e_1, tau_1, e_2, tau_2 within 1 % of the generating values
     (the cross-model's hertz2 surface at tau f1 = 0.01: tau_1 = 0.2 us, tau_2 = 2 us at f1 = 50 kHz, both
     relaxing within the ~2 us contact), the surface height within 5 pm; each 1-sigma (with the
-    model-accuracy term) covers its error and every parameter is identifiable.  (The record has one
-    drive period at 1 ns: the fit's window; the height is free, the dashpots' state at the window
+    model-accuracy term) covers its error and every parameter is identifiable.  (The record has two
+    drive periods at 4 ns, the fit's window the first; the height is free, the dashpots' state at the window
     start is the periodic one, as the fit assumes.)"""
     from vetica_cli import surfaces
     from vetica_cli.extraction.fullfit import hertz as HF
     from vetica_cli.extraction.record import Record
 
-    dt, period = 2e-9, 10_000
+    dt, period = 4e-9, 5_000
     t = np.arange(2 * period + 1) * dt  # two periods: the taps are found on two
     z = 66.3e-9 + 70e-9 * np.cos(2 * math.pi * t / (period * dt))  # deepest 3.7 nm into the surface at 0
     a0, hamaker, z1 = 0.2e-9, 0.2e-18, 0.2e-9 - 0.12e-9
