@@ -55,11 +55,13 @@ def main() -> None:
             flag = "" if e.identifiable in (True, None) else " unidentified"
             cells.append(f"{name} {100 * (e.value - v) / v:+.3g} % (1-sigma {100 * e.sigma:.2g} %{flag})")
         fit = res.info["fit"]
-        print(f"tau f1 {tf:g}, simulator grid {meta['kernel']['mdr']['elements']} elements "
-              f"({meta['kernel']['mdr']['elastic_force_error_at_delta_max']:.2g} of Hertz), fit grid {fit['elements']}, "
+        grid = meta["kernel"]["mdr"]
+        print(f"tau f1 {tf:g}, simulator grid {grid['elements']} elements "
+              f"({grid['elastic_force_error_at_delta_max']:.2g} of Hertz), fit grid {fit['elements']}, "
               f"{args.force} force: " + "; ".join(cells)
-              + f"; RMS residual {fit['residual_rms_pct']:.2g} % of the peak; height {fit['surface_height_m'] * 1e12:+.1f} pm"
-              f" (truth 0); simulate {sim_s:.0f} s, fit {fit_s:.0f} s", flush=True)  # fmt: skip
+              + f"; RMS residual {fit['residual_rms_pct']:.2g} % of the peak; "
+              f"height {fit['surface_height_m'] * 1e12:+.1f} pm (truth 0); simulate {sim_s:.0f} s, fit {fit_s:.0f} s",
+              flush=True)  # fmt: skip
 
 
 if __name__ == "__main__":

@@ -81,15 +81,15 @@ OFFSET_UNIT = 1e-9  # [m] the surface height's fit unit
 HEIGHT_BAND = 2e-9  # [m] the height's freedom around its start
 # the periodic state to 1e-12 of the indentation: the Jacobian is taken by finite differences of
 # DIFF_STEP in the log-parameters, and a state converged to only 1e-7 put ~10 % noise into it
-# (measured: a two-arm fit with the height pinned stalled at tau_2 +18 % after 100 evaluations
+# (measured while developing: a two-arm fit with the height pinned stalled at tau_2 +18 % after 100 evaluations
 # with 1e-7 and 1e-6; 1e-12 and 1e-5 reached 0.3 % in 62)
 PERIODIC_TOL = 1e-12
 PERIODIC_PASSES = 60
 DIFF_STEP = 1e-5
 TAU_MAX_WINDOWS = 100.0  # a relaxation time's upper bound in fit windows (slower: a spring and an offset)
-FINAL_NFEV = 200
+FINAL_NFEV = 200  # evaluations of the last fit (all arms, from the best candidate)
 MODEL_REL = 1e-3  # the hertz model's stated accuracy (elements: auto): the model-error term of the 1-sigma
-REL_LIMIT = 0.3  # relative 1-sigma (with the model-accuracy term) above which a parameter is unidentified  # evaluations of the last fit (all arms, from the best candidate)
+REL_LIMIT = 0.3  # relative 1-sigma (with the model-accuracy term) above which a parameter is unidentified
 DEFAULT_NU = 0.5
 DEFAULT_RADIUS = 10e-9
 
@@ -102,7 +102,8 @@ class HertzForward:
         self.radius, self.nu, self.a0 = radius, nu, a0
         self.period_samples = period_samples
         depth = max(z_ref - a0 - float(np.min(z)), 0.05e-9)
-        m, xm = mdr.auto_elements(radius, 1.2 * depth, rel=GRID_REL if rel is None else rel, margin=1.3, delta_lo=0.6 * depth)
+        rel = GRID_REL if rel is None else rel
+        m, xm = mdr.auto_elements(radius, 1.2 * depth, rel=rel, margin=1.3, delta_lo=0.6 * depth)
         self.x, self.g, self.w = mdr.element_grid(radius, xm, m)
         self.ud = None  # periodic state of the last evaluation (warm start)
         self.passes = 0
