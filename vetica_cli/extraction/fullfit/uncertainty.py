@@ -35,6 +35,53 @@ def covariance(res, jac):
     return np.where(np.isfinite(cov), cov, np.inf)
 
 
+def tap_groups(idx, contacts, spacing: float, n_approach: int = 0) -> np.ndarray:
+    """Group of each residual row for :func:`cluster_covariance`: the steady rows (sample
+    indices ``idx``) by tap -- each tap from half a tap spacing before its contact to half
+    a spacing before the next one's -- then ``n_approach`` rows of the approach tap, one
+    group of their own."""
+    edges = np.asarray(contacts, float)[1:] - 0.5 * spacing
+    steady = np.searchsorted(edges, np.asarray(idx, float), side="right")
+    return np.concatenate([steady, np.full(n_approach, len(edges) + 1)]).astype(int)
+
+
+def cluster_covariance(res, jac, groups):
+    """``(cov, G)``: the tap-robust covariance of the fit vector -- the bias-reduced
+    cluster sandwich (CR2, Bell and McCaffrey), ``M^-1 (sum_g s_g s_g^T) M^-1`` with
+    ``M = J^T J`` and the score of group ``g`` (a tap)
+    ``s_g = J_g^T (I - H_gg)^(-1/2) r_g``, ``H_gg = J_g M^-1 J_g^T`` the tap's leverage;
+    ``G`` the groups.  It assumes nothing about the noise within a tap (its colour, its
+    correlation over the tap, a misfit that repeats with the tap's shape), only that
+    taps are independent; the leverage correction undoes what the fit absorbed of each
+    tap's noise into its parameters (with about as many parameters as taps, much).  Rows
+    of a negative group are fitted but form no group.  SVD-normalised columns; a
+    singular ``M`` gives an infinite variance."""
+    groups = np.asarray(groups)
+    labels = np.unique(groups[groups >= 0])
+    g = len(labels)
+    p = jac.shape[1]
+    if g < 2:
+        return np.full((p, p), np.inf), g
+    norm = np.sqrt(np.sum(jac**2, axis=0))
+    norm[norm == 0] = 1.0
+    jn = jac / norm
+    w, v = np.linalg.eigh(jn.T @ jn)
+    if not (w[0] > 1e-14 * w[-1]):
+        return np.full((p, p), np.inf), g
+    half = (v / np.sqrt(w)) @ v.T  # M^-1/2
+    d = np.zeros((g, p))  # M^-1/2 s_g
+    for i, lab in enumerate(labels):
+        rows = groups == lab
+        jh = jn[rows] @ half
+        u, sv, _ = np.linalg.svd(jh, full_matrices=False)  # H_gg = u diag(sv^2) u^T
+        lam = np.minimum(sv**2, 1.0 - 1e-12)
+        r = res[rows]
+        r = r + u @ ((1.0 / np.sqrt(1.0 - lam) - 1.0) * (u.T @ r))
+        d[i] = jh.T @ r
+    cov = half @ (d.T @ d) @ half / np.outer(norm, norm)
+    return np.where(np.isfinite(cov), cov, np.inf), g
+
+
 def propagate(cov, gradients: dict) -> dict:
     """Relative 1-sigma of each quantity from the covariance of the log-parameters:
     ``sqrt(g^T C g)`` with ``g = d ln q / d ln p`` (the surface model's
