@@ -23,8 +23,10 @@ result by :func:`vetica_cli.extraction.extract_many` after the method ran).
   are propagated through :func:`~vetica_cli.extraction.vetica.sls_elements`
   (log-gradients; Kr's dependence on the Kg it was fitted with is not included).
   Stages independent.  A quantity measured on fewer than two taps has an unbounded sigma.
-* ``full`` -- **the fit's Jacobian and residual** (``s^2 (J^T J)^-1``,
-  :mod:`.fullfit.uncertainty`), kept as the method computes it.
+* ``full`` -- the larger of **the fit's Jacobian and residual** (``s^2 (J^T J)^-1``) and
+  the **tap-robust sandwich** (delete-one-tap jackknife of the linearised fit, for
+  residuals correlated within a tap, e.g. thermal noise; :mod:`.fullfit.uncertainty`),
+  kept as the method computes it.
 
 Relative sigmas (fractions), as :class:`~vetica_cli.extraction.result.Estimate` holds
 them; ``info['uncertainty']`` says which source and the Z1 term.
@@ -180,6 +182,6 @@ def calibrate(res: ExtractionResult, record, method=None, options=None) -> Extra
         res.estimates = {k: dataclasses.replace(e, sigma=sig.get(k, e.sigma)) if e.value is not None else e
                          for k, e in res.estimates.items()}  # fmt: skip
     else:
-        info = {"source": "the fit's Jacobian and residual"}
+        info = {"source": "the larger of the fit's Jacobian-and-residual error and the tap-robust sandwich"}
     res.info = {**res.info, "uncertainty": info}
     return res

@@ -23,7 +23,7 @@ from .fit import HAMAKER_BOUNDS, OFFSET_UNIT, FitVector, fit_surface, solve
 from .model import SurfaceFit
 from .start import starting_point
 from ..uncertainty import t_factor
-from .uncertainty import cluster_covariance, covariance, gn_gain, identifiability, propagate, tap_groups
+from .uncertainty import covariance, gn_gain, identifiability, propagate, tap_covariance, tap_groups
 
 STATES = ("auto", "periodic", "free")  # dashpot state at the window start
 FREE_NFEV = 25  # evaluation budget of the free-start-state stage (whole window)
@@ -395,7 +395,7 @@ class FullFit(ExtractionMethod):
         cov_taps = cov_taps[np.ix_(idx, idx)]
         x = np.asarray(fit["x"])[idx[: len(fit["x"])]]
         lo, hi = np.asarray(fit["lo"])[idx[: len(fit["x"])]], np.asarray(fit["hi"])[idx[: len(fit["x"])]]
-        rel = np.maximum(np.sqrt(np.diag(cov)), np.sqrt(np.diag(cov_taps)))[: len(names)]
+        rel = np.maximum(np.sqrt(np.diag(cov))[: len(names)], np.sqrt(np.diag(cov_taps))[: len(names)])
         at_bound = (x - lo < 1e-6) | (hi - x < 1e-6)
         k_inf, k, cd = float(theta[0]), theta[1:p:2], theta[2:p:2]
         params = surface.from_arms(k_inf, k, cd)
@@ -443,7 +443,7 @@ class FullFit(ExtractionMethod):
         info["fit"] = _fit_info(model, stages, cov, sigma_model, opts, perm)
         info["fit"]["uncertainty"] = {
             "source": "the larger of the Jacobian-and-residual error (white residuals) and the tap-robust sandwich "
-                      "(spread of the taps' pulls on the estimate, t-scaled)",
+                      "(delete-one-tap jackknife of the linearised fit, the approach tap bias-reduced; t-scaled)",
             "groups": n_groups,
             "white": {k: finite_or_none(v) for k, v in sigma_white.items()},
             "taps": {k: finite_or_none(v) for k, v in sigma_taps.items()},
@@ -465,7 +465,7 @@ class FullFit(ExtractionMethod):
 
     @staticmethod
     def _tap_covariance(model, taps, res, jac):
-        """Tap-robust covariance (:func:`.uncertainty.cluster_covariance`) of the fit vector,
+        """Tap-robust covariance (:func:`.uncertainty.tap_covariance`) of the fit vector,
         scaled by ``t_factor(G)^2`` (G groups: the steady taps and the approach tap), and G.
         Fewer than ``MIN_GROUPS`` groups (the spread of two is no estimate): zero, the white
         error alone."""
@@ -474,7 +474,7 @@ class FullFit(ExtractionMethod):
         if len(res) != len(model.steady.idx) + n_app or len(taps.contact) < 1:
             return zero, 0
         groups = tap_groups(model.steady.idx, taps.contact, taps.spacing, n_app)
-        cov, g = cluster_covariance(res, jac, groups)
+        cov, g = tap_covariance(res, jac, groups)
         return (cov * t_factor(g) ** 2, g) if g >= MIN_GROUPS else (zero, g)
 
     def detail_lines(self, res: ExtractionResult) -> list[str]:

@@ -36,28 +36,41 @@ def covariance(res, jac):
 
 
 def tap_groups(idx, contacts, spacing: float, n_approach: int = 0) -> np.ndarray:
-    """Group of each residual row for :func:`cluster_covariance`: the steady rows (sample
+    """Group of each residual row for :func:`tap_covariance`: the steady rows (sample
     indices ``idx``) by tap -- each tap from half a tap spacing before its contact to half
-    a spacing before the next one's -- then ``n_approach`` rows of the approach tap, one
-    group of their own."""
-    edges = np.asarray(contacts, float)[1:] - 0.5 * spacing
-    steady = np.searchsorted(edges, np.asarray(idx, float), side="right")
-    return np.concatenate([steady, np.full(n_approach, len(edges) + 1)]).astype(int)
+    a spacing before the next one's; past the last complete tap, one group per tap
+    spacing -- numbered from 0, then ``n_approach`` rows of the approach tap, group
+    ``APPROACH``."""
+    idx = np.asarray(idx, float)
+    edges = list(np.asarray(contacts, float)[1:] - 0.5 * spacing)
+    last = float(contacts[-1]) + 0.5 * spacing  # periods after the last complete tap: one group each
+    while spacing > 0 and len(idx) and last < idx[-1]:
+        edges.append(last)
+        last += spacing
+    steady = np.searchsorted(np.asarray(edges), idx, side="right")
+    return np.concatenate([steady, np.full(n_approach, APPROACH)]).astype(int)
 
 
-def cluster_covariance(res, jac, groups):
-    """``(cov, G)``: the tap-robust covariance of the fit vector -- the bias-reduced
-    cluster sandwich (CR2, Bell and McCaffrey), ``M^-1 (sum_g s_g s_g^T) M^-1`` with
-    ``M = J^T J`` and the score of group ``g`` (a tap)
-    ``s_g = J_g^T (I - H_gg)^(-1/2) r_g``, ``H_gg = J_g M^-1 J_g^T`` the tap's leverage;
-    ``G`` the groups.  It assumes nothing about the noise within a tap (its colour, its
-    correlation over the tap, a misfit that repeats with the tap's shape), only that
-    taps are independent; the leverage correction undoes what the fit absorbed of each
-    tap's noise into its parameters (with about as many parameters as taps, much).  Rows
-    of a negative group are fitted but form no group.  SVD-normalised columns; a
-    singular ``M`` gives an infinite variance."""
+APPROACH = -1  # group of the approach tap's rows (tap_groups)
+LOO_RCOND = 1e-6  # relative singular value below which a direction is left open (tap_covariance)
+
+
+def tap_covariance(res, jac, groups):
+    """``(cov, G)``: the tap-robust covariance of the fit vector, a cluster sandwich with
+    the taps as clusters, ``M^-1 (sum_g s_g s_g^T) M^-1 (G-1)/G``, ``M = J^T J``, ``G`` the
+    taps.  It assumes nothing about the noise within a tap (its colour, its correlation
+    over the tap, a misfit that repeats with the tap's shape), only that taps are
+    independent.  Each steady tap's ``M^-1 s_g`` is the change of the (linearised)
+    estimate when that tap is left out, ``(M - J_g^T J_g)^-1 J_g^T r_g`` =
+    ``M^-1 J_g^T (I - H_gg)^-1 r_g`` with ``H_gg = J_g M^-1 J_g^T`` the tap's leverage:
+    the delete-one-tap jackknife (CR3), which puts back what the fit absorbed of the
+    tap's noise into its parameters (with about as many parameters as taps, much).
+    The approach tap (group :data:`APPROACH`) pins the surface height almost alone, so
+    leaving it out is no answer: its term is the bias-reduced one,
+    ``(I - H_gg)^(-1/2) r_g`` (CR2, Bell and McCaffrey).  SVD-normalised columns; a
+    singular ``M`` or fewer than two groups gives an infinite variance."""
     groups = np.asarray(groups)
-    labels = np.unique(groups[groups >= 0])
+    labels = np.unique(groups)
     g = len(labels)
     p = jac.shape[1]
     if g < 2:
@@ -68,17 +81,22 @@ def cluster_covariance(res, jac, groups):
     w, v = np.linalg.eigh(jn.T @ jn)
     if not (w[0] > 1e-14 * w[-1]):
         return np.full((p, p), np.inf), g
+    m = jn.T @ jn
     half = (v / np.sqrt(w)) @ v.T  # M^-1/2
-    d = np.zeros((g, p))  # M^-1/2 s_g
+    d = np.zeros((g, p))  # change of the (normalised) estimate that group g causes
     for i, lab in enumerate(labels):
         rows = groups == lab
-        jh = jn[rows] @ half
+        jg, r = jn[rows], res[rows]
+        if lab != APPROACH:  # left out: the rest's least squares, a direction it leaves open stays put
+            d[i] = np.linalg.lstsq(m - jg.T @ jg, jg.T @ r, rcond=LOO_RCOND)[0]
+            continue
+        jh = jg @ half
         u, sv, _ = np.linalg.svd(jh, full_matrices=False)  # H_gg = u diag(sv^2) u^T
-        lam = np.minimum(sv**2, 1.0 - 1e-12)
-        r = res[rows]
-        r = r + u @ ((1.0 / np.sqrt(1.0 - lam) - 1.0) * (u.T @ r))
-        d[i] = jh.T @ r
-    cov = half @ (d.T @ d) @ half / np.outer(norm, norm)
+        lam = sv**2
+        keep = lam < 1.0 - LOO_RCOND  # a direction the tap alone fits leaves it no residual
+        r = r + u[:, keep] @ ((1.0 / np.sqrt(1.0 - lam[keep]) - 1.0) * (u[:, keep].T @ r))
+        d[i] = half @ (jh.T @ r)
+    cov = (d.T @ d) / np.outer(norm, norm) * (g - 1) / g
     return np.where(np.isfinite(cov), cov, np.inf), g
 
 
