@@ -108,7 +108,10 @@ def propagate(cov, gradients: dict) -> dict:
     for name, g in gradients.items():
         gv = np.zeros(len(cov))
         gv[: len(g)] = g
-        out[name] = float(math.sqrt(max(gv @ cov @ gv, 0.0)))
+        on = gv != 0  # a column the quantity does not depend on cannot make it infinite (0 x inf)
+        with np.errstate(invalid="ignore"):
+            var = float(gv[on] @ cov[np.ix_(on, on)] @ gv[on])
+        out[name] = math.sqrt(var) if var >= 0 else (math.inf if math.isnan(var) else 0.0)
     return out
 
 
