@@ -22,8 +22,8 @@ from ..result import ExtractionResult, estimates, finite_or_none
 from .fit import HAMAKER_BOUNDS, OFFSET_UNIT, FitVector, fit_surface, solve
 from .model import SurfaceFit
 from .start import starting_point
-from ..uncertainty import t_factor
-from .uncertainty import covariance, gn_gain, identifiability, propagate, tap_covariance, tap_groups
+from ..uncertainty import t_factor, z1_sigma
+from .uncertainty import covariance, gn_gain, height_sensitivity, identifiability, propagate, tap_covariance, tap_groups
 
 STATES = ("auto", "periodic", "free")  # dashpot state at the window start
 FREE_NFEV = 25  # evaluation budget of the free-start-state stage (whole window)
@@ -402,7 +402,10 @@ class FullFit(ExtractionMethod):
         values = surface.theory(params)
         grads = surface.log_gradients(params)
         sigma_white, sigma_taps = propagate(cov, grads), propagate(cov_taps, grads)
-        sigma = {q: max(v, sigma_taps[q]) for q, v in sigma_white.items()}
+        # Z1's reading error (the approach's force minimum under the force noise): the fitted height
+        # follows it, and every quantity follows the height as the fit's covariance says
+        s_z1, sigma_z1 = self._z1_term(record, taps, names, cov, grads)
+        sigma = {q: math.hypot(max(v, sigma_taps[q]), sigma_z1.get(q, 0.0)) for q, v in sigma_white.items()}
         sigma_model = propagate(cov_model, grads)
         units = {q: v.unit for q, v in self.quantities(surface).items()}
         hr = 6.0 * float(theta[p])  # H R [J m]
@@ -443,10 +446,13 @@ class FullFit(ExtractionMethod):
         info["fit"] = _fit_info(model, stages, cov, sigma_model, opts, perm)
         info["fit"]["uncertainty"] = {
             "source": "the larger of the Jacobian-and-residual error (white residuals) and the tap-robust sandwich "
-                      "(delete-one-tap jackknife of the linearised fit, the approach tap bias-reduced; t-scaled)",
+                      "(delete-one-tap jackknife of the linearised fit, the approach tap bias-reduced; t-scaled), and "
+                      "in quadrature Z1's reading error through the fitted surface height",
             "groups": n_groups,
             "white": {k: finite_or_none(v) for k, v in sigma_white.items()},
             "taps": {k: finite_or_none(v) for k, v in sigma_taps.items()},
+            "z1": {k: finite_or_none(v) for k, v in sigma_z1.items()},
+            "z1_sigma_m": finite_or_none(s_z1),
         }  # fmt: skip
         info["fit"]["vdw_on_surface"] = vdw
         info["constants"] = _constants_info(consts, opts, model, fit, vdw, hr)
@@ -476,6 +482,21 @@ class FullFit(ExtractionMethod):
         groups = tap_groups(model.steady.idx, taps.contact, taps.spacing, n_app)
         cov, g = tap_covariance(res, jac, groups)
         return (cov * t_factor(g) ** 2, g) if g >= MIN_GROUPS else (zero, g)
+
+    @staticmethod
+    def _z1_term(record, taps, names, cov, grads):
+        """``(sigma_Z1 [m], {quantity: relative sigma})``: Z1 from the approach segment is read at
+        its first force minimum, which the force noise moves (``z1_sigma``: the steady contacts'
+        scatter and the approach minimum's jitter, as for VETICA); the fitted surface height
+        follows it (measured with the reconstructed force at 300 K: the height's scatter over
+        replicas is Z1's, ~20 pm, against a 1 pm Jacobian error), and each quantity follows the
+        height by :func:`.uncertainty.height_sensitivity`.  Nothing for a Z1 given or absent."""
+        source = str(record.info.get("z1_source", ""))
+        if record.z1 is None or "s0" not in names or not source.startswith("approach"):
+            return None, {}
+        s_z1 = z1_sigma(record, taps)
+        per_m = height_sensitivity(cov, names.index("s0"), grads)
+        return s_z1, {q: abs(g) * s_z1 / OFFSET_UNIT if math.isfinite(s_z1) else math.inf for q, g in per_m.items()}
 
     def detail_lines(self, res: ExtractionResult) -> list[str]:
         """What was fitted and what known or assumed (the constants of the attraction, the

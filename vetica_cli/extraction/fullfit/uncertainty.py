@@ -169,3 +169,15 @@ def identifiability(names, rel, at_bound, k_inf, arms, arm_names, t_contact, t_f
         else:
             out[name] = (True, f"relative 1-sigma uncertainty {rel[i]:.2g}")
     return out
+
+
+
+def height_sensitivity(cov, j: int, gradients: dict) -> dict:
+    """``d ln q / d s0`` of each quantity per unit of the fit vector's height component ``j``
+    when the height is moved and the other components follow as the fit's covariance says
+    (``cov[:, j]/cov[j, j]``: least squares re-optimised at the moved height, linearised)."""
+    col = np.asarray(cov[:, j], float)
+    if not (math.isfinite(cov[j, j]) and cov[j, j] > 0 and np.all(np.isfinite(col))):
+        return {q: math.inf for q in gradients}
+    b = col / cov[j, j]
+    return {q: float(np.dot(np.asarray(g, float), b[: len(g)])) for q, g in gradients.items()}
