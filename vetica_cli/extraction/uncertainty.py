@@ -88,16 +88,18 @@ def z1_sigma(record, taps, kr: float | None = None) -> float:
 JITTER_WINDOW = 200  # samples each side of the approach's force minimum searched for rivals
 
 
-def approach_jitter(z, f, i) -> float:
+def approach_jitter(z, f, i, sf: float | None = None) -> float:
     """1-sigma of the approach's first force minimum's position under force noise [m]:
     the samples near it (``JITTER_WINDOW`` each side) whose force is within 2 noise floors
     of the minimum could equally have been the minimum; their z range as a uniform
-    distribution, ``range/sqrt(12)``."""
+    distribution, ``range/sqrt(12)``.  ``sf``: the force noise [N] (default: the white
+    noise floor of the samples before the minimum)."""
     from .sanity import noise_floor
 
     z, f = np.asarray(z, float), np.asarray(f, float)
     lo, hi = max(0, int(i) - JITTER_WINDOW), min(len(f), int(i) + JITTER_WINDOW + 1)
-    sf = noise_floor(f[max(0, int(i) - 5 * JITTER_WINDOW) : hi])
+    if sf is None:
+        sf = noise_floor(f[max(0, int(i) - 5 * JITTER_WINDOW) : hi])
     rivals = z[lo:hi][f[lo:hi] <= f[int(i)] + 2.0 * sf]
     return float(np.ptp(rivals)) / math.sqrt(12.0) if len(rivals) > 1 else 0.0
 

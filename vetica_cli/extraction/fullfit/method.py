@@ -22,7 +22,7 @@ from ..result import ExtractionResult, estimates, finite_or_none
 from .fit import HAMAKER_BOUNDS, OFFSET_UNIT, FitVector, fit_surface, solve
 from .model import SurfaceFit
 from .start import starting_point
-from ..uncertainty import t_factor, z1_sigma
+from ..uncertainty import approach_jitter, t_factor
 from .uncertainty import covariance, gn_gain, height_sensitivity, identifiability, propagate, tap_covariance, tap_groups
 
 STATES = ("auto", "periodic", "free")  # dashpot state at the window start
@@ -404,7 +404,7 @@ class FullFit(ExtractionMethod):
         sigma_white, sigma_taps = propagate(cov, grads), propagate(cov_taps, grads)
         # Z1's reading error (the approach's force minimum under the force noise): the fitted height
         # follows it, and every quantity follows the height as the fit's covariance says
-        s_z1, sigma_z1 = self._z1_term(record, taps, names, cov, grads)
+        s_z1, sigma_z1 = self._z1_term(record, model, res, names, cov, grads)
         sigma = {q: math.hypot(max(v, sigma_taps[q]), sigma_z1.get(q, 0.0)) for q, v in sigma_white.items()}
         sigma_model = propagate(cov_model, grads)
         units = {q: v.unit for q, v in self.quantities(surface).items()}
@@ -484,17 +484,20 @@ class FullFit(ExtractionMethod):
         return (cov * t_factor(g) ** 2, g) if g >= MIN_GROUPS else (zero, g)
 
     @staticmethod
-    def _z1_term(record, taps, names, cov, grads):
-        """``(sigma_Z1 [m], {quantity: relative sigma})``: Z1 from the approach segment is read at
-        its first force minimum, which the force noise moves (``z1_sigma``: the steady contacts'
-        scatter and the approach minimum's jitter, as for VETICA); the fitted surface height
-        follows it (measured with the reconstructed force at 300 K: the height's scatter over
-        replicas is Z1's, ~20 pm, against a 1 pm Jacobian error), and each quantity follows the
-        height by :func:`.uncertainty.height_sensitivity`.  Nothing for a Z1 given or absent."""
-        source = str(record.info.get("z1_source", ""))
-        if record.z1 is None or "s0" not in names or not source.startswith("approach"):
+    def _z1_term(record, model, res, names, cov, grads):
+        """``(sigma_Z1 [m], {quantity: relative sigma})``: the approach tap pins the surface height
+        where its force minimum (Z1) is, and the force noise moves that minimum: the fitted
+        height follows it (measured with the reconstructed force at 300 K: the height scatters
+        over replicas as Z1 does, ~20 pm, against a 1 pm Jacobian error).  Its 1-sigma is the
+        minimum's jitter (``approach_jitter``) with the force noise taken as the RMS misfit of
+        the approach tap's samples (noise of any colour, which the white noise floor misses
+        for a reconstructed force); each quantity follows the height by
+        :func:`.uncertainty.height_sensitivity`.  Nothing without an approach tap in the fit."""
+        if model.approach is None or record.approach is None or "s0" not in names:
             return None, {}
-        s_z1 = z1_sigma(record, taps)
+        ns = len(model.steady.idx)
+        sf = float(np.sqrt(np.mean(res[ns:] ** 2))) * model.scale if len(res) > ns else 0.0
+        s_z1 = approach_jitter(*record.approach, sf=sf)
         per_m = height_sensitivity(cov, names.index("s0"), grads)
         return s_z1, {q: abs(g) * s_z1 / OFFSET_UNIT if math.isfinite(s_z1) else math.inf for q, g in per_m.items()}
 
