@@ -157,7 +157,8 @@ def add_thermal(run, kern, s0, cfg, d) -> None:
     run.steady = thermal_record(kern, s0, cfg, d, rng)
     ap = run.approach
     if len(ap):
-        ic, ip, it, ib, iff = (tapping.COLUMNS.index(c) for c in ("z_cantilever", "z_paddle", "z_tip", "z_base", "f_ts"))
+        names = ("z_cantilever", "z_paddle", "z_tip", "z_base", "f_ts")
+        ic, ip, it, ib, iff = (tapping.COLUMNS.index(c) for c in names)
         z_clean = ap[:, it].copy()
         for col, (m, k, q) in zip((ic, ip), modes(cfg, d)):
             ap[:, col] += free_motion(rng, m, k, q, temp, d.print_step, len(ap))

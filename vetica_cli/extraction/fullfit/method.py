@@ -487,8 +487,8 @@ class FullFit(ExtractionMethod):
     def _z1_term(record, model, res, names, cov, grads):
         """``(sigma_Z1 [m], {quantity: relative sigma})``: the approach tap pins the surface height
         where its force minimum (Z1) is, and the force noise moves that minimum: the fitted
-        height follows it (measured with the reconstructed force at 300 K: the height scatters
-        over replicas as Z1 does, ~20 pm, against a 1 pm Jacobian error).  Its 1-sigma is the
+        height follows it (seen with the force reconstructed from the paddle at 300 K: from
+        replica to replica the height moves with Z1, far beyond its Jacobian error).  Its 1-sigma is the
         minimum's jitter (``approach_jitter``) with the force noise taken as the RMS misfit of
         the approach tap's samples (noise of any colour, which the white noise floor misses
         for a reconstructed force); each quantity follows the height by
