@@ -67,8 +67,9 @@ def tap_covariance(res, jac, groups):
     tap's noise into its parameters (with about as many parameters as taps, much).
     The approach tap (group :data:`APPROACH`) pins the surface height almost alone, so
     leaving it out is no answer: its term is the bias-reduced one,
-    ``(I - H_gg)^(-1/2) r_g`` (CR2, Bell and McCaffrey).  SVD-normalised columns; a
-    singular ``M`` or fewer than two groups gives an infinite variance."""
+    ``(I - H_gg)^(-1/2) r_g`` (CR2, Bell and McCaffrey).  Normalised columns; a direction the
+    record does not determine (``M`` singular there) gets no term, fewer than two groups an
+    infinite variance."""
     groups = np.asarray(groups)
     labels = np.unique(groups)
     g = len(labels)
@@ -78,11 +79,12 @@ def tap_covariance(res, jac, groups):
     norm = np.sqrt(np.sum(jac**2, axis=0))
     norm[norm == 0] = 1.0
     jn = jac / norm
-    w, v = np.linalg.eigh(jn.T @ jn)
-    if not (w[0] > 1e-14 * w[-1]):
-        return np.full((p, p), np.inf), g
     m = jn.T @ jn
-    half = (v / np.sqrt(w)) @ v.T  # M^-1/2
+    w, v = np.linalg.eigh(m)
+    # M^-1/2 on the directions the record determines; the others get no term here (the white
+    # covariance already makes them infinite) so that a well-determined quantity keeps its error
+    on = w > LOO_RCOND * w[-1]
+    half = (v * np.where(on, 1.0 / np.sqrt(np.where(on, w, 1.0)), 0.0)) @ v.T
     d = np.zeros((g, p))  # change of the (normalised) estimate that group g causes
     for i, lab in enumerate(labels):
         rows = groups == lab
