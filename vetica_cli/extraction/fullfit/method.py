@@ -19,10 +19,10 @@ from ...surfaces import COMMON_KEYS
 from ..base import KG_POINTS, ExtractionMethod, Option, register
 from ..record import Record
 from ..result import ExtractionResult, estimates, finite_or_none
+from ..uncertainty import approach_jitter, t_factor
 from .fit import HAMAKER_BOUNDS, OFFSET_UNIT, FitVector, fit_surface, solve
 from .model import SurfaceFit
 from .start import starting_point
-from ..uncertainty import approach_jitter, t_factor
 from .uncertainty import covariance, gn_gain, height_sensitivity, identifiability, propagate, tap_covariance, tap_groups
 
 STATES = ("auto", "periodic", "free")  # dashpot state at the window start
@@ -488,8 +488,8 @@ class FullFit(ExtractionMethod):
         """``(sigma_Z1 [m], {quantity: relative sigma})``: the approach tap pins the surface height
         where its force minimum (Z1) is, and the force noise moves that minimum: the fitted
         height follows it (seen with the force reconstructed from the paddle at 300 K: from
-        replica to replica the height moves with Z1, far beyond its Jacobian error).  Its 1-sigma is the
-        minimum's jitter (``approach_jitter``) with the force noise taken as the RMS misfit of
+        replica to replica the height moves with Z1, far beyond its Jacobian error).  Its
+        1-sigma is the minimum's jitter (``approach_jitter``) with the force noise taken as the RMS misfit of
         the approach tap's samples (noise of any colour, which the white noise floor misses
         for a reconstructed force); each quantity follows the height by
         :func:`.uncertainty.height_sensitivity`.  Nothing without an approach tap in the fit."""
