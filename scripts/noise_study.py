@@ -73,13 +73,36 @@ def summary(table: pd.DataFrame) -> pd.DataFrame:
     )  # fmt: skip
 
 
+def readme_table(table: pd.DataFrame) -> str:
+    """The results/noise/README.md table: per temperature, force, method and print step (5
+    quantities x the dashpots per row); 'truth within 2 sigma' against the theory."""
+    t = table.copy()
+    t["abs_err"] = t["err_pct"].abs()
+    t["ok"] = t["status"] == "ok"
+    t["covered"] = t["ok"] & (t["abs_err"] <= 2.0 * t["sigma_pct"])
+    t["clean"] = t["ok"] & ~t["unidentified"]
+    t["silent"] = t["clean"] & (t["abs_err"] > 10.0) & (t["abs_err"] > 3.0 * t["sigma_pct"])
+    lines = ["| T [K] | force | method | PS [ns] | numbers | unflagged | median abs err % | median 1-sigma % | "
+             "truth within 2 sigma | unflagged off >10 % and >3 sigma |", "|---|---|---|---|---|---|---|---|---|---|"]
+    for (temp, force, m, ps), g in t.groupby(["temperature", "force", "method", "print_step"]):
+        ok = g[g["ok"]]
+        lines.append(f"| {temp:g} | {force} | {m} | {ps * 1e9:g} | {len(ok)}/{len(g)} | {int(g['clean'].sum())} | "
+                     f"{ok['abs_err'].median():.3g} | {ok['sigma_pct'].median():.3g} | {g['covered'].mean():.2f} | "
+                     f"{int(g['silent'].sum())} |")  # fmt: skip
+    return "\n".join(lines)
+
+
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--out", default="thermal_methods.parquet")
     ap.add_argument("--dashpots", type=float, nargs="*", default=DASHPOTS)
     ap.add_argument("--print-steps", type=float, nargs="*", default=PRINT_STEPS)
     ap.add_argument("--temperatures", type=float, nargs="*", default=TEMPERATURES)
+    ap.add_argument("--table-only", metavar="PARQUET", help="print the README table of a table written before")
     args = ap.parse_args(argv)
+    if args.table_only:
+        print(readme_table(pd.read_parquet(args.table_only)))
+        return None
     rows = []
     for cd in args.dashpots:
         for ps in args.print_steps:
@@ -95,6 +118,7 @@ def main(argv=None):
     table.to_parquet(args.out)
     with pd.option_context("display.width", 200, "display.max_rows", 200):
         print(summary(table))
+    print(readme_table(table))
     return table
 
 

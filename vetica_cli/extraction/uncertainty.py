@@ -23,10 +23,12 @@ result by :func:`vetica_cli.extraction.extract_many` after the method ran).
   are propagated through :func:`~vetica_cli.extraction.vetica.sls_elements`
   (log-gradients; Kr's dependence on the Kg it was fitted with is not included).
   Stages independent.  A quantity measured on fewer than two taps has an unbounded sigma.
-* ``full`` -- **the fit's Jacobian and residual** (``s^2 (J^T J)^-1``,
-  :mod:`.fullfit.uncertainty`), kept as the method computes it; when the record's Z1 is
-  thesis eq. 84's estimate (no approach segment), the fit's surface height is pinned to
-  it, so a Z1 term is added as for the tap methods (:func:`z1_term`).
+* ``full`` -- the larger of **the fit's Jacobian and residual** (``s^2 (J^T J)^-1``) and
+  the **tap-robust sandwich** (delete-one-tap jackknife of the linearised fit, for
+  residuals correlated within a tap, e.g. thermal noise; :mod:`.fullfit.uncertainty`),
+  kept as the method computes it (with the approach's Z1 reading error); when the
+  record's Z1 is thesis eq. 84's estimate (no approach segment), the fit's surface height
+  is pinned to it, so a Z1 term is added as for the tap methods (:func:`z1_term`).
 
 Relative sigmas (fractions), as :class:`~vetica_cli.extraction.result.Estimate` holds
 them; ``info['uncertainty']`` says which source and the Z1 term.
@@ -88,16 +90,18 @@ def z1_sigma(record, taps, kr: float | None = None) -> float:
 JITTER_WINDOW = 200  # samples each side of the approach's force minimum searched for rivals
 
 
-def approach_jitter(z, f, i) -> float:
+def approach_jitter(z, f, i, sf: float | None = None) -> float:
     """1-sigma of the approach's first force minimum's position under force noise [m]:
     the samples near it (``JITTER_WINDOW`` each side) whose force is within 2 noise floors
     of the minimum could equally have been the minimum; their z range as a uniform
-    distribution, ``range/sqrt(12)``."""
+    distribution, ``range/sqrt(12)``.  ``sf``: the force noise [N] (default: the white
+    noise floor of the samples before the minimum)."""
     from .sanity import noise_floor
 
     z, f = np.asarray(z, float), np.asarray(f, float)
     lo, hi = max(0, int(i) - JITTER_WINDOW), min(len(f), int(i) + JITTER_WINDOW + 1)
-    sf = noise_floor(f[max(0, int(i) - 5 * JITTER_WINDOW) : hi])
+    if sf is None:
+        sf = noise_floor(f[max(0, int(i) - 5 * JITTER_WINDOW) : hi])
     rivals = z[lo:hi][f[lo:hi] <= f[int(i)] + 2.0 * sf]
     return float(np.ptp(rivals)) / math.sqrt(12.0) if len(rivals) > 1 else 0.0
 
@@ -184,7 +188,7 @@ def calibrate(res: ExtractionResult, record, method=None, options=None) -> Extra
         res.estimates = {k: dataclasses.replace(e, sigma=sig.get(k, e.sigma)) if e.value is not None else e
                          for k, e in res.estimates.items()}  # fmt: skip
     else:
-        info = {"source": "the fit's Jacobian and residual"}
+        info = {"source": "the larger of the fit's Jacobian-and-residual error and the tap-robust sandwich"}
         if method is not None and str(record.info.get("z1_source", "")).startswith("thesis eq. 84"):
             info.update(z1_term(res, record, method, options or {}))
     res.info = {**res.info, "uncertainty": info}

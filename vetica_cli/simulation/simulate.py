@@ -293,6 +293,37 @@ def run_info(rr: engine.RunResult, st: engine.KernelSetup, d: Derived) -> dict:
 
 def simulate(cfg: Config) -> Run:
     """Run one point to its steady state and record it (approach, steady state, recorded window)."""
+    run, kern, s0, d = _noise_free(cfg)
+    if kern is not None:
+        add_thermal(run, kern, s0, cfg, d)  # noisy recorded periods from the noise-free orbit
+    apply_instrument(run, cfg)
+    return run
+
+
+def replicas(cfg: Config, seeds) -> list[Run]:
+    """Runs of ``cfg`` at each ``numerics.noise_seed`` in ``seeds``: the noise-free orbit is
+    found once and only the noise (thermal recording, detector) is redone per seed, each
+    run the one :func:`simulate` gives at that seed.  For studies of the noise (coverage of
+    the standard errors)."""
+    import copy
+    import dataclasses
+
+    run, kern, s0, d = _noise_free(cfg)
+    out = []
+    for seed in seeds:
+        c = dataclasses.replace(cfg, numerics=dataclasses.replace(cfg.numerics, noise_seed=int(seed)))
+        r = copy.copy(run)
+        r.approach, r.steady, r.info, r.params = run.approach.copy(), run.steady.copy(), dict(run.info), c.to_dict()
+        if kern is not None:
+            add_thermal(r, kern, s0, c, d)
+        apply_instrument(r, c)
+        out.append(r)
+    return out
+
+
+def _noise_free(cfg: Config):
+    """The point's noise-free run (orbit, records, observables) and what the thermal
+    recording starts from: ``(run, kernel or None, state at the window start, derived)``."""
     d = derive(cfg)
     st = kernel_setup(cfg, d)
     n = cfg.numerics
@@ -329,10 +360,7 @@ def simulate(cfg: Config) -> Run:
         run.info["mdr"] = mdr_info
     compute_observables(run, cfg, d)  # from the noise-free signals
     run.warnings = rr.warnings + run.warnings
-    if kern is not None:
-        add_thermal(run, kern, rr.window.states[0], cfg, d)  # noisy recorded periods from the noise-free orbit
-    apply_instrument(run, cfg)
-    return run
+    return run, kern, (rr.window.states[0] if kern is not None else None), d
 
 
 def simulate_file(config=None, output="run.parquet", overrides: dict | None = None, notice=None) -> Run:

@@ -23,7 +23,15 @@ noisy periods are recorded at the print step, their times the real ones (the
 window starts ``SETTLE_CYCLES`` periods after the noise-free one).  The first-
 approach window gets the free probe's thermal motion added to ``zc`` and ``zp``
 (the exact sampled Ornstein-Uhlenbeck oscillator: exact by superposition while
-out of contact, which is where Z1 is read; its f_ts stays the noise-free force).
+out of contact), and its ``f_ts`` the surface's response to that motion
+(:func:`approach_response`): the force of the surface driven by the noisy tip
+minus that driven by the noise-free tip, both by the prescribed-trajectory kernel
+(:mod:`vetica_cli.core.prescribed`, the simulator's surface rules at its ``dt``).
+Without it the record would put the first contact -- where Z1 is read -- at the
+noise-free time while ``z_tip`` there carries the cantilever's thermal offset
+(~20 pm at 300 K), an error no instrument has: the tip meets the surface where it
+actually is.  (The tip's own reaction to that change of force, over the part of a
+period the approach window spends near the surface, is left out.)
 
 Seeded by ``numerics.noise_seed`` (the detector noise of
 :mod:`.instrument` comes after and uses the same seed through its own generator).
@@ -35,7 +43,7 @@ import math
 
 import numpy as np
 
-from ..core import tapping
+from ..core import prescribed, tapping
 from ..core import thermal as kernel
 
 KB = 1.380649e-23  # Boltzmann constant [J/K] (SI, exact)
@@ -131,6 +139,28 @@ def thermal_record(kern, s0, cfg, d, rng) -> np.ndarray:
     return buf[:pos]
 
 
+def approach_response(z_noisy, z_clean, st, d) -> np.ndarray:
+    """Change of the tip-sample force [N] when the surface (undeformed at the window's
+    start) is driven by the tip positions ``z_noisy`` instead of ``z_clean`` (print-step
+    samples; ``st`` the kernel setup): the prescribed-trajectory kernel, every sample
+    wanted, no far blocks, sub-stepped at the simulator's ``dt`` near the surface."""
+    n = len(z_clean)
+    h = d.print_step
+    steps = (h, h, h / d.stride)
+    co = prescribed.arm_coefficients(st.k_inf, st.k, st.cd, st.hr6, st.a0, st.vdw_on_surface, steps, tangents=False)
+    kg = st.k_inf + float(np.sum(st.k))
+    sub_gap = max(2.0 * st.a0, (200.0 * st.hr6 / kg) ** (1.0 / 3.0))
+    want = np.ones(n, np.uint8)
+    coarse = np.zeros(n, np.uint8)
+    out = []
+    for z in (z_noisy, z_clean):
+        f = np.zeros(n)
+        prescribed.arms_force(np.ascontiguousarray(z, float), 0.0, st.a0, 1, coarse, want, 1.0, d.stride, sub_gap,
+                              np.zeros(len(st.k)), False, 0, *co, f, np.zeros((n, 1)))  # fmt: skip
+        out.append(f)
+    return out[0] - out[1]
+
+
 def add_thermal(run, kern, s0, cfg, d) -> None:
     """Replace ``run.steady`` by the noisy recorded periods and add the free probe's thermal
     motion to the first-approach window (module docstring).  Nothing at T = 0."""
@@ -141,10 +171,13 @@ def add_thermal(run, kern, s0, cfg, d) -> None:
     run.steady = thermal_record(kern, s0, cfg, d, rng)
     ap = run.approach
     if len(ap):
-        ic, ip, it, ib = (tapping.COLUMNS.index(c) for c in ("z_cantilever", "z_paddle", "z_tip", "z_base"))
+        names = ("z_cantilever", "z_paddle", "z_tip", "z_base", "f_ts")
+        ic, ip, it, ib, iff = (tapping.COLUMNS.index(c) for c in names)
+        z_clean = ap[:, it].copy()
         for col, (m, k, q) in zip((ic, ip), modes(cfg, d)):
             ap[:, col] += free_motion(rng, m, k, q, temp, d.print_step, len(ap))
         ap[:, it] = ap[:, ib] + ap[:, ic] + ap[:, ip]
+        ap[:, iff] += approach_response(ap[:, it], z_clean, kern.setup, d)
     (m1, k1, q1), (m2, k2, q2) = modes(cfg, d)
     run.info["thermal"] = {
         "temperature_K": temp,

@@ -19,10 +19,11 @@ from ...surfaces import COMMON_KEYS
 from ..base import KG_POINTS, ExtractionMethod, Option, register
 from ..record import Record
 from ..result import ExtractionResult, estimates, finite_or_none
+from ..uncertainty import approach_jitter, t_factor
 from .fit import HAMAKER_BOUNDS, OFFSET_UNIT, FitVector, fit_surface, solve
 from .model import SurfaceFit
 from .start import starting_point
-from .uncertainty import covariance, gn_gain, identifiability, propagate
+from .uncertainty import covariance, gn_gain, height_sensitivity, identifiability, propagate, tap_covariance, tap_groups
 
 STATES = ("auto", "periodic", "free")  # dashpot state at the window start
 FREE_NFEV = 25  # evaluation budget of the free-start-state stage (whole window)
@@ -36,6 +37,7 @@ ARM_NFEV = 40  # evaluations of the best candidate on the first period
 # surface's mean position <X> = -<Fts>/k_inf), which least squares follows slowly but surely; measured
 # (cd = 3e-4 kg/s, 16:1, stripped record): 25 evaluations stop at k_inf +375 %, 100 at +64 %, 300 at 1e-5
 FREE_HEIGHT_NFEV = 400
+MIN_GROUPS = 3  # taps (with the approach tap) below which the tap-robust error is not estimated
 SUBSTEP_DT = 0.025e-9  # [s] surface sub-step near the surface when the record does not say its dt (thesis dt)
 
 
@@ -383,19 +385,28 @@ class FullFit(ExtractionMethod):
         # covariance with the window's start state as unknowns too (conservative: does not lean
         # on the periodic state, which a record taken before the surface settled does not have)
         cov, cov_model = covariance(res, fit["jac_free"]), covariance(res, fit["jac"])
+        # the same with correlated noise allowed within a tap (thermal motion, a misfit that repeats
+        # with the tap): the spread of the taps' pulls on the estimate, t-scaled for the taps counted
+        cov_taps, n_groups = self._tap_covariance(model, taps, res, fit["jac_free"])
         order = [0] + [c for i in perm for c in (1 + 2 * i, 2 + 2 * i)]  # parameter columns after ordering
         idx = order + list(range(p, len(cov)))
         idm = idx[: len(cov_model)]
         cov, cov_model = cov[np.ix_(idx, idx)], cov_model[np.ix_(idm, idm)]
+        cov_taps = cov_taps[np.ix_(idx, idx)]
         x = np.asarray(fit["x"])[idx[: len(fit["x"])]]
         lo, hi = np.asarray(fit["lo"])[idx[: len(fit["x"])]], np.asarray(fit["hi"])[idx[: len(fit["x"])]]
-        rel = np.sqrt(np.diag(cov))[: len(names)]
+        rel = np.maximum(np.sqrt(np.diag(cov))[: len(names)], np.sqrt(np.diag(cov_taps))[: len(names)])
         at_bound = (x - lo < 1e-6) | (hi - x < 1e-6)
         k_inf, k, cd = float(theta[0]), theta[1:p:2], theta[2:p:2]
         params = surface.from_arms(k_inf, k, cd)
         values = surface.theory(params)
         grads = surface.log_gradients(params)
-        sigma, sigma_model = propagate(cov, grads), propagate(cov_model, grads)
+        sigma_white, sigma_taps = propagate(cov, grads), propagate(cov_taps, grads)
+        # Z1's reading error (the approach's force minimum under the force noise): the fitted height
+        # follows it, and every quantity follows the height as the fit's covariance says
+        s_z1, sigma_z1 = self._z1_term(record, model, res, names, cov, grads)
+        sigma = {q: math.hypot(max(v, sigma_taps[q]), sigma_z1.get(q, 0.0)) for q, v in sigma_white.items()}
+        sigma_model = propagate(cov_model, grads)
         units = {q: v.unit for q, v in self.quantities(surface).items()}
         hr = 6.0 * float(theta[p])  # H R [J m]
         if opts["fit_hamaker"]:
@@ -433,6 +444,16 @@ class FullFit(ExtractionMethod):
             ok, reason = ident["hamaker_radius"]
             est["hamaker"] = replace(est["hamaker"], identifiable=bool(ok), reason=reason)
         info["fit"] = _fit_info(model, stages, cov, sigma_model, opts, perm)
+        info["fit"]["uncertainty"] = {
+            "source": "the larger of the Jacobian-and-residual error (white residuals) and the tap-robust sandwich "
+                      "(delete-one-tap jackknife of the linearised fit, the approach tap bias-reduced; t-scaled), and "
+                      "in quadrature Z1's reading error through the fitted surface height",
+            "groups": n_groups,
+            "white": {k: finite_or_none(v) for k, v in sigma_white.items()},
+            "taps": {k: finite_or_none(v) for k, v in sigma_taps.items()},
+            "z1": {k: finite_or_none(v) for k, v in sigma_z1.items()},
+            "z1_sigma_m": finite_or_none(s_z1),
+        }  # fmt: skip
         info["fit"]["vdw_on_surface"] = vdw
         info["constants"] = _constants_info(consts, opts, model, fit, vdw, hr)
         rms_pct = info["fit"]["residual_rms_pct"]
@@ -447,6 +468,38 @@ class FullFit(ExtractionMethod):
         return ExtractionResult(method=self.key, force=record.force, taps=len(taps.contact), estimates=est,
                                 model=surface.key, fitted=tuple(ident), info=info,
                                 warnings=warnings + record.meta_warnings)  # fmt: skip
+
+    @staticmethod
+    def _tap_covariance(model, taps, res, jac):
+        """Tap-robust covariance (:func:`.uncertainty.tap_covariance`) of the fit vector,
+        scaled by ``t_factor(G)^2`` (G groups: the steady taps and the approach tap), and G.
+        Fewer than ``MIN_GROUPS`` groups (the spread of two is no estimate): zero, the white
+        error alone."""
+        n_app = len(model.approach.idx) if model.approach is not None else 0
+        zero = np.zeros((jac.shape[1],) * 2)
+        if len(res) != len(model.steady.idx) + n_app or len(taps.contact) < 1:
+            return zero, 0
+        groups = tap_groups(model.steady.idx, taps.contact, taps.spacing, n_app)
+        cov, g = tap_covariance(res, jac, groups)
+        return (cov * t_factor(g) ** 2, g) if g >= MIN_GROUPS else (zero, g)
+
+    @staticmethod
+    def _z1_term(record, model, res, names, cov, grads):
+        """``(sigma_Z1 [m], {quantity: relative sigma})``: the approach tap pins the surface height
+        where its force minimum (Z1) is, and the force noise moves that minimum: the fitted
+        height follows it (seen with the force reconstructed from the paddle at 300 K: from
+        replica to replica the height moves with Z1, far beyond its Jacobian error).  Its
+        1-sigma is the minimum's jitter (``approach_jitter``) with the force noise taken as the RMS misfit of
+        the approach tap's samples (noise of any colour, which the white noise floor misses
+        for a reconstructed force); each quantity follows the height by
+        :func:`.uncertainty.height_sensitivity`.  Nothing without an approach tap in the fit."""
+        if model.approach is None or record.approach is None or "s0" not in names:
+            return None, {}
+        ns = len(model.steady.idx)
+        sf = float(np.sqrt(np.mean(res[ns:] ** 2))) * model.scale if len(res) > ns else 0.0
+        s_z1 = approach_jitter(*record.approach, sf=sf)
+        per_m = height_sensitivity(cov, names.index("s0"), grads)
+        return s_z1, {q: abs(g) * s_z1 / OFFSET_UNIT if math.isfinite(s_z1) else math.inf for q, g in per_m.items()}
 
     def detail_lines(self, res: ExtractionResult) -> list[str]:
         """What was fitted and what known or assumed (the constants of the attraction, the

@@ -35,6 +35,73 @@ def covariance(res, jac):
     return np.where(np.isfinite(cov), cov, np.inf)
 
 
+def tap_groups(idx, contacts, spacing: float, n_approach: int = 0) -> np.ndarray:
+    """Group of each residual row for :func:`tap_covariance`: the steady rows (sample
+    indices ``idx``) by tap -- each tap from half a tap spacing before its contact to half
+    a spacing before the next one's; past the last complete tap, one group per tap
+    spacing -- numbered from 0, then ``n_approach`` rows of the approach tap, group
+    ``APPROACH``."""
+    idx = np.asarray(idx, float)
+    edges = list(np.asarray(contacts, float)[1:] - 0.5 * spacing)
+    last = float(contacts[-1]) + 0.5 * spacing  # periods after the last complete tap: one group each
+    while spacing > 0 and len(idx) and last < idx[-1]:
+        edges.append(last)
+        last += spacing
+    steady = np.searchsorted(np.asarray(edges), idx, side="right")
+    return np.concatenate([steady, np.full(n_approach, APPROACH)]).astype(int)
+
+
+APPROACH = -1  # group of the approach tap's rows (tap_groups)
+LOO_RCOND = 1e-6  # relative singular value below which a direction is left open (tap_covariance)
+
+
+def tap_covariance(res, jac, groups):
+    """``(cov, G)``: the tap-robust covariance of the fit vector, a cluster sandwich with
+    the taps as clusters, ``M^-1 (sum_g s_g s_g^T) M^-1 (G-1)/G``, ``M = J^T J``, ``G`` the
+    taps.  It assumes nothing about the noise within a tap (its colour, its correlation
+    over the tap, a misfit that repeats with the tap's shape), only that taps are
+    independent.  Each steady tap's ``M^-1 s_g`` is the change of the (linearised)
+    estimate when that tap is left out, ``(M - J_g^T J_g)^-1 J_g^T r_g`` =
+    ``M^-1 J_g^T (I - H_gg)^-1 r_g`` with ``H_gg = J_g M^-1 J_g^T`` the tap's leverage:
+    the delete-one-tap jackknife (CR3), which puts back what the fit absorbed of the
+    tap's noise into its parameters (with about as many parameters as taps, much).
+    The approach tap (group :data:`APPROACH`) pins the surface height almost alone, so
+    leaving it out is no answer: its term is the bias-reduced one,
+    ``(I - H_gg)^(-1/2) r_g`` (CR2, Bell and McCaffrey).  Normalised columns; a direction the
+    record does not determine (``M`` singular there) gets no term, fewer than two groups an
+    infinite variance."""
+    groups = np.asarray(groups)
+    labels = np.unique(groups)
+    g = len(labels)
+    p = jac.shape[1]
+    if g < 2:
+        return np.full((p, p), np.inf), g
+    norm = np.sqrt(np.sum(jac**2, axis=0))
+    norm[norm == 0] = 1.0
+    jn = jac / norm
+    m = jn.T @ jn
+    w, v = np.linalg.eigh(m)
+    # M^-1/2 on the directions the record determines; the others get no term here (the white
+    # covariance already makes them infinite) so that a well-determined quantity keeps its error
+    on = w > LOO_RCOND * w[-1]
+    half = (v * np.where(on, 1.0 / np.sqrt(np.where(on, w, 1.0)), 0.0)) @ v.T
+    d = np.zeros((g, p))  # change of the (normalised) estimate that group g causes
+    for i, lab in enumerate(labels):
+        rows = groups == lab
+        jg, r = jn[rows], res[rows]
+        if lab != APPROACH:  # left out: the rest's least squares, a direction it leaves open stays put
+            d[i] = np.linalg.lstsq(m - jg.T @ jg, jg.T @ r, rcond=LOO_RCOND)[0]
+            continue
+        jh = jg @ half
+        u, sv, _ = np.linalg.svd(jh, full_matrices=False)  # H_gg = u diag(sv^2) u^T
+        lam = sv**2
+        keep = lam < 1.0 - LOO_RCOND  # a direction the tap alone fits leaves it no residual
+        r = r + u[:, keep] @ ((1.0 / np.sqrt(1.0 - lam[keep]) - 1.0) * (u[:, keep].T @ r))
+        d[i] = half @ (jh.T @ r)
+    cov = (d.T @ d) / np.outer(norm, norm) * (g - 1) / g
+    return np.where(np.isfinite(cov), cov, np.inf), g
+
+
 def propagate(cov, gradients: dict) -> dict:
     """Relative 1-sigma of each quantity from the covariance of the log-parameters:
     ``sqrt(g^T C g)`` with ``g = d ln q / d ln p`` (the surface model's
@@ -43,7 +110,10 @@ def propagate(cov, gradients: dict) -> dict:
     for name, g in gradients.items():
         gv = np.zeros(len(cov))
         gv[: len(g)] = g
-        out[name] = float(math.sqrt(max(gv @ cov @ gv, 0.0)))
+        on = gv != 0  # a column the quantity does not depend on cannot make it infinite (0 x inf)
+        with np.errstate(invalid="ignore"):
+            var = float(gv[on] @ cov[np.ix_(on, on)] @ gv[on])
+        out[name] = math.sqrt(var) if var >= 0 else (math.inf if math.isnan(var) else 0.0)
     return out
 
 
@@ -101,3 +171,15 @@ def identifiability(names, rel, at_bound, k_inf, arms, arm_names, t_contact, t_f
         else:
             out[name] = (True, f"relative 1-sigma uncertainty {rel[i]:.2g}")
     return out
+
+
+
+def height_sensitivity(cov, j: int, gradients: dict) -> dict:
+    """``d ln q / d s0`` of each quantity per unit of the fit vector's height component ``j``
+    when the height is moved and the other components follow as the fit's covariance says
+    (``cov[:, j]/cov[j, j]``: least squares re-optimised at the moved height, linearised)."""
+    col = np.asarray(cov[:, j], float)
+    if not (math.isfinite(cov[j, j]) and cov[j, j] > 0 and np.all(np.isfinite(col))):
+        return {q: math.inf for q in gradients}
+    b = col / cov[j, j]
+    return {q: float(np.dot(np.asarray(g, float), b[: len(g)])) for q, g in gradients.items()}
