@@ -59,13 +59,23 @@ def truths(model: str, surface: dict, obs: dict, radius: float) -> dict:
     return {"linear": lin, "hertz": hz}
 
 
+def claim_names(method: str, res) -> dict:
+    """The estimate behind each claim, by claim name."""
+    if method == "full hertz":
+        return {"tau": "tau_1", "glassy": "e_g", "relaxed": "e_inf"}
+    tau = "tau_r" if res.estimates.get("tau_r") is not None else "tau_1"
+    return {"tau": tau, "glassy": "k_g", "relaxed": "k_r" if res.estimates.get("k_r") else "k_inf"}
+
+
 def claims(method: str, res) -> dict:
     """What a method's result claims, by claim name."""
-    v = res.value
-    if method == "full hertz":
-        return {"tau": v("tau_1"), "glassy": v("e_g"), "relaxed": v("e_inf")}
-    tau = v("tau_r") if res.estimates.get("tau_r") is not None else v("tau_1")
-    return {"tau": tau, "glassy": v("k_g"), "relaxed": v("k_r") if res.estimates.get("k_r") else v("k_inf")}
+    return {q: res.value(n) for q, n in claim_names(method, res).items()}
+
+
+def flagged(method: str, res) -> dict:
+    """Whether the method flags each claim's estimate (``unidentified``, the sanity checks)."""
+    return {q: res.estimates[n].identifiable is False if n in res.estimates else False
+            for q, n in claim_names(method, res).items()}  # fmt: skip
 
 
 def point(model: str, spec: dict, tau_f1: float, cfg: dict) -> list[dict]:
@@ -100,11 +110,11 @@ def point(model: str, spec: dict, tau_f1: float, cfg: dict) -> list[dict]:
     rows = []
     for name, (key, opts) in methods.items():
         t1 = time.perf_counter()
-        status, msg, cl = "ok", "", {}
+        status, msg, cl, fl = "ok", "", {}, {}
         try:
             res = extract(df, meta_s, force=cfg.get("force", "reconstructed"), method=key, a0=stated["a0"],
                           vdw_on_surface=stated["vdw_on_surface"], **opts)  # fmt: skip
-            cl = claims(name, res)
+            cl, fl = claims(name, res), flagged(name, res)
             if res.warnings:
                 msg = res.warnings[0][:200]
         except Exception as exc:  # noqa: BLE001  (a method's failure is a result of the study)
@@ -117,6 +127,7 @@ def point(model: str, spec: dict, tau_f1: float, cfg: dict) -> list[dict]:
                          "value": math.nan if val is None else float(val),
                          "truth": math.nan if th is None else float(th),
                          "error_pct": err, "status": status if val is not None or status != "ok" else "no_estimate",
+                         "unidentified": bool(fl.get(q, False)),
                          "steady": run.stop_reason, "message": msg, "sim_s": sim_s,
                          "extract_s": time.perf_counter() - t1})  # fmt: skip
     return rows
@@ -174,7 +185,8 @@ def main() -> None:
     df.to_csv(out / "table.csv", index=False)
     methods = list(dict.fromkeys(df.method))
     models = list(cfg["models"])
-    lines = [f"# cross-model errors (% of truth or stated equivalent; {time.perf_counter() - t0:.0f} s wall)", ""]
+    lines = [f"# cross-model errors (% of truth or stated equivalent; {time.perf_counter() - t0:.0f} s wall; "
+             "u = the method flags it unidentified)", ""]
     for q in QUANTITIES:
         lines += [f"## {q}", "", "| model | tau f1 | " + " | ".join(methods) + " |",
                   "|---|---|" + "---|" * len(methods)]  # fmt: skip
@@ -187,7 +199,8 @@ def main() -> None:
                     if len(r) and not math.isfinite(float(r.truth.iloc[0])):
                         cells.append("n/a")  # no truth or stated equivalent for this claim (README)
                     else:
-                        cells.append(f"{e:+.3g}" if math.isfinite(e) else (str(r.status.iloc[0]) if len(r) else "-"))
+                        mark = " u" if len(r) and bool(r.unidentified.iloc[0]) else ""
+                        cells.append(f"{e:+.3g}{mark}" if math.isfinite(e) else (str(r.status.iloc[0]) if len(r) else "-"))
                 lines.append(f"| {model} | {x:g} | " + " | ".join(cells) + " |")
         lines.append("")
     (out / "table.md").write_text("\n".join(lines))
