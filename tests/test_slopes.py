@@ -77,3 +77,26 @@ def test_curved_contact_is_read_at_its_start():
     assert abs(np.median(aware) / 68.0 - 1) < 2 * TARGET
     assert max(info["window"]) <= max(taps.separation - taps.contact) // 2 + 1
     assert math.isfinite(info["noise_position_m"])
+
+
+def test_a_hopeless_record_costs_little_memory():
+    """Force noise far above the taps (a reconstructed force of a 300 K record at 0.5 ns with a
+    stiff paddle): the window grows to half a contact of ~100 000 samples, and the broken-line
+    search once asked for ~13 GB (5 000 candidates x the stretch; an advice worker was killed).
+    Now the search works on at most HINGE_MAX samples and ~33 candidates a level: the peak of
+    numpy's allocations (tracemalloc) stays under 200 MB."""
+    import tracemalloc
+
+    rng = np.random.default_rng(2)
+    z0, f0 = _record(n_taps=4, spacing=400_000, contact=200_000)
+    z = z0 + 1e-12 * rng.standard_normal(len(z0))
+    f = f0 + 5e-7 * rng.standard_normal(len(f0))
+    taps = find_taps(f)
+    assert noise_aware_slopes(z, f, taps.contact, taps.separation, 10)[1]["window"][0] > 20_000  # the long case
+    tracemalloc.start()
+    try:
+        noise_aware_slopes(z, f, taps.contact, taps.separation, 10)
+        peak = tracemalloc.get_traced_memory()[1]
+    finally:
+        tracemalloc.stop()
+    assert peak < 200e6, peak

@@ -41,6 +41,7 @@ import numpy as np
 TARGET = 0.02  # relative standard error of a tap's Kg the window is grown to
 KEEP = TARGET  # the thesis's window is kept while its predicted relative error (median over taps) is at most this
 HINGE_REACH = 1.0  # the contact searched within +- this many windows around the current estimate
+HINGE_MAX = 4096  # samples of the window the break is located on (at most)
 
 
 NOISE_SAMPLES = 8192  # second differences the noise floor's median is taken over (evenly spread)
@@ -78,9 +79,11 @@ def _hinge(f: np.ndarray, ic: int, n: int, lo: int, hi: int) -> int:
     """The break ``c`` in ``[ic - h, ic + h]`` (``h = HINGE_REACH n``) of the continuous broken
     line ``a + b k + d max(k - c, 0)`` that fits ``f`` best over one fixed window (from
     ``n // 2`` samples before the first candidate to ``n`` after the last: every candidate
-    judged on the same samples).  With ``r0`` the residual of a straight line and ``q_c``
-    that of the hinge column, the sum of squares falls by ``(q_c . r0)^2 / |q_c|^2``;
-    candidates every ``h // 32`` samples, then every sample around the best."""
+    judged on the same samples; ``n`` at most :data:`HINGE_MAX`).  With ``r0`` the residual
+    of a straight line and ``q_c`` that of the hinge column, the sum of squares falls by
+    ``(q_c . r0)^2 / |q_c|^2``; candidates every ``h // 32`` samples, then around the best
+    in steps an eighth as long, down to one sample (memory: ~33 candidates x the stretch)."""
+    n = min(n, HINGE_MAX)  # the break is local: a longer stretch adds cost, not information
     h = max(1, int(HINGE_REACH * n))
     half = max(3, n // 2)
     w0, w1 = max(lo, ic - h - half), min(hi, ic + h + n)
@@ -104,8 +107,12 @@ def _hinge(f: np.ndarray, ic: int, n: int, lo: int, hi: int) -> int:
     step = max(1, h // 32)
     cands = np.arange(first, last + 1, step)
     best = int(cands[int(np.argmax(gain(cands)))])
-    fine = np.arange(max(first, best - step), min(last, best + step) + 1)
-    return int(fine[int(np.argmax(gain(fine)))])
+    while step > 1:  # refine around the best, at most ~17 candidates a level
+        fine_step = max(1, step // 8)
+        cands = np.arange(max(first, best - step), min(last, best + step) + 1, fine_step)
+        best = int(cands[int(np.argmax(gain(cands)))])
+        step = fine_step
+    return best
 
 
 def contact_slopes_thesis(z, f, contact, separation, points: int = 10) -> np.ndarray:
