@@ -106,3 +106,14 @@ def test_a_fit_pinned_to_the_eq84_estimate_carries_its_z1_error():
     up = m.run(dataclasses.replace(rec, z1=rec.z1 + 2 * unc["z1_sigma_m"]), m.options({})).estimates
     k = res.estimates["k_inf"]
     assert k.sigma >= 0.5 * abs(up["k_inf"].value - k.value) / abs(k.value) * (1 - 1e-6)
+
+
+def test_noise_floor_reuses_only_an_unchanged_array():
+    """The cached floor equals a fresh estimate; an array changed in place is estimated again."""
+    from vetica_cli.signals.slopes import white_noise_floor
+
+    rng = np.random.default_rng(9)
+    x = rng.standard_normal(50_000)
+    assert noise_floor(x) == white_noise_floor(x) == noise_floor(x)
+    x *= 3.0
+    assert noise_floor(x) == pytest.approx(3.0 * white_noise_floor(x / 3.0), rel=1e-12)
