@@ -24,7 +24,8 @@ the noise the record itself shows (second differences, :func:`noise_floor`):
   one fixed stretch of samples; contact and window are refined together.
 
 The switch is made per record: while the thesis's window has a predicted relative error
-(median over taps) of at most :data:`KEEP` -- every noise-free record of the simulator --
+(median over taps) of at most :data:`KEEP` -- the simulator's noise-free records of the thesis
+studies --
 nothing changes and the thesis's 10-sample fit is returned as before.  Both windows read
 the slope at the same sample, so they agree where both are precise (reading the grown
 window's slope at the contact instead moved VETICA's Kg from +1.8 % to +3.7 % on the
