@@ -21,6 +21,7 @@ import numpy as np
 
 from ..checks import Rule, check, coerce, load_yaml
 from ..errors import ConfigError, InputError
+from ..signals.taps import KG_WINDOWS
 from ..surfaces import Quantity, SurfaceModel
 from .record import Record
 from .result import ExtractionResult
@@ -49,7 +50,7 @@ KG_POINTS = Option("kg_points", "int", "", "samples of the contact's initial slo
 
 KG_WINDOW = Option("kg_window", "str", "", "stage 1b's window: noise (the thesis's kg_points samples where the record's "
                    "noise allows them, a window grown from the noise otherwise) or thesis (always kg_points)",
-                   (lambda v: v in ("noise", "thesis"), "one of: noise, thesis"))  # fmt: skip
+                   (lambda v: v in KG_WINDOWS, f"one of: {', '.join(KG_WINDOWS)}"))  # fmt: skip
 
 
 FIXED_COST = 0.1  # part of a method's seconds_per_point that does not scale with the record's samples

@@ -39,6 +39,8 @@ import math
 
 import numpy as np
 
+from .memo import ArrayMemo
+
 TARGET = 0.02  # relative standard error of a tap's Kg the window is grown to
 KEEP = TARGET  # the thesis's window is kept while its predicted relative error (median over taps) is at most this
 HINGE_REACH = 1.0  # the contact searched within +- this many windows around the current estimate
@@ -48,23 +50,15 @@ HINGE_MAX = 4096  # samples of the window the break is located on (at most)
 NOISE_SAMPLES = 8192  # second differences the noise floor's median is taken over (evenly spread)
 
 
-_FLOORS: list = []  # (array, fingerprint, samples, floor) of the last few noise_floor calls
+_FLOORS = ArrayMemo(4)  # the floors of the last few arrays (a record's force and position, ...)
 
 
 def noise_floor(x: np.ndarray, samples: int = NOISE_SAMPLES) -> float:
     """:func:`white_noise_floor` of ``x``; the answer of one of the last four calls is reused
-    when the same array comes back unchanged (an extraction asks for a record's force and
-    position floors in every stage-1b run, standard error and check)."""
-    if isinstance(x, np.ndarray) and x.dtype == float and x.ndim == 1 and len(x):
-        key = (float(x.sum()), float(x[0]), float(x[len(x) // 2]), float(x[-1]), len(x), samples)
-        for arr, k, v in _FLOORS:
-            if arr is x and k == key:
-                return v
-        v = white_noise_floor(x, samples)
-        _FLOORS.insert(0, (x, key, v))
-        del _FLOORS[4:]
-        return v
-    return white_noise_floor(x, samples)
+    when the same array comes back unchanged (:class:`~vetica_cli.signals.memo.ArrayMemo`:
+    an extraction asks for a record's force and position floors in every stage-1b run,
+    standard error and check)."""
+    return _FLOORS(white_noise_floor, x, samples)
 
 
 def white_noise_floor(x: np.ndarray, samples: int = NOISE_SAMPLES) -> float:
@@ -135,6 +129,12 @@ def _hinge(f: np.ndarray, ic: int, n: int, lo: int, hi: int) -> int:
     return best
 
 
+def _window(rel2: float, points: int, span: int) -> int:
+    """Samples of the grown window: the fewest for a predicted relative error of :data:`TARGET`
+    (``192 rel2 / n^3``), at least ``points``, at most half the contact's ``span``."""
+    return int(min(max(points, math.ceil((192.0 * rel2 / TARGET**2) ** (1.0 / 3.0))), span // 2))
+
+
 def contact_slopes_thesis(z, f, contact, separation, points: int = 10) -> np.ndarray:
     """The thesis's stage 1b (eq. 86): ``-dF/dz_tip`` from a straight line over the ``points``
     samples after each contact minimum; nan for a contact shorter than that."""
@@ -180,8 +180,7 @@ def noise_aware_slopes(z: np.ndarray, f: np.ndarray, contact, separation, points
             out.append(kg0), windows.append(points), thesis.append(True)
             prev_sep = isep
             continue
-        trial = int(min(max(points, math.ceil((192.0 * rel2 / TARGET**2) ** (1.0 / 3.0))), span // 2))
-        n, c = trial, ic
+        n, c = _window(rel2, points, span), ic
         for _ in range(4):  # contact and window together: the hinge on the current window, then the window
             c = _hinge(f, c, n, prev_sep, isep)  # for TARGET from the slopes read at that contact
             bf, _ = _quad_slope(f[c : c + n])
@@ -189,7 +188,7 @@ def noise_aware_slopes(z: np.ndarray, f: np.ndarray, contact, separation, points
             if bf == 0 or bz == 0:
                 break
             rel2 = (sf / bf) ** 2 + (sz / bz) ** 2
-            m = int(min(max(points, math.ceil((192.0 * rel2 / TARGET**2) ** (1.0 / 3.0))), span // 2))
+            m = _window(rel2, points, span)
             if m == n:
                 break
             n = m

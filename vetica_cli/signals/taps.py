@@ -17,6 +17,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..errors import InputError
+from .memo import ArrayMemo
+from .slopes import contact_slopes_thesis, noise_aware_slopes
 
 
 @dataclass
@@ -30,23 +32,15 @@ class Taps:
     incomplete: int = 0  # taps cut by the record's ends (dropped)
 
 
-_LAST: list = []  # (the array, its fingerprint, its Taps) of the last find_taps call
+_TAPS = ArrayMemo(1)  # the last record's taps
 
 
 def find_taps(f: np.ndarray) -> Taps:
     """The taps of ``f`` (:func:`locate_taps`); the last call's answer is reused when the
-    same array comes back unchanged (an extraction asks for a record's taps in every stage,
-    standard error and check).  Unchanged: the same object, and the same sum and samples at
-    both ends and the middle."""
-    if isinstance(f, np.ndarray) and f.dtype == float and f.ndim == 1 and len(f):
-        key = (float(f.sum()), float(f[0]), float(f[len(f) // 2]), float(f[-1]), len(f))
-        if _LAST and _LAST[0] is f and _LAST[1] == key:
-            t = _LAST[2]
-            return Taps(t.contact.copy(), t.separation.copy(), t.peak.copy(), t.spacing, t.incomplete)
-        taps = locate_taps(f)
-        _LAST[:] = [f, key, taps]
-        return Taps(taps.contact.copy(), taps.separation.copy(), taps.peak.copy(), taps.spacing, taps.incomplete)
-    return locate_taps(f)
+    same array comes back unchanged (:class:`~vetica_cli.signals.memo.ArrayMemo`), as a copy
+    the caller may change."""
+    t = _TAPS(locate_taps, f)
+    return Taps(t.contact.copy(), t.separation.copy(), t.peak.copy(), t.spacing, t.incomplete)
 
 
 def locate_taps(f: np.ndarray) -> Taps:
@@ -148,8 +142,6 @@ def contact_slopes(z: np.ndarray, f: np.ndarray, taps: Taps, points: int = 10, w
     ``'noise'`` (default): the same wherever the record's noise allows it, a window grown
     from the noise otherwise (:mod:`vetica_cli.signals.slopes`).  nan for a tap whose
     contact is shorter than ``points`` samples."""
-    from .slopes import contact_slopes_thesis, noise_aware_slopes
-
     if window == "noise":
         return noise_aware_slopes(z, f, taps.contact, taps.separation, points)[0]
     return contact_slopes_thesis(z, f, taps.contact, taps.separation, points)
