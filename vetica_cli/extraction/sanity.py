@@ -65,6 +65,7 @@ CREEP_MIN = 0.02  # creep fraction between taps below which a fitted height and 
 KR_BOUND = 1e-6  # Kr within this fraction of Kg from 0 or Kg: at stage 2's bound
 DISAGREE = 0.02  # relative difference between vetica and vetica-prestress that counts
 STAGE2 = ("k_r", "k_inf", "k0", "cd", "tau_r")
+DISAGREEMENT = "VETICA and VETICA with the pre-stress at contact differ"  # the disagreement check's reason
 
 
 def _creep(record) -> float | None:
@@ -141,7 +142,7 @@ def check(res: ExtractionResult, record, options: dict | None = None) -> Extract
             diff = _disagreement(res, record, options)
             info["vetica_prestress_difference"] = diff
             for q, rel in diff.items():
-                _flag(res, [q], f"VETICA and VETICA with the pre-stress at contact differ by {100 * rel:+.3g} % "
+                _flag(res, [q], f"{DISAGREEMENT} by {100 * rel:+.3g} % "
                                 "(beyond 3 sigma): the thesis's stages are biased on this record")  # fmt: skip
         rms = (res.diagnostics or {}).get("force_fit_rms_n")
         info["residual_n"] = rms
@@ -194,7 +195,7 @@ def check(res: ExtractionResult, record, options: dict | None = None) -> Extract
         for stage in ("tau_c", "k_g"):
             e = res.estimates.get(stage)
             if e is not None and e.value is not None and e.identifiable is False and not str(e.reason).startswith(
-                    "VETICA and VETICA with"):  # fmt: skip
+                    DISAGREEMENT):  # fmt: skip
                 _flag(res, [q for q in STAGE2 if q in res.estimates],
                       f"computed from {stage}, which the record does not determine ({e.reason})")
     res.info = {**res.info, "sanity": info}

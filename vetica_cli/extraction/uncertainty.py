@@ -96,7 +96,7 @@ def approach_jitter(z, f, i, sf: float | None = None) -> float:
     of the minimum could equally have been the minimum; their z range as a uniform
     distribution, ``range/sqrt(12)``.  ``sf``: the force noise [N] (default: the white
     noise floor of the samples before the minimum)."""
-    from .sanity import noise_floor
+    from ..signals.slopes import noise_floor
 
     z, f = np.asarray(z, float), np.asarray(f, float)
     lo, hi = max(0, int(i) - JITTER_WINDOW), min(len(f), int(i) + JITTER_WINDOW + 1)
@@ -124,6 +124,18 @@ def log_gradients(values: dict, rel: float = 1e-6) -> dict:
     return out
 
 
+def with_z1_moved(record, method, options, h: float) -> list[dict]:
+    """The method's estimates with the record's Z1 moved by ``+h`` and ``-h`` (in that order);
+    a side the method refuses gives ``{}`` (no term from it)."""
+    moved = []
+    for sign in (1.0, -1.0):
+        try:
+            moved.append(method.run(dataclasses.replace(record, z1=record.z1 + sign * h), options).estimates)
+        except Exception:  # noqa: BLE001 - a moved Z1 the method refuses: that side gives no term
+            moved.append({})
+    return moved
+
+
 def tap_sigmas(res: ExtractionResult, record, method, options) -> tuple[dict, dict]:
     """Relative sigmas of a tap method's quantities and the bookkeeping (module docstring)."""
     est = res.estimates
@@ -143,14 +155,9 @@ def tap_sigmas(res: ExtractionResult, record, method, options) -> tuple[dict, di
     grad_z1 = {}
     if record.z1 is not None and math.isfinite(s_z1):
         h = 2.0 * s_z1 if s_z1 > 0 else 1e-13
-        moved = []
         kr = est["k_r"].value if "k_r" in est else None
         warm = {**options, "kr_guess": kr} if "kr_guess" in options and kr and kr > 0 else options  # start at this Kr
-        for sign in (1.0, -1.0):
-            try:
-                moved.append(method.run(dataclasses.replace(record, z1=record.z1 + sign * h), warm).estimates)
-            except Exception:  # noqa: BLE001 - a moved Z1 the method refuses: that side gives no term
-                moved.append({})
+        moved = with_z1_moved(record, method, warm, h)
         for q, e in est.items():
             changes = [m[q].value - e.value for m in moved if q in m and m[q].value and e.value]
             if changes:
@@ -212,12 +219,7 @@ def z1_term(res: ExtractionResult, record, method, options) -> dict:
             res.estimates = {k: dataclasses.replace(e, sigma=math.inf) if e.value is not None else e for k, e in est.items()}
         return {"z1_sigma_m": s_z1, "z1_term": "Z1 from thesis eq. 84, its sigma unbounded" if not math.isfinite(s_z1)
                 else "none (Z1 exact)"}  # fmt: skip
-    moved = []
-    for sign in (1.0, -1.0):
-        try:
-            moved.append(method.run(dataclasses.replace(record, z1=record.z1 + sign * 2.0 * s_z1), options).estimates)
-        except Exception:  # noqa: BLE001 - a moved Z1 the fit refuses: that side gives no term
-            moved.append({})
+    moved = with_z1_moved(record, method, options, 2.0 * s_z1)
     out = {}
     for q, e in est.items():
         changes = [m[q].value - e.value for m in moved if q in m and m[q].value is not None and e.value]
