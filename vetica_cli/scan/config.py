@@ -197,18 +197,9 @@ def parse_scan(raw: Any, extract: dict) -> ScanSpec:
     return ScanSpec(raster, tuple(times), tuple(steady), tuple(methods))
 
 
-SCAN_MODELS = ("sls", "wiechert", "hertz")  # surface models a scan's line kernel integrates
-
-
 def _surface(key: str, raw: dict) -> dict:
     """A surface section validated by its model (:func:`vetica_cli.simulation.config.from_dict`),
-    resolved; errors name ``key`` instead of ``surface``.  Only :data:`SCAN_MODELS`: the
-    scan's line kernel carries one surface node from pixel to pixel; the ``hertz`` surface's
-    element row under a moving sphere is not built into it (``vetica simulate`` runs it)."""
-    model = raw.get("model", DEFAULT_MODEL)
-    if model not in SCAN_MODELS and isinstance(model, str):
-        raise ConfigError(f"{key}.model: {model!r} is not allowed in a scan; expected one of: {', '.join(SCAN_MODELS)} "
-                          "(simulate a hertz surface point by point with vetica simulate or vetica sweep)")  # fmt: skip
+    resolved; errors name ``key`` instead of ``surface``."""
     try:
         return from_dict({"surface": raw}).surface.to_dict()
     except ConfigError as exc:

@@ -266,9 +266,9 @@ class LineDriver:
         run = Run(approach=rec.approach, steady=rec.window.samples, info=run_info(rr, kern.setup, self.d),
                   stop_reason=rec.stop_reason, params=cfg.to_dict(), wall_s=rec.wall_s, extra_columns=extra)  # fmt: skip
         if m in self.grids:
-            from ..simulation.hertz import grid_accuracy
+            from ..simulation.hertz import deepest, grid_accuracy
 
-            dmax = float(max(-(np.min(rec.window.samples[:, 1]) - kern.setup.a0), 0.0))
+            dmax = deepest(rr, kern.setup.a0)
             run.info["mdr"] = {**self.grids[m], "delta_max_m": dmax,
                                "elastic_force_error_at_delta_max": grid_accuracy(cfg.probe.tip_radius, kern.g, kern.w,
                                                                                  dmax) if dmax > 0 else None}  # fmt: skip

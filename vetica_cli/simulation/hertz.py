@@ -63,16 +63,21 @@ def line_kernel(cfg, st: engine.KernelSetup, spec: engine.RunSpec):
     pixels have no second pass (their depth differs from pixel to pixel), so the grid's elastic
     accuracy at each pixel's deepest tap is in its row's metadata (``mdr``) instead."""
     radius = cfg.probe.tip_radius
-    elements = cfg.surface.params["elements"]
     est = estimate_depth(st, spec, radius)
-    lo, hi = ESTIMATE_RANGE[0] * est, ESTIMATE_RANGE[1] * est
+    x, g, w, xm = grid(radius, cfg.surface.params["elements"], ESTIMATE_RANGE[0] * est, ESTIMATE_RANGE[1] * est)
+    info = {"elements": len(g), "x_max_m": xm, "dx_m": xm / len(g), "delta_estimate_m": est, "passes": 1}
+    return mdr.MDRKernel(st, x, g, w), info
+
+
+def grid(radius: float, elements, lo: float, hi: float):
+    """``(x, g, w, x_max)``: the element grid for depths ``[lo, hi]`` (module docstring):
+    ``elements: auto`` -- the fewest elements over ``MARGIN`` contact radii of ``hi`` within
+    0.1 % of Hertz over the range; an integer -- that many over the same reach."""
     if elements == "auto":
         m, xm = mdr.auto_elements(radius, hi, margin=MARGIN, delta_lo=lo)
     else:
         m, xm = int(elements), MARGIN * math.sqrt(radius * hi)
-    x, g, w = mdr.element_grid(radius, xm, m)
-    info = {"elements": len(g), "x_max_m": xm, "dx_m": xm / len(g), "delta_estimate_m": est, "passes": 1}
-    return mdr.MDRKernel(st, x, g, w), info
+    return (*mdr.element_grid(radius, xm, m), xm)
 
 
 def run_hertz(cfg, st: engine.KernelSetup, spec: engine.RunSpec):
@@ -85,11 +90,7 @@ def run_hertz(cfg, st: engine.KernelSetup, spec: engine.RunSpec):
     passes = 0
     while True:
         passes += 1
-        if elements == "auto":
-            m, xm = mdr.auto_elements(radius, hi, margin=MARGIN, delta_lo=lo)
-        else:
-            m, xm = int(elements), MARGIN * math.sqrt(radius * hi)
-        x, g, w = mdr.element_grid(radius, xm, m)
+        x, g, w, xm = grid(radius, elements, lo, hi)
         rr = engine.run(mdr.MDRKernel(st, x, g, w), spec)
         dmax = deepest(rr, st.a0)
         a_max = math.sqrt(radius * dmax)
