@@ -4,15 +4,17 @@
 
 import sys
 
+from .interrupt import INTERRUPTED_EARLY, interrupt_handled
+
 
 def main():  # pragma: no cover - console script entry
     try:
-        from .cli import app
-
-        app()
+        from . import cli
     except KeyboardInterrupt:  # before any command started: nothing has been written
-        sys.stderr.write("interrupted before any output was written\n")
+        sys.stderr.write(INTERRUPTED_EARLY + "\n")
+        interrupt_handled()
         sys.exit(130)
+    cli.main()
 
 
 if __name__ == "__main__":  # pragma: no cover

@@ -24,6 +24,7 @@ from . import __version__
 from .checks import MAX_ARMS, limit
 from .errors import USER_ERRORS
 from .extraction import DEFAULT_METHOD, METHODS
+from .interrupt import INTERRUPTED_EARLY, interrupt_handled
 
 
 def one_line(text: str) -> str:
@@ -87,6 +88,9 @@ def root(
     and extract the surface's k0, k_inf, cd back with VETICA.  All values SI."""
 
 
+_REPORTED: list[bool] = []  # an interrupt already reported by a command (typer must not end silently)
+
+
 def user_errors(fn):
     """Turn USER_ERRORS into one line on stderr and exit status 2."""
 
@@ -98,7 +102,8 @@ def user_errors(fn):
             typer.echo(f"error: {one_line(exc)}", err=True)
             raise typer.Exit(2) from None
         except KeyboardInterrupt as exc:  # a batch says what it persisted; before, nothing is written yet
-            typer.echo(one_line(exc) or "interrupted before any output was written", err=True)
+            typer.echo(one_line(exc) or INTERRUPTED_EARLY, err=True)
+            _REPORTED.append(True)
             raise typer.Exit(getattr(exc, "exit_code", 130)) from None
 
     return wrapper
@@ -586,11 +591,20 @@ def fit(
 
 
 def main():  # pragma: no cover - console script entry
+    """Run the app.  Ctrl-C outside a command's body (typer's parsing, option callbacks: typer
+    turns it into a silent exit 130) is reported in one line like any other interrupt."""
     try:
         app()
     except KeyboardInterrupt:  # Ctrl-C while the modules load: nothing has been written
-        sys.stderr.write("interrupted before any output was written\n")
+        sys.stderr.write(INTERRUPTED_EARLY + "\n")
+        interrupt_handled()
         sys.exit(130)
+    except SystemExit as exc:
+        if exc.code == 130 and not _REPORTED:
+            sys.stderr.write(INTERRUPTED_EARLY + "\n")
+        interrupt_handled()
+        raise
+
 
 
 if __name__ == "__main__":  # pragma: no cover
