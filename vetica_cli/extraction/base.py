@@ -56,12 +56,13 @@ KG_WINDOW = Option("kg_window", "str", "", "stage 1b's window: noise (the thesis
 FIXED_COST = 0.1  # part of a method's seconds_per_point that does not scale with the record's samples
 
 
-def record_cost_scale(record_cycles: float, print_step: float) -> float:
+def record_cost_scale(record_cycles: float, print_step: float, fixed: float = FIXED_COST) -> float:
     """An extraction's cost relative to its ``seconds_per_point`` (a record of 10 periods at
     0.125 ns): a fixed part (taps, stages, checks; measured 5-17 % of the reference cost for
-    the tap methods and the whole-cycle fit, 2-8 % for the observables and the DMT fit) plus
-    a part in proportion to the record's samples."""
-    return FIXED_COST + (1.0 - FIXED_COST) * (record_cycles / 10.0) * (0.125e-9 / print_step)
+    the tap methods and the whole-cycle fit, 2-8 % for the observables and the DMT fit; a
+    sweep point's, ``fixed``, also carries its task and part file) plus a part in proportion
+    to the record's samples."""
+    return fixed + (1.0 - fixed) * (record_cycles / 10.0) * (0.125e-9 / print_step)
 
 
 class ExtractionMethod(ABC):

@@ -53,10 +53,20 @@ from .sample import paint, surface_key
 from .table import assemble, column_units, columns
 
 SCAN_ROOTS = ("scan/line.py", "scan/table.py")  # the code that computes a line's rows (its import closure)
-SECONDS_PER_PERIOD = 0.8e-3  # kernel, one drive period away from recording (hybrid, 50 kHz; dry-run estimate)
+# The dry run's costs, measured on the committed scans (results/scans: blend 64 x 64 and edge, 2 workers on
+# 2 cores, PS 1 ns, 4 periods, vetica + full; per-row wall_s = the pixel's simulation + that row's extraction):
+# a drive period of a transient pixel 1.26-1.38 ms (differences between pixel times); the orbit pass as 14-24
+# such periods; a pixel's record and both extractions 0.11-0.14 s; a scan's start-up (process, workers,
+# kernels, summary, figures) 6.7-8.4 s for a 2-pixel scan.
+SECONDS_PER_PERIOD = 1.3e-3
+ORBIT_PERIODS = 20
+SCAN_START_S = 7.0
 # a pixel's record (observables, table, force) at the methods' reference size, 10 periods at 0.125 ns, one
-# force source; a record costs in proportion to its samples, as each method's seconds_per_point / 2
+# force source; a record costs in proportion to its samples, as each method's seconds_per_point / 2, plus a
+# fixed part smaller than a sweep point's (no task or part file of its own): 0.04 puts the blend's and the
+# edge's pixel records at 0.12 s
 SECONDS_PER_RECORD = 0.2
+PIXEL_FIXED_COST = 0.04
 
 
 @dataclass
@@ -211,28 +221,20 @@ def dry_run_text(cfg: ScanConfig, output: Path, jobs: int) -> str:
     """Lines, pixels, domains and a cost estimate; runs nothing."""
     r = cfg.scan.raster
     smap = paint(cfg.sample, r)
-    period = 1.0 / cfg.point.probe.f1
     head = (f"scan {cfg.name}: {r.nx} x {r.ny} pixels over {r.size_x * 1e6:g} x {r.size_y * 1e6:g} um "
             f"(pitch {r.pitch[0] * 1e9:.4g} x {r.pitch[1] * 1e9:.4g} nm), methods {', '.join(cfg.scan.methods)}, "
             f"force {cfg.force}")  # fmt: skip
     lines = [head]
     for name, n in zip(cfg.sample.domain_names(), smap.covered):
         lines.append(f"  {name}: {n} pixels" + ("  (covers no pixel centre)" if n == 0 else ""))
-    total = 0.0
     n = cfg.point.numerics
-    # a record's cost scales with its samples: record_cycles / print_step, from the reference size of
-    # the methods' seconds_per_point (10 periods at 0.125 ns, both force sources: halved for one)
-    scale = record_cost_scale(n.record_cycles, n.print_step)
-    per_record = scale * (SECONDS_PER_RECORD + sum(get_method(m).seconds_per_point / 2 for m in cfg.scan.methods))
+    per_record = pixel_record_seconds(cfg)
     for p in cfg.scan.passes():
-        periods = round(p.pixel_time / period) if p.steady == "transient" else 40
-        per_pixel = periods * SECONDS_PER_PERIOD + per_record
-        total += per_pixel * r.nx * r.ny
-        lines.append(f"  pass {p.label()}: {r.ny} lines, ~{per_pixel:.2f} s a pixel")
-    lines.append(f"~{duration(total / jobs)} on {jobs} worker(s) (measured costs: {SECONDS_PER_PERIOD * 1e3:g} ms a "
-                 f"drive period, {per_record:.3g} s a pixel's record and its extraction at PS "
-                 f"{n.print_step * 1e9:g} ns and {n.record_cycles} periods); "
-                 f"would write {output}")  # fmt: skip
+        lines.append(f"  pass {p.label()}: {r.ny} lines, ~{pass_pixel_seconds(cfg, p):.2f} s a pixel")
+    lines.append(f"~{duration(SCAN_START_S + scan_seconds(cfg) / jobs)} on {jobs} worker(s) (measured costs: "
+                 f"{SECONDS_PER_PERIOD * 1e3:g} ms a drive period, {per_record:.3g} s a pixel's record and its "
+                 f"extraction at PS {n.print_step * 1e9:g} ns and {n.record_cycles} periods, "
+                 f"{SCAN_START_S:g} s to start); would write {output}")  # fmt: skip
     return "\n".join(lines)
 
 
@@ -240,14 +242,23 @@ ScanInterrupted = BatchInterrupted  # Ctrl-C, SIGTERM or SIGHUP during a scan (m
 DEFAULT_FOLDER = Path("sweeps")  # where `vetica scan CONFIG` writes without -o (git-ignored, as a sweep)
 
 
+def pixel_record_seconds(cfg: ScanConfig) -> float:
+    """Estimated core-seconds of one pixel's record and its extractions (every method)."""
+    n = cfg.point.numerics
+    scale = record_cost_scale(n.record_cycles, n.print_step, PIXEL_FIXED_COST)
+    return scale * (SECONDS_PER_RECORD + sum(get_method(m).seconds_per_point / 2 for m in cfg.scan.methods))
+
+
+def pass_pixel_seconds(cfg: ScanConfig, p) -> float:
+    """Estimated core-seconds of one pixel of pass ``p``: its drive periods and its record."""
+    periods = round(p.pixel_time * cfg.point.probe.f1) if p.steady == "transient" else ORBIT_PERIODS
+    return periods * SECONDS_PER_PERIOD + pixel_record_seconds(cfg)
+
+
 def scan_seconds(cfg: ScanConfig) -> float:
-    """Estimated core-seconds of the whole scan (the dry run's measured costs)."""
-    r, period = cfg.scan.raster, 1.0 / cfg.point.probe.f1
-    total = 0.0
-    for p in cfg.scan.passes():
-        periods = round(p.pixel_time / period) if p.steady == "transient" else 40
-        total += (periods * SECONDS_PER_PERIOD + SECONDS_PER_RECORD * len(cfg.scan.methods)) * r.nx * r.ny
-    return total
+    """Estimated core-seconds of the whole scan's pixels (the dry run's measured costs)."""
+    r = cfg.scan.raster
+    return sum(pass_pixel_seconds(cfg, p) for p in cfg.scan.passes()) * r.nx * r.ny
 
 
 def scan_command(config: str | Path, output: str | Path | None = None, overrides: dict | None = None,
