@@ -22,7 +22,8 @@ import numpy as np
 from ..checks import Rule, check, coerce, load_yaml
 from ..errors import ConfigError, InputError
 from ..signals.taps import KG_WINDOWS
-from ..surfaces import Quantity, SurfaceModel
+from ..surfaces import MODELS, Quantity, SurfaceModel
+from ..surfaces.base import DYNAMIC_QUANTITIES
 from .record import Record
 from .result import ExtractionResult
 
@@ -135,6 +136,24 @@ class ExtractionMethod(ABC):
 
 METHODS: dict[str, ExtractionMethod] = {}
 DEFAULT_METHOD = "vetica"  # --method and extract.method when not given
+
+
+class ModelFreeMethod(ExtractionMethod):
+    """A method that does not model the surface (the instrument's methods): it runs on records
+    of every surface model, reports its own ``fixed_quantities`` whatever the model, and the
+    dynamic references (loss tangent, dissipation) beside them."""
+
+    fixed_quantities: ClassVar[dict[str, Quantity]]
+
+    @property
+    def surface_models(self) -> tuple[str, ...]:  # type: ignore[override]
+        return tuple(MODELS)
+
+    def quantities(self, model: SurfaceModel) -> dict[str, Quantity]:
+        return dict(self.fixed_quantities)
+
+    def references(self, model: SurfaceModel) -> dict[str, Quantity]:
+        return dict(DYNAMIC_QUANTITIES)
 
 
 def register(cls: type[ExtractionMethod]) -> type[ExtractionMethod]:

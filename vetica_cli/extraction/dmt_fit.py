@@ -41,13 +41,11 @@ from typing import Any, ClassVar
 
 import numpy as np
 
-from .. import surfaces
 from ..constants import EV
 from ..errors import InputError
 from ..signals.taps import find_taps
-from ..surfaces import Quantity, SurfaceModel
-from ..surfaces.base import DYNAMIC_QUANTITIES
-from .base import ExtractionMethod, register
+from ..surfaces import Quantity
+from .base import ModelFreeMethod, register
 from .observables import check_positive, dynamic_references
 from .record import Record
 from .result import ExtractionResult, Spread, estimates
@@ -146,7 +144,7 @@ def adhesion_theory(record: Record) -> float | None:
 
 
 @register
-class DmtFit(ExtractionMethod):
+class DmtFit(ModelFreeMethod):
     """Per-tap adhesion, DMT modulus on the unloading branch, dissipation and deformation."""
 
     key = "dmt-fit"
@@ -158,16 +156,7 @@ class DmtFit(ExtractionMethod):
     needs_z1 = False
     seconds_per_point = 0.4  # both forces, 10 periods at 0.125 ns: 0.41 CPU s measured
     theory_sources = THEORY_SOURCES
-
-    @property
-    def surface_models(self) -> tuple[str, ...]:  # any surface: the method does not model it
-        return tuple(surfaces.MODELS)
-
-    def quantities(self, model: SurfaceModel) -> dict[str, Quantity]:
-        return dict(QUANTITIES)
-
-    def references(self, model: SurfaceModel) -> dict[str, Quantity]:
-        return dict(DYNAMIC_QUANTITIES)
+    fixed_quantities = QUANTITIES
 
     def options(self, given: dict) -> dict:
         opts = super().options(given)

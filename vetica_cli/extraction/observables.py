@@ -42,12 +42,11 @@ from typing import Any, ClassVar
 
 import numpy as np
 
-from .. import surfaces
 from ..constants import EV
 from ..errors import InputError
-from ..surfaces import Quantity, SurfaceModel
+from ..surfaces import Quantity
 from ..surfaces.base import DYNAMIC_QUANTITIES
-from .base import ExtractionMethod, register
+from .base import ModelFreeMethod, register
 from .record import Record
 from .result import ExtractionResult, estimates
 
@@ -150,7 +149,7 @@ def check_positive(opts: dict, names: dict) -> None:
 
 
 @register
-class Observables(ExtractionMethod):
+class Observables(ModelFreeMethod):
     """Amplitude and phase at the drive frequency, and E_diss, V_ts and tan d_AM from them (the AM-AFM energy balance)."""
 
     key = "observables"
@@ -162,16 +161,7 @@ class Observables(ExtractionMethod):
     uniform_sampling = True
     seconds_per_point = 0.5  # both forces, 10 periods at 0.125 ns: 0.49 CPU s measured
     theory_sources = THEORY_SOURCES
-
-    @property
-    def surface_models(self) -> tuple[str, ...]:  # any surface: the method does not model it
-        return tuple(surfaces.MODELS)
-
-    def quantities(self, model: SurfaceModel) -> dict[str, Quantity]:
-        return dict(QUANTITIES)
-
-    def references(self, model: SurfaceModel) -> dict[str, Quantity]:
-        return dict(DYNAMIC_QUANTITIES)
+    fixed_quantities = QUANTITIES
 
     def options(self, given: dict) -> dict:
         opts = super().options(given)

@@ -274,6 +274,29 @@ class SurfaceModel(ABC):
 MODELS: dict[str, SurfaceModel] = {}
 
 
+def parse_arm(i: int, arm: Any, fields: dict[str, tuple[str, Rule]]) -> dict:
+    """One Maxwell arm ``surface.arms.<i>`` of a model whose arm has ``fields`` (name ->
+    (unit, rule)): a mapping with exactly those keys, each a float its rule allows; otherwise
+    a ConfigError naming the key and the allowed values."""
+    spec = ", ".join(f"{f}: {unit}" for f, (unit, _) in fields.items())
+    if not isinstance(arm, dict):
+        raise ConfigError(f"surface.arms.{i}: {arm!r} is not allowed; expected a mapping {{{spec}}}")
+    unknown = [f for f in arm if f not in fields]
+    if unknown:
+        raise ConfigError(f"unknown key 'surface.arms.{i}.{unknown[0]}'; allowed in an arm: {', '.join(fields)}")
+    missing = [f for f in fields if f not in arm]
+    if missing:
+        both = " and ".join(f"{f} [{unit}]" for f, (unit, _) in fields.items())
+        raise ConfigError(f"surface.arms.{i}: {arm!r} has no {missing[0]!r}; expected both {both}")
+    return {f: parse_arm_field(i, f, arm[f], fields) for f in fields}
+
+
+def parse_arm_field(i: int, field: str, value: Any, fields: dict[str, tuple[str, Rule]]) -> float:
+    """``surface.arms.<i>.<field>``: a float its rule in ``fields`` allows."""
+    key = f"surface.arms.{i}.{field}"
+    return check(key, value, coerce(key, value, "float"), fields[field][1])
+
+
 def register(cls: type[SurfaceModel]) -> type[SurfaceModel]:
     """Class decorator: add one instance of the model to :data:`MODELS` under its ``key``."""
     if cls.key in MODELS:

@@ -11,9 +11,9 @@ from typing import Any, ClassVar
 
 import numpy as np
 
-from ..checks import Rule, check, coerce, positive
+from ..checks import Rule, positive
 from ..errors import ConfigError
-from .base import Quantity, SurfaceModel, register
+from .base import Quantity, SurfaceModel, parse_arm, parse_arm_field, register
 
 ARM_FIELDS: dict[str, tuple[str, Rule]] = {  # field of one arm -> (unit, rule)
     "e": ("Pa", (positive, "a modulus > 0 Pa")),
@@ -108,7 +108,7 @@ class Hertz(SurfaceModel):
                 raise ConfigError(
                     f"surface.arms: {value!r} is not allowed; expected a list of one or more arms {{e: Pa, tau: s}}"
                 )
-            return [self._parse_arm(i, arm) for i, arm in enumerate(value)]
+            return [parse_arm(i, arm, ARM_FIELDS) for i, arm in enumerate(value)]
         if name == "elements":
             if isinstance(value, float) and value.is_integer():
                 value = int(value)
@@ -118,23 +118,6 @@ class Hertz(SurfaceModel):
                 )
             return value
         return super().parse_key(name, value)
-
-    @staticmethod
-    def _parse_arm(i: int, arm: Any) -> dict:
-        if not isinstance(arm, dict):
-            raise ConfigError(f"surface.arms.{i}: {arm!r} is not allowed; expected a mapping {{e: Pa, tau: s}}")
-        unknown = [f for f in arm if f not in ARM_FIELDS]
-        if unknown:
-            raise ConfigError(f"unknown key 'surface.arms.{i}.{unknown[0]}'; allowed in an arm: e, tau")
-        missing = [f for f in ARM_FIELDS if f not in arm]
-        if missing:
-            raise ConfigError(f"surface.arms.{i}: {arm!r} has no {missing[0]!r}; expected both e [Pa] and tau [s]")
-        return {f: Hertz._parse_field(i, f, arm[f]) for f in ARM_FIELDS}
-
-    @staticmethod
-    def _parse_field(i: int, field: str, value: Any) -> float:
-        key = f"surface.arms.{i}.{field}"
-        return check(key, value, coerce(key, value, "float"), ARM_FIELDS[field][1])
 
     def item_key(self, name: str) -> bool:
         m = ITEM.match(name)
@@ -154,7 +137,7 @@ class Hertz(SurfaceModel):
                     f"surface.{name}: no arm {i}; the surface has {len(arms)} arm(s), "
                     f"surface.arms.0 .. surface.arms.{len(arms) - 1}"
                 )
-            arms[i][field] = self._parse_field(i, field, value)
+            arms[i][field] = parse_arm_field(i, field, value, ARM_FIELDS)
         return {**values, "arms": arms}
 
     def get_item(self, params: dict, name: str) -> Any:

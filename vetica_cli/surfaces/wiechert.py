@@ -10,9 +10,9 @@ from typing import Any, ClassVar
 
 import numpy as np
 
-from ..checks import MAX_ARMS, Rule, check, coerce, positive
+from ..checks import MAX_ARMS, Rule, positive
 from ..errors import ConfigError
-from .base import Quantity, SurfaceModel, register
+from .base import Quantity, SurfaceModel, parse_arm, parse_arm_field, register
 
 ARM_FIELDS: dict[str, tuple[str, Rule]] = {  # field of one arm -> (unit, rule)
     "k": ("N/m", (positive, "a stiffness > 0 N/m")),
@@ -96,24 +96,7 @@ class Wiechert(SurfaceModel):
             raise ConfigError(
                 f"surface.arms: {value!r} is not allowed; expected a list of 1..{MAX_ARMS} arms {{k: N/m, cd: kg/s}}"
             )
-        return [self._parse_arm(i, arm) for i, arm in enumerate(value, start=1)]
-
-    @staticmethod
-    def _parse_arm(i: int, arm: Any) -> dict:
-        if not isinstance(arm, dict):
-            raise ConfigError(f"surface.arms.{i}: {arm!r} is not allowed; expected a mapping {{k: N/m, cd: kg/s}}")
-        unknown = [f for f in arm if f not in ARM_FIELDS]
-        if unknown:
-            raise ConfigError(f"unknown key 'surface.arms.{i}.{unknown[0]}'; allowed in an arm: k, cd")
-        missing = [f for f in ARM_FIELDS if f not in arm]
-        if missing:
-            raise ConfigError(f"surface.arms.{i}: {arm!r} has no {missing[0]!r}; expected both k [N/m] and cd [kg/s]")
-        return {f: Wiechert._parse_field(i, f, arm[f]) for f in ARM_FIELDS}
-
-    @staticmethod
-    def _parse_field(i: int, field: str, value: Any) -> float:
-        key = f"surface.arms.{i}.{field}"
-        return check(key, value, coerce(key, value, "float"), ARM_FIELDS[field][1])
+        return [parse_arm(i, arm, ARM_FIELDS) for i, arm in enumerate(value, start=1)]
 
     def item_key(self, name: str) -> bool:
         return ITEM.match(name) is not None
@@ -132,7 +115,7 @@ class Wiechert(SurfaceModel):
                     f"surface.{name}: no arm {i}; the surface has {len(arms)} arm(s), "
                     f"surface.arms.1 .. surface.arms.{len(arms)}"
                 )
-            arms[i - 1][field] = self._parse_field(i, field, value)
+            arms[i - 1][field] = parse_arm_field(i, field, value, ARM_FIELDS)
         return {**values, "arms": arms}
 
     def get_item(self, params: dict, name: str) -> Any:
