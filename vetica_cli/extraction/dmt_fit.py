@@ -114,6 +114,8 @@ def tap_numbers(z: np.ndarray, f: np.ndarray, radius: float, low: float = FIT_LO
     out = {k: np.full(n, math.nan) for k in ("adhesion", "e_dmt", "k_dmt", "e_diss_tap", "deformation", "fit_points")}
     nxt = [*taps.contact[1:], len(f)]
     for i, (ic, ipk, isep) in enumerate(zip(taps.contact, taps.peak, taps.separation)):
+        if not ic <= ipk <= isep < nxt[i]:  # taps that overlap (a force read in noise): no numbers from this one
+            continue
         f_adh = float(np.min(f[ipk : nxt[i]]))
         ilow = ic + int(np.argmin(z[ic : isep + 1]))  # the retract starts
         e_star, z0, npts = fit_dmt(z[ilow : isep + 1], f[ilow : isep + 1], f_adh, radius, low, high, float(f[ipk]))
@@ -124,7 +126,7 @@ def tap_numbers(z: np.ndarray, f: np.ndarray, radius: float, low: float = FIT_LO
             out["k_dmt"][i] = 2.0 * e_star * math.sqrt(radius * (z0 - z[ilow]))
         out["deformation"][i] = float(z[ic] - z[ilow])
     # one loop per drive period: between the highest tip positions either side of a tap
-    tops = [s + int(np.argmax(z[s:c])) for s, c in zip(taps.separation[:-1], taps.contact[1:])]
+    tops = [s + int(np.argmax(z[s:c])) if c > s else None for s, c in zip(taps.separation[:-1], taps.contact[1:])]
     first = int(np.argmax(z[: taps.contact[0]])) if taps.contact[0] > 0 else None
     last = taps.separation[-1] + int(np.argmax(z[taps.separation[-1] :]))
     bounds = ([first] if first is not None and first > 0 else [None]) + tops + [last if last < len(z) - 1 else None]

@@ -34,6 +34,13 @@ Checks, each against something the record itself shows:
   the force record, from the median absolute second difference
   (``1.4826 MAD / sqrt(6)``; the force's own curvature at the print step is far
   below it).
+* **more taps than oscillation cycles** -- a steady tapping record has at most one tap per
+  cycle of the tip; a force in which :func:`~vetica_cli.signals.taps.find_taps` finds more
+  taps than the tip's position shows cycles (plus one for the record's ends) is read in its
+  noise (seen: a force reconstructed from a paddle signal with 1 pm of detector noise, noise
+  floor 0.2 mN against an 80 nN tap, ~300 "taps" in 6 cycles, VETICA's Kg off by 1e3-1e5 %
+  at a 1-sigma of 50-75 %): every quantity of a method that reads taps (``TAP_READERS``) is
+  flagged.
 * **surface height fitted, dashpot that hardly creeps** -- the whole-cycle fit with the
   surface height free tells ``k_inf`` from the Maxwell arm only by the creep between
   taps; below ``CREEP_MIN`` of it (``1 - exp(-t_free/tau_c)``, t_free the time out of
@@ -65,6 +72,7 @@ CREEP_MIN = 0.02  # creep fraction between taps below which a fitted height and 
 KR_BOUND = 1e-6  # Kr within this fraction of Kg from 0 or Kg: at stage 2's bound
 DISAGREE = 0.02  # relative difference between vetica and vetica-prestress that counts
 STAGE2 = ("k_r", "k_inf", "k0", "cd", "tau_r")
+TAP_READERS = ("vetica", "vetica-prestress", "dmt-fit")  # methods whose every quantity is read from the taps
 DISAGREEMENT = "VETICA and VETICA with the pre-stress at contact differ"  # the disagreement check's reason
 
 
@@ -90,6 +98,24 @@ def _flag(res: ExtractionResult, names, reason: str) -> None:
         why = reason if e.identifiable is not False or not e.reason else f"{e.reason}; {reason}"
         est[q] = dataclasses.replace(e, identifiable=False, reason=why)
     res.estimates = est
+
+
+def _taps_against_cycles(res: ExtractionResult, record, info: dict, floor_f: float, peak: float) -> None:
+    """Flag every quantity when the force shows more taps than the tip shows oscillation
+    cycles, plus one (module docstring)."""
+    from ..errors import InputError
+    from ..signals.taps import find_taps, oscillation_cycles
+
+    cycles = oscillation_cycles(record.z)
+    try:
+        n = len(find_taps(record.f).contact)
+    except InputError:  # fewer than two taps: the method itself refused or said so
+        return
+    info["taps"], info["oscillation_cycles"] = n, cycles
+    if n > cycles + 1:
+        _flag(res, list(res.estimates), f"the force shows {n} taps in {cycles} oscillation cycles of the tip: its "
+                                        f"taps are read in noise (force noise floor {floor_f:.3g} N, peak "
+                                        f"{peak:.3g} N)")  # fmt: skip
 
 
 def _disagreement(res: ExtractionResult, record, options: dict) -> dict:
@@ -127,6 +153,8 @@ def check(res: ExtractionResult, record, options: dict | None = None) -> Extract
     info = {"force_noise_floor_n": floor_f, "position_noise_floor_m": floor_z, "residual_limit_n": limit}
     est = res.estimates
     val = {k: e.value for k, e in est.items()}
+    if res.method in TAP_READERS:
+        _taps_against_cycles(res, record, info, floor_f, peak)
     if res.method in ("vetica", "vetica-prestress"):
         kg, kr = val.get("k_g"), val.get("k_r")
         if kg and kr is not None and (kr >= kg * (1 - KR_BOUND) or kr <= kg * KR_BOUND):

@@ -43,6 +43,21 @@ def find_taps(f: np.ndarray) -> Taps:
     return Taps(t.contact.copy(), t.separation.copy(), t.peak.copy(), t.spacing, t.incomplete)
 
 
+def oscillation_cycles(z: np.ndarray) -> int:
+    """Whole oscillation cycles of the tip in ``z`` (the drive's periods as the record shows
+    them, from the position alone): upward crossings of the middle of its range, with a
+    hysteresis of a quarter of the range either side, so detector noise far below the
+    amplitude cannot add a crossing."""
+    z = np.asarray(z, dtype=float)
+    if len(z) < 3:
+        return 0
+    lo, hi = float(np.min(z)), float(np.max(z))
+    mid, band = 0.5 * (lo + hi), 0.25 * (hi - lo)
+    side = np.where(z > mid + band, 1, np.where(z < mid - band, -1, 0))
+    side = side[side != 0]
+    return int(np.count_nonzero((side[1:] == 1) & (side[:-1] == -1)))
+
+
 def locate_taps(f: np.ndarray) -> Taps:
     """Locate every tap's contact and separation force minimum (thesis 4.3.1, fig. 32).
 
