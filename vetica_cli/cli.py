@@ -602,9 +602,9 @@ def main():  # pragma: no cover - console script entry
     except SystemExit as exc:
         if exc.code == 130 and not _REPORTED:
             sys.stderr.write(INTERRUPTED_EARLY + "\n")
-        interrupt_handled()
+        if exc.code == 130 or _REPORTED:  # an interrupt ended the command (a normal exit needs no ctypes)
+            interrupt_handled()
         raise
-
 
 
 if __name__ == "__main__":  # pragma: no cover

@@ -53,9 +53,9 @@ def oscillation_cycles(z: np.ndarray) -> int:
         return 0
     lo, hi = float(np.min(z)), float(np.max(z))
     mid, band = 0.5 * (lo + hi), 0.25 * (hi - lo)
-    side = np.where(z > mid + band, 1, np.where(z < mid - band, -1, 0))
-    side = side[side != 0]
-    return int(np.count_nonzero((side[1:] == 1) & (side[:-1] == -1)))
+    above, below = z > mid + band, z < mid - band
+    side = above[above | below]  # outside the band, in order: True above, False below
+    return int(np.count_nonzero(side[1:] & ~side[:-1]))
 
 
 def locate_taps(f: np.ndarray) -> Taps:
