@@ -122,8 +122,8 @@ def test_closed_stage2_agrees_with_the_thesis_fit_on_a_pixel(pixel, method):
     sum-of-sines fit agree to 5e-4 relative in every quantity (measured: <= 1e-4; the sine
     fit's own residual is what differs), and the option for the thesis's fit still works."""
     df, meta = pixel
-    fast = extract(df, meta, force="reconstructed", method=method)
-    thesis = extract(df, meta, force="reconstructed", method=method, stage2="sines")
+    fast = extract(df, meta, force="reconstructed", method=method, cutoff_hz=math.inf)  # Nyquist: tap windows
+    thesis = extract(df, meta, force="reconstructed", method=method, stage2="sines", cutoff_hz=math.inf)
     assert fast.diagnostics["stage2"] == "closed" and thesis.diagnostics["stage2"] == "sines"
     assert fast.info.get("force_windows") == 3  # the force was rebuilt in the 3 tap windows
     assert "sine_fit_rms_m" in thesis.diagnostics

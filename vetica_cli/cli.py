@@ -123,6 +123,21 @@ def checked(allowed: str, ok):
     return callback
 
 
+def _cutoff_option(value):
+    """``--cutoff``: None (auto), ``math.inf`` (nyquist) or a frequency > 0 Hz."""
+    if value is None or value.strip().lower() == "auto":
+        return None
+    if value.strip().lower() == "nyquist":
+        return math.inf
+    try:
+        v = float(value)
+    except ValueError:
+        v = math.nan
+    if not (math.isfinite(v) and v > 0):
+        raise typer.BadParameter(f"{value!r} is not allowed; expected auto, nyquist or a frequency > 0 Hz")
+    return v
+
+
 SET_HELP = "Override one config key, e.g. --set surface.cd=1e-4 (repeatable)."
 
 
@@ -341,9 +356,10 @@ def extract(
         None, "--f1", help="Drive frequency, Hz; only labels the cut-off in harmonics.",
         callback=checked("a frequency > 0 Hz", lambda v: v > 0),
     ),
-    cutoff: Optional[float] = typer.Option(
-        None, "--cutoff", help="Low-pass cut-off of the force reconstruction, Hz; default: Nyquist, 1/(2 print step).",
-        callback=checked("a frequency > 0 Hz", lambda v: v > 0),
+    cutoff: Optional[str] = typer.Option(
+        None, "--cutoff", help="Low-pass cut-off of the force reconstruction: auto (default: where the inverted noise "
+        "meets the force's drive harmonics, measured on the record), nyquist (the whole sampled band), or a frequency "
+        "in Hz.", callback=_cutoff_option,
     ),
     arms: Optional[int] = typer.Option(
         None, "--arms", help="--method full: Maxwell arms to fit (1 = SLS, 2+ = Wiechert); default: the file's surface, "

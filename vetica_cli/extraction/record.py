@@ -190,13 +190,24 @@ class _ForceSource:
     taper: float = 0.0
 
     windows: bool = False  # rebuild the force only in the tap windows (signals.tapforce)
+    noise: object = None  # the noise measured on the steady record (signals.noise.CutoffChoice)
+
+    drive_hz: float | None = None  # [Hz] the drive frequency whose harmonics the automatic cut-off reads
 
     def __call__(self, seg: pd.DataFrame, where: str) -> np.ndarray:
         if self.force == "true":
             return column(seg, "f_ts", where)
         p = self._probe()
-        rec = reconstruct_force(seg["t"].to_numpy(float), column(seg, "z_paddle", where),
-                                p["k2"], p["f2"], p["q2"], cutoff_hz=self.cutoff_hz, taper=self.taper)  # fmt: skip
+        cutoff = "auto" if self.cutoff_hz is None else self.cutoff_hz
+        rec = reconstruct_force(seg["t"].to_numpy(float), column(seg, "z_paddle", where), p["k2"], p["f2"],
+                                p["q2"], cutoff_hz=cutoff, taper=self.taper, drive_hz=self.drive_hz)  # fmt: skip
+        if rec.noise is not None:  # the steady record's choice: the approach segment is rebuilt with the same low-pass
+            self.cutoff_hz = rec.cutoff_hz if rec.cutoff_hz < rec.noise.spectrum.nyquist else math.inf
+            self.info["cutoff_rule"] = rec.noise.rule
+            self.noise = rec.noise
+        elif cutoff == "auto":
+            self.cutoff_hz = math.inf
+            self.info["cutoff_rule"] = "no drive harmonics to read the noise between (fewer than 2 periods): Nyquist"
         self.info["cutoff_hz"] = rec.cutoff_hz
         return rec.f
 
@@ -222,7 +233,7 @@ class _ForceSource:
             if out is not None:
                 return out
         f = self(seg, where)
-        return f, first_contact_minimum(f)
+        return f, first_contact_minimum(f, self.noise.noise_rms if self.noise is not None else 0.0)
 
     def _probe(self) -> dict:
         p = {
@@ -254,7 +265,8 @@ def _steady_force(steady, force_of: _ForceSource, f1: float | None) -> tuple[np.
     ``force_of.info``."""
     info = force_of.info
     taps = None
-    windows = force_of.force == "reconstructed" and force_of.windows
+    # the tap windows need the low-pass known first: with the automatic cut-off the whole record is inverted
+    windows = force_of.force == "reconstructed" and force_of.windows and force_of.cutoff_hz is not None
     tf = force_of.tap_force(steady, "the steady record") if windows else None
     if tf is not None:
         f, taps = tf.f, tf.taps
@@ -269,6 +281,45 @@ def _steady_force(steady, force_of: _ForceSource, f1: float | None) -> tuple[np.
     if "cutoff_hz" in info and drive:
         info["cutoff_harmonic"] = info["cutoff_hz"] / drive
     return f, taps
+
+
+def _drive(f1: float | None, params: dict, t: np.ndarray, z: np.ndarray, info: dict) -> float | None:
+    """The drive frequency [Hz] whose harmonics the noise is read between: ``--f1``, else the
+    metadata's probe f1 (the drive is at the flexural resonance), else measured on the tip
+    position (:func:`vetica_cli.signals.noise.drive_frequency`)."""
+    from ..signals.noise import drive_frequency
+
+    if f1 is not None:
+        return float(f1)
+    meta_f1 = (params.get("probe") or {}).get("f1")
+    if meta_f1:
+        return float(meta_f1)
+    h = (t[-1] - t[0]) / (len(t) - 1)
+    drive = drive_frequency(z, h)
+    if drive is not None:
+        info["drive_hz_measured"] = drive
+    return drive
+
+
+def _declare_noise(f: np.ndarray, t: np.ndarray, force_of: _ForceSource, info: dict) -> None:
+    """Measure the analysed force's noise floor on the record (:mod:`vetica_cli.signals.noise`:
+    the bins between the drive's harmonics, up to the force's low-pass) and attach it to the
+    array, so every stage and check reads the record's measured noise; in ``info['noise']``."""
+    from ..signals import noise as nz
+
+    choice = force_of.noise
+    if choice is None and force_of.drive_hz:
+        h = (t[-1] - t[0]) / (len(t) - 1)
+        fc = info.get("cutoff_hz")
+        choice = nz.measure(f, h, force_of.drive_hz, cutoff_hz=fc if fc else None)
+        if choice is not None and fc is None:  # the true force: no low-pass, the noise over the whole band
+            choice = nz.measure(f, h, force_of.drive_hz, cutoff_hz=0.5 / h)
+    if choice is None:
+        return
+    nz.declare(f, choice.noise_rms, choice.white_equivalent, choice.spectrum.nyquist / choice.cutoff_hz)
+    info["noise"] = {"force_rms_n": choice.noise_rms, "force_white_equivalent_n": choice.white_equivalent,
+                     "cutoff_hz": choice.cutoff_hz, "drive_hz": choice.spectrum.drive_hz,
+                     "periods": choice.spectrum.periods}  # fmt: skip
 
 
 def z1_estimate(z: np.ndarray, f: np.ndarray, a0: float, pull: bool, kg_points: int = 10) -> tuple[float, str]:
@@ -323,15 +374,29 @@ def _z1_reference(approach, z1, meta, force_of: _ForceSource, need_approach: boo
     ``need_z1`` a record with no way to Z1 gets None.  Records the value and its source in
     the info."""
     rec = None
+    unresolved = None  # why the approach's first contact could not be read (noise), if so
     if approach is not None and (z1 is None or need_approach):
         ta = column(approach, "t", "the approach segment")
         check_time(ta, "the approach segment")
-        fa, i1 = force_of.approach(approach, "the approach segment")
-        rec = (column(approach, "z_tip", "the approach segment"), fa, i1)
+        try:
+            fa, i1 = force_of.approach(approach, "the approach segment")
+            rec = (column(approach, "z_tip", "the approach segment"), fa, i1)
+        except InputError as exc:
+            if force_of.noise is None or "noise" not in str(exc) and "starts in contact" not in str(exc):
+                raise
+            unresolved = str(exc)  # a noisy approach: Z1 as if there were none (eq. 84), said in the source
     if z1 is not None:
         value, source = float(z1), "given"
     elif rec is not None:
         value, source = float(rec[0][rec[2]]), "approach segment"
+    elif unresolved is not None and a0 is not None and pull is not None:
+        value, source = z1_estimate(steady[0], steady[1], a0, bool(pull))
+        force_of.info["z1_approach_unresolved"] = unresolved
+    elif unresolved is not None:
+        if need_z1:
+            raise InputError(f"{unresolved}; pass --z1, or --a0 with --vdw-on-surface/--no-vdw-on-surface "
+                             "(thesis eq. 84)")  # fmt: skip
+        value, source = None, "unknown: the approach's first contact is not resolved above the noise"
     elif (meta.get("observables") or {}).get("z1") is not None:
         value, source = float(meta["observables"]["z1"]), "metadata"
     elif a0 is not None and pull is not None:
@@ -463,7 +528,9 @@ def build_record(
     params = meta.get("params") or {}
     info: dict = {}
     force_of = _ForceSource(force, params.get("probe") or {}, info, k2, f2, q2, cutoff_hz, taper, tap_windows)
+    force_of.drive_hz = _drive(f1, params, t, z, info)
     f, taps = _steady_force(steady, force_of, f1)
+    _declare_noise(f, t, force_of, info)
     t_force = time.perf_counter()
     surface = params.get("surface") or {}
     a0 = _known(a0, surface.get("a0"), "a0", info)

@@ -64,13 +64,14 @@ import numpy as np
 from ..signals.slopes import NOISE_SAMPLES, noise_floor  # noqa: F401  (re-exported: the white-noise RMS of a signal)
 from .result import ExtractionResult
 
+TOLERANCE = 0.10  # an estimate likely off by more than this (relative) is flagged: "likely wrong"
 REL_LIMIT = 1.0  # relative 1-sigma above which a quantity is not determined
+TAP_MODEL_FLOOR = 0.25  # a tap method's stage-2 residual above this fraction of the peak force: not the model
 RESIDUAL_FACTOR = 3.0  # residual RMS above this many force noise floors ...
 MODEL_FLOOR = 1e-3  # ... plus this fraction of the peak force: the model does not fit
 Z1_TOL = 0.02e-9  # [m] slack of the eq.-84 bracket
 CREEP_MIN = 0.02  # creep fraction between taps below which a fitted height and k_inf trade
 KR_BOUND = 1e-6  # Kr within this fraction of Kg from 0 or Kg: at stage 2's bound
-DISAGREE = 0.02  # relative difference between vetica and vetica-prestress that counts
 STAGE2 = ("k_r", "k_inf", "k0", "cd", "tau_r")
 TAP_READERS = ("vetica", "vetica-prestress", "dmt-fit")  # methods whose every quantity is read from the taps
 DISAGREEMENT = "VETICA and VETICA with the pre-stress at contact differ"  # the disagreement check's reason
@@ -89,13 +90,27 @@ def _creep(record) -> float | None:
     return float(np.median(c)) if c else None
 
 
+MAX_REASON = 200  # characters of a flag's reason
+
+
 def _flag(res: ExtractionResult, names, reason: str) -> None:
+    """Flag the quantities ``names`` with ``reason``: a quantity keeps the first reason it was
+    flagged for (the most basic check runs first) and counts the others, so every reason is one
+    short line (at most :data:`MAX_REASON` characters) with no repeated text; every reason is in
+    ``res.info['sanity']['flags']``."""
     est = dict(res.estimates)
+    flags = res.info.setdefault("sanity_flags", {})
     for q in names:
         e = est.get(q)
         if e is None or e.value is None:
             continue
-        why = reason if e.identifiable is not False or not e.reason else f"{e.reason}; {reason}"
+        seen = flags.setdefault(q, [])
+        if reason in seen:
+            continue
+        seen.append(reason)
+        why = reason if len(seen) == 1 else f"{seen[0]} (+{len(seen) - 1} more check{'s' if len(seen) > 2 else ''})"
+        if len(why) > MAX_REASON:
+            why = why[: MAX_REASON - 1] + "…"
         est[q] = dataclasses.replace(e, identifiable=False, reason=why)
     res.estimates = est
 
@@ -113,9 +128,8 @@ def _taps_against_cycles(res: ExtractionResult, record, info: dict, floor_f: flo
         return
     info["taps"], info["oscillation_cycles"] = n, cycles
     if n > cycles + 1:
-        _flag(res, list(res.estimates), f"the force shows {n} taps in {cycles} oscillation cycles of the tip: its "
-                                        f"taps are read in noise (force noise floor {floor_f:.3g} N, peak "
-                                        f"{peak:.3g} N)")  # fmt: skip
+        _flag(res, list(res.estimates), f"{n} taps in {cycles} oscillation cycles: taps read in noise (noise "
+                                        f"{floor_f:.3g} N, peak {peak:.3g} N)")  # fmt: skip
 
 
 def _disagreement(res: ExtractionResult, record, options: dict) -> dict:
@@ -137,7 +151,7 @@ def _disagreement(res: ExtractionResult, record, options: dict) -> dict:
         if e.value is None or a is None or a.value is None:
             continue
         rel = (e.value - a.value) / abs(a.value)
-        if abs(rel) > DISAGREE and abs(rel) > 3.0 * (e.sigma or 0.0):
+        if abs(rel) > TOLERANCE and abs(rel) > 3.0 * (e.sigma or 0.0):
             out[q] = rel
     return out
 
@@ -163,21 +177,19 @@ def check(res: ExtractionResult, record, options: dict | None = None) -> Extract
         info["creep_between_taps"] = creep
         if creep is not None and creep < CREEP_MIN:
             _flag(res, [q for q in est if q != "k_g"],
-                  f"the surface creeps only {100 * creep:.2g} % between taps (< {100 * CREEP_MIN:g} %): stage 1a's "
-                  f"tau_c is ill-conditioned (condition number ~{1 / max(creep, 1e-300):.2g}) and the dashpot "
-                  "hardly acts within the record")  # fmt: skip
+                  f"the surface creeps only {100 * creep:.2g} % between taps (< {100 * CREEP_MIN:g} %): tau_c "
+                  f"ill-conditioned (x{1 / max(creep, 1e-300):.2g})")  # fmt: skip
         if res.method == "vetica":
             diff = _disagreement(res, record, options)
             info["vetica_prestress_difference"] = diff
             for q, rel in diff.items():
-                _flag(res, [q], f"{DISAGREEMENT} by {100 * rel:+.3g} % "
-                                "(beyond 3 sigma): the thesis's stages are biased on this record")  # fmt: skip
+                _flag(res, [q], f"{DISAGREEMENT} by {100 * rel:+.3g} %: the thesis's stages are biased here")
         rms = (res.diagnostics or {}).get("force_fit_rms_n")
-        info["residual_n"] = rms
-        if rms is not None and rms > limit:
-            _flag(res, list(est), f"stage 2's force residual {rms:.3g} N exceeds {RESIDUAL_FACTOR:g} x the force "
-                                  f"noise floor ({floor_f:.3g} N) + {MODEL_FLOOR:g} x the peak force: the model does "
-                                  "not describe this record")  # fmt: skip
+        gross = RESIDUAL_FACTOR * floor_f + TAP_MODEL_FLOOR * peak
+        info["residual_n"], info["residual_limit_n"] = rms, gross
+        if rms is not None and rms > gross:
+            _flag(res, list(est), f"stage 2's force residual {rms:.3g} N is {rms / peak:.2g} of the peak force: "
+                                  "the model does not describe this record")  # fmt: skip
     else:
         fit = res.info.get("fit") or {}
         pct = fit.get("residual_rms_pct")
@@ -185,8 +197,8 @@ def check(res: ExtractionResult, record, options: dict | None = None) -> Extract
             rms = pct / 100.0 * peak
             info["residual_n"] = rms
             if rms > limit:
-                _flag(res, list(est), f"the fit's RMS residual {rms:.3g} N exceeds {RESIDUAL_FACTOR:g} x the force "
-                                      f"noise floor ({floor_f:.3g} N) + {MODEL_FLOOR:g} x the peak force")  # fmt: skip
+                _flag(res, list(est), f"the fit's RMS residual {rms:.3g} N exceeds {RESIDUAL_FACTOR:g} x the noise "
+                                      f"({floor_f:.3g} N) + {MODEL_FLOOR:g} x the peak force")  # fmt: skip
         tau_c = val.get("tau_c")
         if fit.get("surface_height_source") == "fitted (steady window)" and tau_c and tau_c > 0:
             from ..signals.taps import find_taps
@@ -200,9 +212,8 @@ def check(res: ExtractionResult, record, options: dict | None = None) -> Extract
                 info["creep_between_taps"] = creep
                 if creep < CREEP_MIN:
                     _flag(res, [q for q in est if q != "k_g"],
-                          f"surface height fitted and the dashpot creeps only {100 * creep:.2g} % between taps "
-                          f"(< {100 * CREEP_MIN:g} %): k_inf and the Maxwell arm trade against the height; "
-                          "pass --z1 (from an approach) to pin it")  # fmt: skip
+                          f"height fitted, creep {100 * creep:.2g} % between taps (< {100 * CREEP_MIN:g} %): k_inf "
+                          "and the arm trade against it; pass --z1 to pin it")  # fmt: skip
         height = fit.get("surface_height_m")
         kg, kr = val.get("k_g"), val.get("k_inf")
         if record.z1 is None and height is not None and record.a0 and kg and kr and kg > 0 and kr > 0:
@@ -212,19 +223,18 @@ def check(res: ExtractionResult, record, options: dict | None = None) -> Extract
             slack = 3.0 * floor_z
             info["z1_fit_m"], info["z1_bracket_m"] = z_fit, [lo + Z1_TOL, hi - Z1_TOL]
             if not (lo - slack <= z_fit <= hi + slack):
-                _flag(res, list(est), f"Z1 estimates disagree: the fitted contact height {z_fit * 1e9:.3g} nm is "
-                                      f"outside thesis eq. 84's bracket {(lo + Z1_TOL) * 1e9:.3g} .. "
-                                      f"{(hi - Z1_TOL) * 1e9:.3g} nm")  # fmt: skip
+                _flag(res, list(est), f"fitted contact height {z_fit * 1e9:.3g} nm outside thesis eq. 84's "
+                                      f"bracket {(lo + Z1_TOL) * 1e9:.3g} .. {(hi - Z1_TOL) * 1e9:.3g} nm")  # fmt: skip
     for q, e in res.estimates.items():
         if e.value is not None and e.sigma is not None and not (e.sigma <= REL_LIMIT):
             if e.identifiable is not False:
-                _flag(res, [q], f"relative 1-sigma {e.sigma:.3g} > {REL_LIMIT:g}")
+                _flag(res, [q], f"relative 1-sigma {e.sigma:.3g} > {REL_LIMIT:g}: not determined by the record")
     if res.method in ("vetica", "vetica-prestress"):  # stage 2 and the elements are computed from tau_c and Kg
         for stage in ("tau_c", "k_g"):
             e = res.estimates.get(stage)
             if e is not None and e.value is not None and e.identifiable is False and not str(e.reason).startswith(
                     DISAGREEMENT):  # fmt: skip
-                _flag(res, [q for q in STAGE2 if q in res.estimates],
-                      f"computed from {stage}, which the record does not determine ({e.reason})")
+                _flag(res, [q for q in STAGE2 if q in res.estimates], f"computed from {stage}, which is flagged")
+    info["flags"] = res.info.pop("sanity_flags", {})
     res.info = {**res.info, "sanity": info}
     return res

@@ -96,12 +96,13 @@ def stage1a_tau_c(t: np.ndarray, z: np.ndarray, taps: Taps, z1: float) -> np.nda
     return np.array(out)
 
 
-def stage1b_kg(z: np.ndarray, f: np.ndarray, taps: Taps, points: int = 10, window: str = "noise") -> np.ndarray:
+def stage1b_kg(z: np.ndarray, f: np.ndarray, taps: Taps, points: int = 10, window: str = "noise",
+               details: bool = False):  # fmt: skip
     """Glassy stiffness of each tap: ``-dF/dz_tip`` fitted over ``points``
     samples after the contact minimum (thesis 4.3.2, eq. 86) [N/m], over a window grown
     from the record's noise where the thesis's is too short for it (``window``,
-    :func:`vetica_cli.signals.taps.contact_slopes`)."""
-    return contact_slopes(z, f, taps, points, window)
+    :func:`vetica_cli.signals.taps.contact_slopes`; ``details``: with the windows)."""
+    return contact_slopes(z, f, taps, points, window, details)
 
 
 # ----------------------------------------------------------------------------- stage 2

@@ -133,6 +133,7 @@ class ClosedTap:
     kg_points: int
     fc: float
     zc: float
+    window: tuple | None = None  # stage 1b's grown window (first sample from the contact, samples, reading point, slope)
 
     def stage2(self, mode: str, z1: float, kg: float, tau_c: float, kr0: float, s0: float, warm: bool = False):
         """``(Kr, sigma0, residual RMS [N])`` as :func:`stage2_tap`, compiled; None when the
@@ -151,6 +152,18 @@ class ClosedTap:
         """:func:`stage1b_tap` on the samples (the superposition by the same recursion)."""
         from ..core.superposition import superpose
 
+        if self.window is not None:  # the noisy record's grown window: the model's correction read the same way
+            start, n, at, measured = self.window
+            m = min(start + n, len(self.z))
+            delta = self.zc - self.z[:m]
+            y, dy = np.empty(m), np.empty(m)
+            superpose(delta, float(self.u[1] - self.u[0]), tau_r, y, dy)
+            corr = relaxation(self.u[start:m], sigma0, tau_r) + (kg - kr) * (y[start:m] - delta[start:m])
+            from ..signals.slopes import _quad_slope
+
+            bc, _ = _quad_slope(corr, at)
+            bz, _ = _quad_slope(self.z[start:m], at)
+            return measured + bc / bz if bz != 0 else math.nan
         m = self.kg_points + 1
         delta = self.zc - self.z[:m]
         y, dy = np.empty(m), np.empty(m)
@@ -305,7 +318,7 @@ def vetica_prestress(t, z, f, z1: float, kg_points: int = 10, kr_guess: float | 
             f"too few taps: {n_taps} complete tap(s) in the record ({taps.incomplete} cut by its ends), need at least 2"
         )
     tau_c_i = stage1a_tau_c(t, z, taps, z1)
-    kg_thesis_i = stage1b_kg(z, f, taps, kg_points, kg_window)
+    kg_thesis_i, windows = stage1b_kg(z, f, taps, kg_points, kg_window, details=True)
     tau_c, kg0 = _mean(tau_c_i), _mean(kg_thesis_i)
     problem = None
     if not math.isfinite(tau_c):
@@ -322,6 +335,11 @@ def vetica_prestress(t, z, f, z1: float, kg_points: int = 10, kr_guess: float | 
                                diagnostics={"prestress": prestress}, warnings=[problem])  # fmt: skip
     t1 = time.perf_counter()
     fits = closed_taps(t, z, f, taps, kg_points) if stage2 == "closed" else []
+    if windows is not None and not all(windows["thesis"]):  # stage 1b read over windows grown from the noise
+        for j, tf in enumerate(fits):
+            if tf is not None and not windows["thesis"][j] and windows["window"][j] > 0:
+                start = max(1, int(windows["start"][j]) - int(taps.contact[j]))
+                tf.window = (start, int(windows["window"][j]), float(windows["at"][j]), float(kg_thesis_i[j]))
     if not any(tf is not None for tf in fits):
         fits = tap_fits(t, z, f, taps, kg_points)
     if all(tf is None for tf in fits):

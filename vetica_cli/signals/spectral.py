@@ -70,6 +70,7 @@ class Reconstruction:
     cutoff_hz: float  # [Hz] low-pass cut-off fc actually used
     taper: float  # raised-cosine taper width as a fraction of fc
     end_jumps: np.ndarray  # [m, m/s, m/s^2, ...] derivative jumps corrected (0 = below the noise)
+    noise: object = None  # the noise measured and the cut-off chosen (signals.noise.CutoffChoice) with cutoff 'auto'
 
 
 def paddle_inverse_transfer(omega: np.ndarray, k2: float, f2: float, q2: float) -> np.ndarray:
@@ -235,15 +236,18 @@ def reconstruct_force(
     k2: float,
     f2: float,
     q2: float,
-    cutoff_hz: float | None = None,
+    cutoff_hz: float | str | None = None,
     taper: float = 0.0,
     order: int = 2,
+    drive_hz: float | None = None,
 ) -> Reconstruction:
     """Tip-sample force from the paddle deflection (thesis eqs. 17-20).
 
     Parameters: ``t`` [s] uniformly spaced, ``z_paddle`` [m], paddle
     stiffness ``k2`` [N/m], resonance ``f2`` [Hz], quality factor ``q2``;
-    ``cutoff_hz`` the low-pass cut-off fc (None = Nyquist, 1/(2 h));
+    ``cutoff_hz`` the low-pass cut-off fc (None = Nyquist, 1/(2 h); 'auto' = where the
+    inverted noise meets the signal's harmonics, :mod:`vetica_cli.signals.noise`, on the comb
+    of the drive frequency ``drive_hz`` -- Nyquist when it cannot be read);
     ``taper`` the raised-cosine roll-off width as a fraction of fc (0 = brick
     wall); ``order`` the highest derivative made continuous across the
     window's wrap by the Bernoulli end correction (module docstring).
@@ -263,7 +267,10 @@ def reconstruct_force(
     if not 0.0 <= taper < 1.0:
         raise InputError(f"taper {taper} not allowed; expected a fraction in [0, 1)")
     nyquist = 0.5 / h
-    fc = nyquist if cutoff_hz is None else float(cutoff_hz)
+    auto = isinstance(cutoff_hz, str)
+    if auto and cutoff_hz != "auto":
+        raise InputError(f"cut-off {cutoff_hz!r} not allowed; expected a frequency > 0 Hz or 'auto'")
+    fc = nyquist if cutoff_hz is None or auto else float(cutoff_hz)
     if not fc > 0:
         raise InputError(f"cut-off {cutoff_hz} Hz not allowed; expected > 0")
     w2 = 2.0 * math.pi * f2
@@ -280,6 +287,14 @@ def reconstruct_force(
 
     spec = np.fft.rfft(zp - b)
     freq, gain = _paddle_gain(n, h, k2, f2, q2)
+    choice = None
+    if auto:  # the low-pass chosen from the record's own noise (signals.noise)
+        from .noise import measure
+
+        inverted = spec * gain
+        choice = measure(None, h, drive_hz, spectrum=inverted, n=n)
+        if choice is not None:
+            fc = choice.cutoff_hz
     if taper > 0:
         f_pass = fc * (1.0 - taper)
         roll = np.clip((freq - f_pass) / (fc - f_pass), 0.0, 1.0)
@@ -287,7 +302,7 @@ def reconstruct_force(
     elif fc < nyquist:
         gain = gain * (freq <= fc)
     f = np.fft.irfft(spec * gain, n) + (m2 * b2 + c2 * b1 + k2 * b)
-    return Reconstruction(f=f, cutoff_hz=min(fc, nyquist), taper=taper, end_jumps=jumps)
+    return Reconstruction(f=f, cutoff_hz=min(fc, nyquist), taper=taper, end_jumps=jumps, noise=choice)
 
 
 def reconstruction_error(f_rec: np.ndarray, f_true: np.ndarray) -> dict:

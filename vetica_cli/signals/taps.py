@@ -126,7 +126,7 @@ def _repulsive(f: np.ndarray, where: str) -> np.ndarray:
     return f > 0.5 * fmax
 
 
-def first_contact_minimum(f: np.ndarray) -> int:
+def first_contact_minimum(f: np.ndarray, noise: float = 0.0) -> int:
     """Index of the force minimum at the first contact of an approach record.
 
     Z1 is the tip position at the very first adhesion well (thesis 3.3.1,
@@ -134,10 +134,17 @@ def first_contact_minimum(f: np.ndarray) -> int:
     the first run of samples within 10 % of the deepest attraction is the first
     well (a first contact can be a graze that never turns repulsive, and then
     the next tap's well is as deep); its smallest sample is the minimum.
-    Raises InputError when no contact is found.
+    ``noise``: the force's noise RMS [N]; a tap counts only where the force stands more than
+    :data:`SNR_CONTACT` noise RMS above zero (and above half the peak).
+    Raises InputError when no contact is found, or none stands above the noise.
     """
     f = np.asarray(f, dtype=float)
-    first = int(np.argmax(_repulsive(f, "the approach segment")))
+    fmax = float(np.max(f)) if len(f) else 0.0
+    if noise > 0 and not fmax > SNR_CONTACT * noise:
+        raise InputError(f"no contact of the approach stands above its force noise ({fmax:.3g} N peak, "
+                         f"{noise:.3g} N RMS noise): cannot measure Z1")  # fmt: skip
+    above = _repulsive(f, "the approach segment") & (f > SNR_CONTACT * noise)
+    first = int(np.argmax(above))
     if first == 0:
         raise InputError("the approach segment starts in contact: cannot measure Z1")
     before = f[:first]
@@ -147,16 +154,21 @@ def first_contact_minimum(f: np.ndarray) -> int:
     return start + int(np.argmin(before[start:stop]))
 
 
+SNR_CONTACT = 5.0  # a first contact counts where its force stands this many noise RMS above zero
 KG_WINDOWS = ("noise", "thesis")  # stage 1b's window: chosen from the record's noise, or the thesis's
 
 
-def contact_slopes(z: np.ndarray, f: np.ndarray, taps: Taps, points: int = 10, window: str = "noise") -> np.ndarray:
+def contact_slopes(z: np.ndarray, f: np.ndarray, taps: Taps, points: int = 10, window: str = "noise",
+                   details: bool = False):  # fmt: skip
     """Initial contact slope of each tap, ``-dF/dz_tip`` [N/m] (thesis 4.3.2, eq. 86: VETICA's
     stage 1b, the glassy stiffness Kg).  ``window='thesis'``: a straight-line fit of the
     force against the tip position over the ``points`` samples after the contact minimum;
     ``'noise'`` (default): the same wherever the record's noise allows it, a window grown
     from the noise otherwise (:mod:`vetica_cli.signals.slopes`).  nan for a tap whose
-    contact is shorter than ``points`` samples."""
+    contact is shorter than ``points`` samples.  ``details``: ``(slopes, the windows' bookkeeping
+    or None for the thesis's)``."""
     if window == "noise":
-        return noise_aware_slopes(z, f, taps.contact, taps.separation, points)[0]
-    return contact_slopes_thesis(z, f, taps.contact, taps.separation, points)
+        slopes, info = noise_aware_slopes(z, f, taps.contact, taps.separation, points)
+        return (slopes, info) if details else slopes
+    slopes = contact_slopes_thesis(z, f, taps.contact, taps.separation, points)
+    return (slopes, None) if details else slopes

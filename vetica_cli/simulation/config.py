@@ -124,6 +124,8 @@ class Numerics:
     detector_bandwidth: float = 0.0  # one-pole low-pass of the position detector [Hz]; 0 = infinite
     adc_resolution: float = 0.0  # quantisation step of the recorded deflections [m]; 0 = none
     temperature: float = 0.0  # thermal (Brownian) noise of the probe modes in the recorded periods [K]; 0 = none
+    detector_noise_density: float = 0.0  # white displacement noise of the detector, before its bandwidth [m/sqrt(Hz)]
+    instrument: str = "thesis"  # preset of the keys above (INSTRUMENTS): thesis = noise-free; lab = a room-temperature set-up
 
 
 @dataclass(frozen=True)
@@ -144,6 +146,12 @@ class Config:
     def with_overrides(self, overrides: dict[str, Any]) -> "Config":
         """New config with dotted-key overrides applied and validated."""
         d = self.to_dict()
+        new = overrides.get("numerics.instrument")
+        if new is not None and new != self.numerics.instrument and new in INSTRUMENTS:
+            old = INSTRUMENTS.get(self.numerics.instrument, {})
+            for k, v in INSTRUMENTS[new].items():  # a key still at the old preset's value follows the new preset
+                if f"numerics.{k}" not in overrides and d["numerics"].get(k) == old.get(k):
+                    d["numerics"][k] = v
         for key, value in overrides.items():
             _set_dotted(d, key, value)
         return from_dict(d)
@@ -188,6 +196,7 @@ RULES = {
     "numerics.record_cycles": (lambda v: 1 <= v <= MAX_CYCLES, f"an integer in 1..{MAX_CYCLES}"),
     "numerics.steady": one_of("orbit", "transient"),
     "numerics.integrator": one_of("hybrid", "verlet"),
+    "numerics.instrument": one_of("thesis", "lab"),
     "numerics.switch_gap": (_positive, "a distance > 0 m"),
     "numerics.tol_orbit": (_positive, "a distance > 0 m"),
     "numerics.orbit_max_periods": (lambda v: 10 <= v <= MAX_ORBIT_PERIODS, f"an integer in 10..{MAX_ORBIT_PERIODS}"),
@@ -206,7 +215,45 @@ RULES = {
     "numerics.detector_bandwidth": (_nonneg, "a bandwidth >= 0 Hz (0 = infinite)"),
     "numerics.adc_resolution": (_nonneg, "a quantisation step >= 0 m (0 = none)"),
     "numerics.temperature": (lambda v: 0 <= v <= 2000, "a temperature in [0, 2000] K (0 = no thermal noise)"),
+    "numerics.detector_noise_density": (lambda v: 0 <= v <= 1e-11, "a noise density in [0, 1e-11] m/sqrt(Hz) "
+                                        "(good detectors 1e-14 .. 1e-13; 0 = none)"),
 }
+
+
+# Instrument presets (``numerics.instrument``): the recording chain as a named set of numerics keys.  A preset
+# fills the keys a config leaves unset (a key set explicitly wins); ``thesis`` is the default, noise-free record.
+INSTRUMENTS = {
+    # the thesis's own records: noise-free, sampled every 0.125 ns (thesis table 1, sections 4.3-4.5)
+    "thesis": {"temperature": 0.0, "detector_noise_density": 0.0, "detector_bandwidth": 0.0,
+               "adc_resolution": 0.0, "print_step": 0.125e-9, "position_noise": 0.0, "force_noise": 0.0},
+    # a room-temperature THC set-up (sources in INSTRUMENT_SOURCES and docs/noise.md)
+    "lab": {"temperature": 300.0, "detector_noise_density": 50e-15, "detector_bandwidth": 5e6,
+            "adc_resolution": 0.3e-12, "print_step": 2e-9, "position_noise": 0.0, "force_noise": 0.0},
+}  # fmt: skip
+INSTRUMENT_SOURCES = {
+    "lab": {
+        "temperature": "room temperature, 300 K: Brownian force of each probe mode by fluctuation-dissipation "
+                       "(SPEC 15; 2.4 pm RMS on the 700 N/m paddle)",
+        "detector_noise_density": "50 fm/sqrt(Hz): within the 10-100 fm/sqrt(Hz) of good optical-beam-deflection "
+                                  "detectors (SPEC 17); 17 fm/sqrt(Hz) is the best reported (Fukuma et al., Rev. Sci. "
+                                  "Instrum. 76, 053704, 2005)",
+        "detector_bandwidth": "5 MHz: 'a few MHz on fast set-ups' (SPEC 17), 100 drive harmonics at 50 kHz",
+        "print_step": "2 ns: a 500 MS/s digitiser, Nyquist 250 MHz, far above the detector band (the thesis samples "
+                      "0.125-8 ns, table 1)",
+        "adc_resolution": "0.3 pm: a 16-bit ADC over a +-10 nm range of the deflection channel (20 nm / 65536); the "
+                          "cantilever's and paddle's thermal motion (20 and 2.4 pm RMS) dither it",
+    },
+    "thesis": {"print_step": "0.125 ns, noise-free: the thesis's records (thesis table 1)"},
+}  # fmt: skip
+
+
+def apply_instrument_preset(numerics: dict) -> dict:
+    """The numerics section with its ``instrument`` preset filling every preset key it does not set
+    (a new dict; ConfigError for an unknown preset)."""
+    name = numerics.get("instrument", "thesis")
+    if name not in INSTRUMENTS:
+        raise ConfigError(f"numerics.instrument: {name!r} is not allowed; expected one of: {', '.join(INSTRUMENTS)}")
+    return {**INSTRUMENTS[name], **numerics}
 
 
 def section_names(sec: str) -> list[str]:
@@ -251,6 +298,8 @@ def from_dict(d: dict | None) -> Config:
         raw = {} if raw is None else raw  # an empty section; 0, '' or [] are not sections
         if not isinstance(raw, dict):
             raise ConfigError(f"section {sec!r} must be a mapping, got {raw!r}")
+        if sec == "numerics" and "instrument" in raw:
+            raw = apply_instrument_preset(raw)
         built[sec] = _surface(raw) if sec == "surface" else _section(sec, cls, raw)
     cfg = Config(**built)
     _check_cross(cfg)

@@ -17,7 +17,8 @@ from ..core import tapping
 from .config import Config, from_dict
 
 # numerics keys that act after the kernel
-INSTRUMENT_KEYS = ("position_noise", "force_noise", "noise_seed", "detector_bandwidth", "adc_resolution")
+INSTRUMENT_KEYS = ("position_noise", "force_noise", "noise_seed", "detector_bandwidth", "adc_resolution",
+                   "detector_noise_density")
 
 
 def noise_free(cfg: Config) -> Config:
@@ -52,22 +53,29 @@ def _lowpass(x: np.ndarray, fc: float, ts: float, periodic: bool) -> np.ndarray:
 
 
 def apply_instrument(run, cfg: Config) -> None:
-    """Detector realism on the recorded signals: a finite position-detector
-    bandwidth, then white Gaussian noise of the given RMS on the deflections
+    """Detector realism on the recorded signals: the detector's white noise of density
+    ``numerics.detector_noise_density`` [m/sqrt(Hz)] and a finite position-detector
+    bandwidth (the noise passes through it, as a photodetector's does), then white Gaussian noise of the given RMS on the deflections
     (z_tip is rebuilt as z_base + z_cantilever + z_paddle) and on f_ts, then the
     deflections quantised to the ADC step ``numerics.adc_resolution`` (round to the
     nearest level).
     x_surface and x_dashpot are the simulator's truth and stay noise-free.
     Seeded: the same config gives the same noise."""
     n = cfg.numerics
-    if not (n.position_noise or n.force_noise or n.detector_bandwidth or n.adc_resolution):
+    if not (n.position_noise or n.force_noise or n.detector_bandwidth or n.adc_resolution or n.detector_noise_density):
         return
     rng = np.random.default_rng(n.noise_seed)
     ic, ip, it, ib, iff = (tapping.COLUMNS.index(c) for c in ("z_cantilever", "z_paddle", "z_tip", "z_base", "f_ts"))
-    for arr, periodic in ((run.approach, False), (run.steady, True)):
+    # the detector's own white noise enters before its bandwidth: one-sided density d over the sampled
+    # band 1/(2 print_step) is a per-sample RMS of d / sqrt(2 print_step)
+    density_rms = n.detector_noise_density / math.sqrt(2.0 * n.print_step)
+    dens_rng = np.random.default_rng([n.noise_seed, 17]) if density_rms else None  # its own stream: the other
+    for arr, periodic in ((run.approach, False), (run.steady, True)):  # noises draw as before
         if not len(arr):
             continue
         for i in (ic, ip):
+            if density_rms:
+                arr[:, i] += dens_rng.normal(0.0, density_rms, len(arr))
             if n.detector_bandwidth:
                 arr[:, i] = _lowpass(arr[:, i], n.detector_bandwidth, n.print_step, periodic)
             if n.position_noise:

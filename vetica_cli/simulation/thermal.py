@@ -105,6 +105,26 @@ def free_motion(rng, m, k, q, temperature, h, n) -> np.ndarray:
     return kernel.linear_flow(phi, w, x0)
 
 
+def forced_motion(m: float, k: float, q: float, h: float, u: np.ndarray) -> np.ndarray:
+    """A mode's displacement [m] on ``n`` samples ``h`` apart when a force ``u`` [N] (samples)
+    drives it from rest: the exact flow of ``m x'' + c x' + k x = u`` over each interval with
+    the force held at the interval's mean of its end samples (``x_(j+1) = phi x_j + Gamma
+    (u_j + u_(j+1))/2``, ``Gamma = A^-1 (phi - I) (0, 1/m)``)."""
+    from scipy.linalg import expm
+
+    u = np.asarray(u, float)
+    n = len(u)
+    if n < 2:
+        return np.zeros(n)
+    c = math.sqrt(k * m) / q
+    a = np.array([[0.0, 1.0], [-k / m, -c / m]])
+    phi = expm(a * h)
+    gamma = np.linalg.solve(a, (phi - np.eye(2)) @ np.array([0.0, 1.0 / m]))
+    um = 0.5 * (u[:-1] + u[1:])
+    x = kernel.linear_flow(phi, um[:, None] * gamma[None, :], np.zeros(2))
+    return np.concatenate(([0.0], x))
+
+
 def modes(cfg, d):
     """``[(m, k, Q), ...]`` of the cantilever and the paddle."""
     p = cfg.probe
@@ -161,6 +181,9 @@ def approach_response(z_noisy, z_clean, st, d) -> np.ndarray:
     return out[0] - out[1]
 
 
+APPROACH_PASSES = 2  # reaction-then-force passes of the approach window (the change of z_tip after 2: < 1e-3 pm)
+
+
 def add_thermal(run, kern, s0, cfg, d) -> None:
     """Replace ``run.steady`` by the noisy recorded periods and add the free probe's thermal
     motion to the first-approach window (module docstring).  Nothing at T = 0."""
@@ -174,10 +197,18 @@ def add_thermal(run, kern, s0, cfg, d) -> None:
         names = ("z_cantilever", "z_paddle", "z_tip", "z_base", "f_ts")
         ic, ip, it, ib, iff = (tapping.COLUMNS.index(c) for c in names)
         z_clean = ap[:, it].copy()
-        for col, (m, k, q) in zip((ic, ip), modes(cfg, d)):
-            ap[:, col] += free_motion(rng, m, k, q, temp, d.print_step, len(ap))
+        h = d.print_step
+        free = [free_motion(rng, m, k, q, temp, h, len(ap)) for (m, k, q) in modes(cfg, d)]
+        z_free = z_clean + free[0] + free[1]
+        df = approach_response(z_free, z_clean, kern.setup, d)
+        for _ in range(APPROACH_PASSES):  # the probe's own reaction to the changed force, then the force again
+            react = [forced_motion(m, k, q, h, df) for (m, k, q) in modes(cfg, d)]
+            df = approach_response(z_free + react[0] + react[1], z_clean, kern.setup, d)
+        react = [forced_motion(m, k, q, h, df) for (m, k, q) in modes(cfg, d)]
+        for col, th, re in zip((ic, ip), free, react):
+            ap[:, col] += th + re
         ap[:, it] = ap[:, ib] + ap[:, ic] + ap[:, ip]
-        ap[:, iff] += approach_response(ap[:, it], z_clean, kern.setup, d)
+        ap[:, iff] += df
     (m1, k1, q1), (m2, k2, q2) = modes(cfg, d)
     run.info["thermal"] = {
         "temperature_K": temp,

@@ -1,0 +1,210 @@
+"""Can a user trust vetica's numbers on a record like an instrument's?  The coverage check of the
+error bars and flags on materials and noise seeds this script draws itself (issue 27).
+
+For ``--materials`` SLS surfaces drawn at random (``--draw-seed``; k_inf log-uniform in 1-10 N/m,
+k0:k_inf 4-64, cd log-uniform over 1e-5 .. 1e-3 kg/s, the thesis's probe) and each record
+condition:
+
+* ``thermal`` -- the record ``vetica simulate --set numerics.temperature=300`` makes (approach
+  segment, metadata, the force reconstructed from the paddle), at ``--print-step``;
+* ``lab`` -- ``numerics.instrument: lab`` (300 K, detector noise and bandwidth, ADC, 2 ns);
+* ``stripped`` -- the 300 K record stripped to ``t, z_tip, f_ts`` (true force, nine periods from a
+  third of a period in, no approach, no metadata; what a user knows passed: a0 and the pull),
+  with white detector noise of 1 pm on z_tip and 0.1 nN on f_ts;
+
+the noise-free orbit is solved once and ``--replicas`` noisy recordings made from it
+(``simulate.replicas``, noise seeds drawn from ``--draw-seed``), and every method extracts each.
+The reference of a replica is the method's answer on the same condition's noise-free record made
+by the same recording path (thermal kernel at 1e-9 K; for ``stripped`` without the white noise):
+what the error bar is a claim about.  Per condition, method and quantity:
+
+* ``coverage``: the fraction of unflagged results with a finite sigma whose reference lies within
+  +-2 sigma (the claim: 0.90-0.98 for a 2-sigma interval of ~30 replicas);
+* ``width``: median sigma over the replicas' RMS deviation from the reference (1 = calibrated);
+* ``flagged``: the fraction flagged (``unidentified``) or refused;
+* ``flagged_right``: of the results within 10 % of the truth, the fraction flagged (the claim: <= 0.10);
+* ``silently_wrong``: unflagged results off the truth by more than 10 % and more than 3 sigma (the
+  claim: 0).
+
+    PYTHONPATH=. python scripts/trust.py --materials 6 --replicas 30 --draw-seed 2 --out trust.parquet
+
+The materials and seeds of a draw are not used by any test or other script; development used
+``--draw-seed 1``; the committed table (results/noise/trust.md) is ``--draw-seed 2``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import time
+
+import numpy as np
+import pandas as pd
+
+from vetica_cli.extraction import extract_many
+from vetica_cli.simulation.config import load
+from vetica_cli.simulation.simulate import replicas
+from vetica_cli.surfaces.sls import SLS
+
+METHODS = ("vetica", "vetica-prestress", "full", "dmt-fit", "observables")
+CONDITIONS = ("thermal", "lab", "stripped")
+A0 = 0.2e-9
+STRIPPED_NOISE = (1e-12, 1e-10)  # white detector noise of a stripped record: z_tip [m], f_ts [N]
+
+
+def draw_materials(n: int, seed: int) -> list[dict]:
+    """``n`` SLS surfaces (module docstring) from the draw seed."""
+    rng = np.random.default_rng([seed, 27])
+    out = []
+    for _ in range(n):
+        k_inf = float(10 ** rng.uniform(0.0, 1.0))
+        ratio = float(2 ** rng.uniform(2.0, 6.0))
+        cd = float(10 ** rng.uniform(-5.0, -3.0))
+        out.append({"k_inf": round(k_inf, 4), "k0": round(ratio * k_inf, 4), "cd": float(f"{cd:.4g}")})
+    return out
+
+
+def condition_overrides(condition: str, print_step: float, cycles: int) -> dict:
+    base = {"numerics.record_cycles": cycles}
+    if condition == "lab":
+        return {**base, "numerics.instrument": "lab"}
+    return {**base, "numerics.temperature": 300.0, "numerics.print_step": print_step}
+
+
+def stripped(run, periods: int = 9, start_fraction: float = 1 / 3) -> pd.DataFrame:
+    """``periods`` periods of the steady record from ``start_fraction`` of a period in, as ``t, z_tip, f_ts``."""
+    f1 = run.params["probe"]["f1"]
+    df = run.frame()
+    df = df[df["segment"] == "steady"]
+    t = df["t"].to_numpy()
+    t0 = t[0] + start_fraction / f1
+    keep = (t >= t0) & (t < t0 + periods / f1)
+    return df.loc[keep, ["t", "z_tip", "f_ts"]].reset_index(drop=True)
+
+
+def answers(run, condition: str, rng=None) -> dict:
+    """``{method: ExtractionResult or the refusal's text}`` on one run under ``condition``."""
+    out = {}
+    if condition == "stripped":
+        df = stripped(run)
+        if rng is not None:
+            df["z_tip"] += rng.normal(0.0, STRIPPED_NOISE[0], len(df))
+            df["f_ts"] += rng.normal(0.0, STRIPPED_NOISE[1], len(df))
+        args = (df, None, "true")
+        kw = {"a0": A0, "vdw_on_surface": True}
+    else:
+        args = (run.frame(), run.metadata(), "reconstructed")
+        kw = {}
+    for m in METHODS:
+        if condition == "stripped" and m == "observables":
+            continue  # amplitude and phase need the drive: not in a stripped record
+        try:
+            out[m] = extract_many(*args, {m: {}}, **kw)[m]
+        except Exception as exc:  # noqa: BLE001 - a refused record is a row, as in a sweep
+            out[m] = str(exc).splitlines()[0][:200]
+    return out
+
+
+def material_rows(material: dict, index: int, condition: str, replicas_n: int, draw_seed: int,
+                  print_step: float, cycles: int) -> list[dict]:  # fmt: skip
+    """Rows of one material under one condition: every replica, method and quantity."""
+    t0 = time.perf_counter()
+    ov = {**condition_overrides(condition, print_step, cycles), **{f"surface.{k}": v for k, v in material.items()}}
+    truth = SLS().theory(material)
+    faint = replicas(load(None, {**ov, "numerics.temperature": 1e-9, "numerics.detector_noise_density": 0.0,
+                                 "numerics.adc_resolution": 0.0}), [0])[0]  # fmt: skip
+    ref = answers(faint, condition)
+    seeds = np.random.default_rng([draw_seed, index, CONDITIONS.index(condition)]).integers(1, 2**31, replicas_n)
+    runs = replicas(load(None, ov), [int(s) for s in seeds])
+    rows = []
+    for r, (seed, run) in enumerate(zip(seeds, runs)):
+        rng = np.random.default_rng([int(seed), 5])
+        got = answers(run, condition, rng)
+        for m, res in got.items():
+            refm = ref.get(m)
+            for q in _quantities(res, refm):
+                e = res.estimates.get(q) if not isinstance(res, str) else None
+                re_ = refm.estimates.get(q) if refm is not None and not isinstance(refm, str) else None
+                v = e.value if e is not None else None
+                sig = e.sigma if e is not None and e.sigma is not None else math.nan
+                th = truth.get(q) if q in truth else (e.theory if e is not None else None)
+                rows.append({
+                    "condition": condition, "material": index, **material, "replica": r, "seed": int(seed),
+                    "method": m, "quantity": q, "value": _nan(v), "reference": _nan(re_.value if re_ else None),
+                    "truth": _nan(th), "sigma_rel": sig if math.isfinite(sig) else math.nan,
+                    "flagged": isinstance(res, str) or e is None or v is None or e.identifiable is False,
+                    "reason": res if isinstance(res, str) else (e.reason or "") if e is not None else "",
+                    "cutoff_hz": (res.info.get("cutoff_hz") if not isinstance(res, str) else math.nan) or math.nan,
+                })  # fmt: skip
+    print(f"  {condition} material {index} {material}: {time.perf_counter() - t0:.1f} s", flush=True)
+    return rows
+
+
+def _quantities(res, ref) -> list[str]:
+    for r in (res, ref):
+        if r is not None and not isinstance(r, str):
+            return [q for q, e in r.estimates.items() if e.unit != "" or q in ("tan_delta_am",)]
+    return []
+
+
+def _nan(v):
+    return math.nan if v is None else float(v)
+
+
+def summary(table: pd.DataFrame) -> pd.DataFrame:
+    """Per condition, method and quantity: the module docstring's measures."""
+    t = table.copy()
+    ok = ~t["flagged"] & t["value"].notna()
+    dev = (t["value"] - t["reference"]) / t["reference"].abs()
+    t["covered"] = (dev.abs() <= 2.0 * t["sigma_rel"]) & t["sigma_rel"].notna()
+    t["countable"] = ok & t["sigma_rel"].notna() & t["reference"].notna()
+    err = (t["value"] - t["truth"]) / t["truth"].abs()
+    t["within10"] = (err.abs() <= 0.10) & t["value"].notna()
+    t["wrong"] = ok & (err.abs() > 0.10) & (err.abs() > 3.0 * t["sigma_rel"].fillna(np.inf))
+    t["dev"] = dev
+    rows = []
+    for (c, m, q), g in t.groupby(["condition", "method", "quantity"], sort=False):
+        cnt = g[g["countable"]]
+        rms = float(np.sqrt(np.nanmean(cnt["dev"] ** 2))) if len(cnt) else math.nan
+        w10 = g[g["within10"]]
+        rows.append({
+            "condition": c, "method": m, "quantity": q, "results": len(g), "countable": len(cnt),
+            "coverage": float(cnt["covered"].mean()) if len(cnt) else math.nan,
+            "width": float(np.nanmedian(cnt["sigma_rel"])) / rms if len(cnt) and rms > 0 else math.nan,
+            "flagged": float(g["flagged"].mean()),
+            "flagged_right": float(w10["flagged"].mean()) if len(w10) else math.nan,
+            "silently_wrong": int(g["wrong"].sum()),
+            "median_err_pct": float(100 * np.nanmedian(np.abs(err[g.index]))),
+        })  # fmt: skip
+    return pd.DataFrame(rows)
+
+
+def main(argv=None):
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--materials", type=int, default=6)
+    ap.add_argument("--replicas", type=int, default=30)
+    ap.add_argument("--draw-seed", type=int, default=2)
+    ap.add_argument("--conditions", nargs="*", default=list(CONDITIONS), choices=CONDITIONS)
+    ap.add_argument("--print-step", type=float, default=0.5e-9, help="thermal and stripped conditions [s]")
+    ap.add_argument("--cycles", type=int, default=10, help="recorded periods")
+    ap.add_argument("--jobs", type=int, default=2)
+    ap.add_argument("--out", default="trust.parquet")
+    args = ap.parse_args(argv)
+    from joblib import Parallel, delayed
+
+    mats = draw_materials(args.materials, args.draw_seed)
+    tasks = [(mat, i, c) for c in args.conditions for i, mat in enumerate(mats)]
+    t0 = time.perf_counter()
+    parts = Parallel(n_jobs=args.jobs)(delayed(material_rows)(mat, i, c, args.replicas, args.draw_seed,
+                                                              args.print_step, args.cycles) for mat, i, c in tasks)  # fmt: skip
+    table = pd.DataFrame([r for p in parts for r in p])
+    table.to_parquet(args.out)
+    s = summary(table)
+    with pd.option_context("display.width", 220, "display.max_columns", 20, "display.max_rows", 500):
+        print(s.to_string(index=False, float_format=lambda v: f"{v:.3g}"))
+    print(f"{len(table)} rows, {time.perf_counter() - t0:.0f} s; wrote {args.out}")
+    return table
+
+
+if __name__ == "__main__":
+    main()

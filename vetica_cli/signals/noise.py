@@ -1,0 +1,262 @@
+"""The noise a record carries, measured from the record itself, and the low-pass of the
+force reconstruction chosen from it (SPEC §17).
+
+A steady tapping record repeats with the drive: its signal lives at the drive's harmonics
+``k f1`` and nowhere else, so in the spectrum of ``P`` whole drive periods the signal sits in
+every ``P``-th bin and **the bins between the harmonics hold only noise** (the cantilever's
+thermal motion, the paddle's Brownian force, detector noise, the ADC's rounding).  That gives
+both numbers an extraction needs, with no model of the instrument:
+
+* **the noise spectrum**: in bands of harmonics (an eighth of a decade wide, at least
+  :data:`MIN_NOISE_BINS` noise bins each), the mean power of the inter-harmonic bins
+  (their median over ``ln 2``: the power of a bin of Gaussian noise is exponential, so the
+  median is robust against the leakage of a strong harmonic);
+* **the signal spectrum**: in the same bands, the mean power of the harmonic bins minus the
+  noise.
+
+**The cut-off rule** (what :func:`choose_cutoff` does): the reconstruction keeps the
+harmonics that stand above the noise.  Walking up the bands, the cut-off is the upper edge of
+the last band whose harmonics carry more power than the noise beside them (signal-to-noise
+per bin >= 1, the Wiener filter's own cross-over) before the first run of
+:data:`DROP_RUN` bands where they carry less.  The inverted paddle noise grows as
+``(f/f2)^2`` above the paddle's resonance while a tap's harmonics fall as ``1/f^2`` (its kinks
+at contact and separation), so the two meet once; a noise-free simulated record never
+meets it and keeps the whole band to the Nyquist frequency (as before this rule).
+
+**The noise floor** of the force analysed: the noise power of the bands below the cut-off,
+summed (Parseval) -- the RMS of the noise on the samples, whatever its colour -- and its
+*white equivalent*: the per-sample white noise with the same power per hertz, spread over the
+whole sampled band (``rms * sqrt(f_nyquist / fc)``).  A least-squares fit over many
+correlation lengths (a slope, a quadratic) sees band-limited noise as that white noise; the
+second-difference floor (:func:`vetica_cli.signals.slopes.white_noise_floor`) sees only the
+noise near the Nyquist frequency and reads a low-passed force as noise-free (2.8e-14 N on a
+300 K record whose force noise is ~1 nN).
+
+:func:`declare` attaches the measured floors to the arrays analysed, so every later reader of
+:func:`vetica_cli.signals.slopes.noise_floor` gets the record's measured noise.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+BANDS_PER_DECADE = 8  # width of a band of harmonics: an eighth of a decade
+MIN_NOISE_BINS = 12  # a band holds at least this many inter-harmonic bins (merged with the next otherwise)
+DROP_RUN = 3  # bands in a row with the harmonics below the noise end the pass band
+MIN_PERIODS = 2.0  # fewer drive periods: no harmonic comb to read the noise between
+
+
+@dataclass(frozen=True)
+class NoiseSpectrum:
+    """Signal and noise of a record's spectrum in bands of drive harmonics."""
+
+    f_lo: np.ndarray  # [Hz] band lower edges
+    f_hi: np.ndarray  # [Hz] band upper edges
+    noise: np.ndarray  # [unit^2/Hz] one-sided noise PSD of each band (inter-harmonic bins)
+    signal: np.ndarray  # [unit^2/Hz] harmonic power per bin above the noise, as a PSD (can be < 0: noise only)
+    drive_hz: float  # [Hz] the drive frequency the comb was laid on
+    periods: float  # drive periods in the window
+    nyquist: float  # [Hz]
+
+    def floor(self) -> np.ndarray:
+        """The measurement noise's PSD per band [unit^2/Hz]: the inter-harmonic level, except in
+        the band of the fundamental, which takes the next band's: beside the strongest
+        harmonic by far, even through the Hann window, the bins hold the sidebands of the taps'
+        slow modulation (the cantilever's thermal motion changes the taps from period to period:
+        real, and what the spread over taps sees), up to 1e4 times the measurement noise on a
+        300 K record (paddle Brownian force, detector noise)."""
+        out = self.noise.copy()
+        if len(out) > 1:  # the first band always holds the fundamental
+            out[0] = out[1]
+        return out
+
+    def rms(self, fc: float) -> float:
+        """RMS of the measurement noise below ``fc`` [unit] (:meth:`floor` integrated to ``fc``)."""
+        width = np.clip(np.minimum(self.f_hi, fc) - np.minimum(self.f_lo, fc), 0.0, None)
+        width[0] += min(self.f_lo[0], fc)  # the band from DC to the first edge, at the first band's level
+        return math.sqrt(float(np.sum(self.floor() * width)))
+
+
+@dataclass(frozen=True)
+class CutoffChoice:
+    """The low-pass chosen for a record and the noise it leaves."""
+
+    cutoff_hz: float  # [Hz]
+    harmonics: float  # cut-off in drive harmonics
+    noise_rms: float  # [unit] RMS of the noise below the cut-off
+    white_equivalent: float  # [unit] per-sample white noise of the same PSD over the whole sampled band
+    rule: str  # one line: how the cut-off was chosen
+    spectrum: NoiseSpectrum | None = None
+
+
+def drive_frequency(z: np.ndarray, h: float) -> float | None:
+    """The drive frequency [Hz] of a tapping record from the tip position alone: the mean
+    period between its first and last upward crossings of the middle of its range (linear
+    interpolation between samples, a quarter-range hysteresis against noise: the crossings
+    of :func:`vetica_cli.signals.taps.oscillation_cycles`); None for fewer than two crossings.
+    Over ``N`` cycles the period's error is the crossing's timing jitter over ``N`` (~1e-6
+    relative on a 10-period record), so the ``k``-th harmonic lands on its bin up to ``k`` in
+    the thousands."""
+    z = np.asarray(z, float)
+    if len(z) < 8:
+        return None
+    lo, hi = float(np.min(z)), float(np.max(z))
+    mid, band = 0.5 * (lo + hi), 0.25 * (hi - lo)
+    if not hi > lo:
+        return None
+    times = []
+    armed = False
+    # vectorised: indices where z crosses mid upwards, accepted only after a visit below mid - band
+    below = z < mid - band
+    up = np.flatnonzero((z[:-1] < mid) & (z[1:] >= mid))
+    last_below = np.maximum.accumulate(np.where(below, np.arange(len(z)), -1))
+    prev = -1
+    for i in up:
+        armed = last_below[i] > prev
+        if armed:
+            frac = (mid - z[i]) / (z[i + 1] - z[i])
+            times.append((i + frac) * h)
+            prev = i
+    if len(times) < 2:
+        return None
+    return (len(times) - 1) / (times[-1] - times[0])
+
+
+def harmonic_spectrum(power: np.ndarray, n: int, h: float, drive_hz: float,
+                      harmonic_power: np.ndarray | None = None) -> NoiseSpectrum | None:
+    """Signal and noise in bands of harmonics (module docstring) from the one-sided power
+    ``power = |rfft(x)|^2`` of ``n`` samples ``h`` apart; None when the window holds fewer
+    than :data:`MIN_PERIODS` drive periods or no band with enough noise bins."""
+    periods = n * h * drive_hz
+    if not (periods >= MIN_PERIODS and math.isfinite(periods)):
+        return None
+    nb = len(power)
+    bins = np.arange(nb, dtype=float)
+    frac = bins / periods  # position in harmonics
+    dist = np.abs(frac - np.round(frac)) * periods  # bins to the nearest harmonic
+    noise_mask = dist >= max(1.5, 0.3 * periods)
+    harm_idx = np.round(np.arange(1, int(frac[-1]) + 1) * periods).astype(int)
+    harm_idx = harm_idx[(harm_idx > 0) & (harm_idx < nb)]
+    df = 1.0 / (n * h)
+    to_psd = 2.0 / (n * n) / df  # |X|^2 -> one-sided PSD [unit^2/Hz] (Parseval)
+    # bands of harmonics: edges at 10^(j/8) harmonics, merged until each holds MIN_NOISE_BINS noise bins
+    top = frac[-1]
+    edges = [0.5]
+    x = 1.0
+    while x < top:
+        x = max(x * 10 ** (1.0 / BANDS_PER_DECADE), edges[-1] + 1.0)
+        edges.append(min(x, top + 1e-9))
+    if edges[-1] < top:
+        edges.append(top + 1e-9)
+    f_lo, f_hi, noise, signal = [], [], [], []
+    lo = edges[0]
+    for hi in edges[1:]:
+        sel = (frac >= lo) & (frac < hi)
+        nsel = sel & noise_mask
+        if np.count_nonzero(nsel) < MIN_NOISE_BINS and hi < edges[-1]:
+            continue  # merge with the next band
+        if np.count_nonzero(nsel) < 2:
+            break
+        nmean = float(np.median(power[nsel])) / math.log(2.0)
+        hsel = harm_idx[(frac[harm_idx] >= lo) & (frac[harm_idx] < hi)]
+        hp = power if harmonic_power is None else harmonic_power
+        hmean = float(np.mean(hp[hsel])) if len(hsel) else 0.0
+        f_lo.append(lo * drive_hz)
+        f_hi.append(min(hi, top) * drive_hz)
+        noise.append(nmean * to_psd)
+        signal.append((hmean - nmean) * to_psd)
+        lo = hi
+    if not f_lo:
+        return None
+    return NoiseSpectrum(np.array(f_lo), np.array(f_hi), np.array(noise), np.array(signal), float(drive_hz),
+                         float(periods), 0.5 / h)  # fmt: skip
+
+
+def choose_cutoff(spectrum: NoiseSpectrum) -> tuple[float, str]:
+    """The cut-off rule of the module docstring: ``(cutoff_hz, rule text)``."""
+    above = spectrum.signal > spectrum.noise
+    run, last_ok = 0, -1
+    for j, ok in enumerate(above):
+        if ok:
+            run, last_ok = 0, j
+        else:
+            run += 1
+            if run >= DROP_RUN:
+                break
+    else:
+        if run < DROP_RUN:  # the harmonics stand above the noise to the top: the whole band
+            return spectrum.nyquist, "harmonics above the noise up to the Nyquist frequency: no low-pass"
+    if last_ok < 0:
+        fc = float(spectrum.f_hi[0])
+        return fc, "no harmonic stands above the noise: the lowest band kept"
+    fc = float(spectrum.f_hi[last_ok])
+    return fc, (f"the harmonics meet the noise at {fc / spectrum.drive_hz:.3g} f1 "
+                f"(noise {math.sqrt(spectrum.noise[min(last_ok + 1, len(spectrum.noise) - 1)]):.2g} /sqrt(Hz) there)")  # fmt: skip
+
+
+def measure(x: np.ndarray | None, h: float, drive_hz: float | None, cutoff_hz: float | None = None,
+            spectrum: np.ndarray | None = None, n: int | None = None) -> CutoffChoice | None:  # fmt: skip
+    """The noise of the signal ``x`` (``n`` samples every ``h`` [s]): its spectrum in bands of
+    the drive's harmonics, the cut-off the rule chooses (or ``cutoff_hz`` when given) and the
+    noise left below it.  ``spectrum``: ``rfft`` of the ``n`` samples when the caller has it
+    (e.g. the inverted paddle spectrum; then ``x`` may be None).  The powers are read through a
+    Hann window (applied in the frequency domain, ``X_k/2 - (X_(k-1) + X_(k+1))/4``): the taps
+    change slowly from period to period (the cantilever's thermal motion), and through the
+    record's rectangular window that modulation leaks between the harmonics as ``1/d`` of the
+    distance; through a Hann window as ``1/d^3``, within the harmonic's own bins.  None when
+    the record has no harmonic comb to read (fewer than two periods, no drive frequency)."""
+    if drive_hz is None or not drive_hz > 0:
+        return None
+    if spectrum is None:
+        x = np.asarray(x, float)
+        n = len(x)
+        spectrum = np.fft.rfft(x - float(np.mean(x)))
+    spectrum = np.asarray(spectrum)
+    hann = 0.5 * spectrum
+    hann[1:-1] -= 0.25 * (spectrum[:-2] + spectrum[2:])
+    power = (hann.real**2 + hann.imag**2) / 0.375  # the window's mean square: white noise keeps its level
+    rect = spectrum.real**2 + spectrum.imag**2  # the harmonics' own bins (a whole number of periods: no leakage)
+    spec = harmonic_spectrum(power, int(n), h, drive_hz, harmonic_power=rect)
+    if spec is None:
+        return None
+    if cutoff_hz is None:
+        fc, rule = choose_cutoff(spec)
+    else:
+        fc, rule = min(float(cutoff_hz), spec.nyquist), "given"
+    rms = spec.rms(fc)
+    white = rms * math.sqrt(spec.nyquist / fc) if fc > 0 else rms
+    return CutoffChoice(fc, fc / drive_hz, rms, white, rule, spec)
+
+
+# the measured floors of the arrays an extraction reads (their identity and fingerprint; see declare)
+_DECLARED: list = []
+_DECLARED_MAX = 8
+
+
+def declare(x: np.ndarray, rms: float, white: float, smear: float = 1.0) -> None:
+    """Attach the measured noise of the array ``x`` (RMS on its samples, its white equivalent,
+    and the samples a kink is smeared over by the signal's low-pass, ``f_nyquist / fc``, 1 for
+    the whole band): :func:`declared` returns them while ``x`` is the same, unchanged array."""
+    from .memo import fingerprint
+
+    key = fingerprint(x)
+    if key is None:
+        return
+    _DECLARED.insert(0, (x, key, (float(rms), float(white), float(smear))))
+    del _DECLARED[_DECLARED_MAX:]
+
+
+def declared(x) -> tuple[float, float, float] | None:
+    """``(rms, white equivalent, smear in samples)`` declared for ``x`` (:func:`declare`), or None."""
+    from .memo import fingerprint
+
+    if not _DECLARED:
+        return None
+    key = fingerprint(x)
+    for arr, k, value in _DECLARED:
+        if arr is x and k == key:
+            return value
+    return None
