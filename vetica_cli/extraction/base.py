@@ -54,6 +54,10 @@ KG_WINDOW = Option("kg_window", "str", "", "stage 1b's window: noise (the thesis
                    (lambda v: v in KG_WINDOWS, f"one of: {', '.join(KG_WINDOWS)}"))  # fmt: skip
 
 
+KG_SCALE = Option("kg_scale", "float", "", "stage 1b's slopes multiplied by this factor (1: as measured; the error bars "
+                  "move it to see how every quantity follows Kg)", (lambda v: 0.5 <= v <= 2.0, "a factor in [0.5, 2]"))  # fmt: skip
+
+
 FIXED_COST = 0.1  # part of a method's seconds_per_point that does not scale with the record's samples
 
 

@@ -70,6 +70,7 @@ class Record:
     t_start: float = 0.0  # perf_counter when the record was started
     t_force: float = 0.0  # perf_counter when the force was ready
     taps: Taps | None = None  # the steady record's taps when the force was built around them (tap windows)
+    memo: dict = field(default_factory=dict, repr=False)  # results computed on this record, shared by the checks
 
     @property
     def probe(self) -> dict:

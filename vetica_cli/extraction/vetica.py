@@ -63,7 +63,7 @@ import numpy as np
 from ..checks import one_of
 from ..errors import InputError
 from ..signals.taps import Taps, contact_slopes, find_taps
-from .base import KG_POINTS, KG_WINDOW, ExtractionMethod, Option, register
+from .base import KG_SCALE, KG_POINTS, KG_WINDOW, ExtractionMethod, Option, register
 from .record import Record
 from .result import ExtractionResult, Spread, estimates
 
@@ -510,6 +510,7 @@ def vetica(
     stage2: str = "closed",
     taps: Taps | None = None,
     kg_window: str = "noise",
+    kg_scale: float = 1.0,
 ) -> VeticaResult:
     """Run VETICA stages 1a, 1b and 2 on a record of consecutive taps.
 
@@ -533,6 +534,7 @@ def vetica(
         raise InputError(f"kg_points {kg_points} not allowed; expected an integer >= 2")
     t0 = time.perf_counter()
     taps, tau_c_i, kg_i, warnings = _stage1(t, z, f, z1, kg_points, taps, kg_window)
+    kg_i = kg_i * kg_scale  # the error bars move Kg to see how stage 2 follows it
     n_taps = len(taps.contact)
     t1 = time.perf_counter()
     tau_c, kg = _mean(tau_c_i), _mean(kg_i)
@@ -577,17 +579,18 @@ class Vetica(ExtractionMethod):
     surface_models = ("sls",)
     tap_windows = True  # the force is read only around the contacts (and the approach's first contact)
     surface_note = "VETICA assumes one relaxation time (thesis 3.3)"
-    options_default: ClassVar[dict[str, Any]] = {"kg_points": 10, "kr_guess": None, "stage2": "closed", "kg_window": "noise"}
+    options_default: ClassVar[dict[str, Any]] = {"kg_points": 10, "kr_guess": None, "stage2": "closed", "kg_window": "noise",
+                                                 "kg_scale": 1.0}  # fmt: skip
     option_specs = (KG_POINTS, Option("kr_guess", "float", "N/m", "start of the rubbery stiffness Kr in the "
                                       "superposition fit (default: from the creep)", (lambda v: v > 0, "a stiffness > 0 N/m")),
                     Option("stage2", "str", "", "closed (compiled superposition of the samples) or sines (the thesis's "
-                           "sum-of-sines fit)", one_of(*STAGE2)), KG_WINDOW)  # fmt: skip
+                           "sum-of-sines fit)", one_of(*STAGE2)), KG_WINDOW, KG_SCALE)  # fmt: skip
     seconds_per_point = 0.45  # both forces, 10 periods at 0.125 ns: 0.44 CPU s measured with standard errors and checks
 
     def run(self, record: Record, options: dict) -> ExtractionResult:
         ex = vetica(record.t, record.z, record.f, record.z1, kg_points=options["kg_points"],
                     kr_guess=options["kr_guess"], stage2=options["stage2"], taps=record.taps,
-                    kg_window=options["kg_window"])  # fmt: skip
+                    kg_window=options["kg_window"], kg_scale=options.get("kg_scale", 1.0))  # fmt: skip
         units = {k: q.unit for k, q in self.quantities(record.model).items()}
         timing = {"reconstruction": record.reconstruction_s, **ex.timing_s,
                   "total": time.perf_counter() - record.t_start}  # fmt: skip

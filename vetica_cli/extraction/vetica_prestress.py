@@ -260,7 +260,7 @@ def _mean(v) -> float:
     return float(np.nanmean(v)) if np.any(np.isfinite(v)) else math.nan
 
 
-def _stages(fits, mode, z1, kg, tau_c, kr_guess, s_of_tap):
+def _stages(fits, mode, z1, kg, tau_c, kr_guess, s_of_tap, kg_scale: float = 1.0):
     """Stages 2 and 1b to their fixed point.  Returns ``(Kg, Kr per tap, Kg per tap,
     sigma0 per tap, force RMS per tap, iterations, converged)``."""
     n = len(fits)
@@ -284,6 +284,8 @@ def _stages(fits, mode, z1, kg, tau_c, kr_guess, s_of_tap):
                 kg_i[j] = tf.stage1b(kg, kr_new, tau_r, s0) if isinstance(tf, ClosedTap) else stage1b_tap(
                     tf, kg, kr_new, tau_r, s0
                 )
+                if not (isinstance(tf, ClosedTap) and tf.window is not None):  # a grown window's slope is scaled
+                    kg_i[j] *= kg_scale
         kg_new = _mean(kg_i)
         done = abs(kg_new - kg) <= RTOL * kg and abs(kr_new - kr) <= RTOL * abs(kr)
         kg, kr = kg_new, kr_new
@@ -294,7 +296,7 @@ def _stages(fits, mode, z1, kg, tau_c, kr_guess, s_of_tap):
 
 def vetica_prestress(t, z, f, z1: float, kg_points: int = 10, kr_guess: float | None = None,
                      prestress: str = "adhesion", stage2: str = "closed", taps: Taps | None = None,
-                     kg_window: str = "noise") -> PrestressResult:  # fmt: skip
+                     kg_window: str = "noise", kg_scale: float = 1.0) -> PrestressResult:  # fmt: skip
     """Run VETICA with the pre-stress (module docstring) on a record of consecutive taps.
 
     ``prestress``: ``adhesion``, ``creep`` or ``fit`` (the method resolves ``auto``).
@@ -319,6 +321,7 @@ def vetica_prestress(t, z, f, z1: float, kg_points: int = 10, kr_guess: float | 
         )
     tau_c_i = stage1a_tau_c(t, z, taps, z1)
     kg_thesis_i, windows = stage1b_kg(z, f, taps, kg_points, kg_window, details=True)
+    kg_thesis_i = kg_thesis_i * kg_scale  # the error bars move the measured slopes to see how everything follows
     tau_c, kg0 = _mean(tau_c_i), _mean(kg_thesis_i)
     problem = None
     if not math.isfinite(tau_c):
@@ -349,7 +352,7 @@ def vetica_prestress(t, z, f, z1: float, kg_points: int = 10, kr_guess: float | 
     def start_sigma(tf, kg, kr):  # fit mode starts from the adhesion estimate
         return prestress_of("adhesion" if mode == "fit" else mode, tf.fc, tf.zc, z1, kg, kr)
 
-    kg, kr_i, kg_i, s0_i, rms_i, iters, converged = _stages(fits, mode, z1, kg0, tau_c, kr_guess, start_sigma)
+    kg, kr_i, kg_i, s0_i, rms_i, iters, converged = _stages(fits, mode, z1, kg0, tau_c, kr_guess, start_sigma, kg_scale)
     t2 = time.perf_counter()
     warnings = []
     if not converged:
@@ -390,7 +393,7 @@ class VeticaPrestress(ExtractionMethod):
     surface_models = ("sls",)
     tap_windows = True  # the force is read only around the contacts (and the approach's first contact)
     options_default: ClassVar[dict[str, Any]] = {"kg_points": 10, "kr_guess": None, "prestress": "auto",
-                                                 "stage2": "closed", "kg_window": "noise"}  # fmt: skip
+                                                 "stage2": "closed", "kg_window": "noise", "kg_scale": 1.0}  # fmt: skip
     option_specs = (*get("vetica").option_specs,
                     Option("prestress", "str", "", "how the Maxwell arm's pre-stress at contact is found", one_of(*PRESTRESS)))  # fmt: skip
     seconds_per_point = 0.55  # both forces, 10 periods at 0.125 ns: 0.53 CPU s measured with standard errors and checks
@@ -415,7 +418,8 @@ class VeticaPrestress(ExtractionMethod):
             source = mode
         ex = vetica_prestress(record.t, record.z, record.f, record.z1, kg_points=options["kg_points"],
                               kr_guess=options["kr_guess"], prestress=mode, stage2=options["stage2"],
-                              taps=record.taps, kg_window=options["kg_window"])  # fmt: skip
+                              taps=record.taps, kg_window=options["kg_window"],
+                              kg_scale=options.get("kg_scale", 1.0))  # fmt: skip
         units = {k: q.unit for k, q in self.quantities(record.model).items()}
         timing = {
             "reconstruction": record.reconstruction_s,

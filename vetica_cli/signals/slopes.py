@@ -220,7 +220,9 @@ def noise_aware_slopes(z: np.ndarray, f: np.ndarray, contact, separation, points
             continue
         lo_n = max(points, SMEAR_WINDOW * offset)  # the window spans several smears: the low-pass's ripple averages out
         n, c = max(lo_n, _window(rel2, points, span - offset)), ic
-        for _ in range(4):  # contact and window together: the hinge on the current window, then the window
+        if offset:  # a low-passed force: the window is the smear's, whatever the noise (the low-pass has averaged
+            n = min(lo_n, max(int((span - offset) * WINDOW_SPAN), points))  # it), so the reading does not move with it
+        for _ in range(2 if offset else 4):  # contact and window together: the hinge on the current window, then the window
             c = _hinge(f, c, n, prev_sep, isep)  # for TARGET from the slopes read at that contact
             a = c + offset
             bf, _ = _quad_slope(f[a : a + n])
@@ -229,7 +231,7 @@ def noise_aware_slopes(z: np.ndarray, f: np.ndarray, contact, separation, points
                 break
             rel2 = (sf / bf) ** 2 + (sz / bz) ** 2
             m = min(max(lo_n, _window(rel2, points, span - offset)), max(int((span - offset) * WINDOW_SPAN), points))
-            if m == n:
+            if offset or m == n:
                 break
             n = m
         a = c + offset
