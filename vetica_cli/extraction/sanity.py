@@ -68,7 +68,8 @@ TOLERANCE = 0.10  # an estimate likely off by more than this (relative) is flagg
 REL_LIMIT = 1.0  # relative 1-sigma above which a quantity is not determined
 TAP_MODEL_FLOOR = 0.25  # a tap method's stage-2 residual above this fraction of the peak force: not the model
 RESIDUAL_FACTOR = 3.0  # residual RMS above this many force noise floors ...
-MODEL_FLOOR = 1e-3  # ... plus this fraction of the peak force: the model does not fit
+MODEL_FLOOR = 1e-2  # ... plus this fraction of the peak force: the model does not fit (0.1 % flagged right fits:
+# 0.13 % of the peak on a noise-free 7:1, k_inf 1.44 N/m record whose every parameter was within 1.3 %)
 Z1_TOL = 0.02e-9  # [m] slack of the eq.-84 bracket
 Z1_MODEL = 0.02e-9  # [m] Z1's model uncertainty: a tenth of the intermolecular distance (where the tip "meets" the
 # undeformed surface is defined only to the scale of the force law's minimum; the worked example's adhesion lift is 0.06 nm)
@@ -122,6 +123,66 @@ def _tau_c_z1_sensitivity(record) -> float | None:
             worst = max(worst, abs(lr / math.log(zc2 / zs2) - 1.0))
         out.append(worst)
     return float(np.median(out)) if out else None
+
+
+def _lift_bracket(res: ExtractionResult, record, options) -> dict:
+    """``{quantity: relative change}`` beyond :data:`TOLERANCE` when a tap method's Z1 comes from
+    thesis eq. 84 with the surface pull (``a0 + Fa/Kg``: the surface lifted by the adhesion
+    against its glassy stiffness, as if the pull acted at once) and is moved to the lift the
+    pull's duration gives: ``a0 + Fa/K(t_pull)``, ``K(t) = Kr + (Kg - Kr) exp(-t/tau_r)`` the
+    method's own relaxation stiffness over ``t_pull``, the time the record's attraction takes
+    from half its depth to the contact minimum (:func:`_pull_time`).  A quantity that moves by
+    more than the tolerance between the two is not determined by eq. 84's Z1."""
+    from .base import METHODS
+
+    src = str(record.info.get("z1_source", ""))
+    kg, kr, tau_r = res.value("k_g"), res.value("k_r"), res.value("tau_r")
+    if not (src.startswith("thesis eq. 84") and "Fa(a0)/Kg" in src and record.z1 is not None and record.a0):
+        return {}
+    if not (kg and kr and 0 < kr < kg and tau_r and tau_r > 0):
+        return {}
+    fa = (record.z1 - record.a0) * kg
+    k_pull = kr + (kg - kr) * math.exp(-_pull_time(record) / tau_r)  # the relaxation stiffness over the pull
+    if not (k_pull < kg * (1.0 - 1e-9)):
+        return {}
+    z1 = record.a0 + fa / k_pull
+    try:
+        alt = METHODS[res.method].run(dataclasses.replace(record, z1=z1), options or {}).estimates
+    except Exception:  # noqa: BLE001 - the method refuses the rubbery lift: it cannot be told either way
+        return {q: math.inf for q, e in res.estimates.items() if e.value is not None and q != "k_g"}
+    out = {}
+    for q, e in res.estimates.items():
+        a = alt.get(q)
+        if e.value and a is not None and a.value is not None:
+            rel = (a.value - e.value) / abs(e.value)
+            if abs(rel) > TOLERANCE:
+                out[q] = rel
+        elif e.value and q != "k_g":
+            out[q] = math.inf
+    return out
+
+
+def _pull_time(record) -> float:
+    """The time [s] the tip's attraction acts before contact: median over the record's taps of
+    the time from the force first falling below half the contact minimum's (attractive) force
+    to the contact minimum."""
+    from ..signals.taps import find_taps
+
+    taps = find_taps(record.f)
+    f, t = record.f, record.t
+    out = []
+    start = 0
+    for ic, isep in zip(taps.contact, taps.separation):
+        ic = int(ic)
+        half = 0.5 * float(f[ic])
+        if half >= 0:
+            continue
+        j = ic
+        while j > start and f[j - 1] < half:
+            j -= 1
+        out.append(float(t[ic] - t[j]))
+        start = int(isep)
+    return float(np.median(out)) if out else 0.0
 
 
 REFEREED = ("vetica", "vetica-prestress")  # methods the whole-cycle fit referees (their band bias is in its verdict)
@@ -252,6 +313,11 @@ def check(res: ExtractionResult, record, options: dict | None = None) -> Extract
                   f"the surface creeps only {100 * creep:.2g} % between taps (< {100 * CREEP_MIN:g} %): tau_c "
                   f"ill-conditioned (x{1 / max(creep, 1e-300):.2g})")  # fmt: skip
         info["tau_c_per_z1_offset"] = _tau_c_z1_sensitivity(record)  # diagnosis only: Z1's noise is in sigma
+        lift = _lift_bracket(res, record, options)
+        info["z1_lift_bracket"] = lift
+        for q, rel in lift.items():
+            _flag(res, [q], f"Z1 from thesis eq. 84: with the surface's lift over the pull's duration instead of the "
+                            f"glassy one it moves {100 * rel:+.3g} %")  # fmt: skip
         ref = _referee(res, record)  # an independent formulation of the same quantities
         info["whole_cycle_fit_difference"] = ref
         for q, (rel, value) in ref.items():

@@ -14,10 +14,11 @@ result by :func:`vetica_cli.extraction.extract_many` after the method ran).
   position, read the same way, so it scatters as they do: detector noise, the
   force minimum's jitter, the cantilever's thermal drift), for Z1 from the approach
   also the jitter of its gentler first minimum (:func:`approach_jitter`), and, for Z1 from thesis
-  eq. 84 (``a0 + Fa/Kg``), the standard errors of the adhesion and of Kg and half the
-  bracket ``Fa/Kr - Fa/Kg`` between the glassy and the rubbery lift of the pulled
-  surface (eq. 84 assumes the glassy one; which one holds depends on how long the
-  pull acted, which the record does not say).  The taps'
+  eq. 84 (``a0 + Fa/Kg``), the standard errors of the adhesion and of Kg.  Which lift of the
+  pulled surface holds (the glassy ``Fa/Kg`` eq. 84 assumes, or up to the rubbery ``Fa/Kr``)
+  is a model question no replica of the record shows: a systematic error, which the flags
+  judge (:mod:`.sanity`, the lift bracket), not a standard error (it made the error bars of
+  stripped records ~50x wider than the replicas' scatter).  The taps'
   scatter of tau_c reaches every quantity the way Z1 does (Z1 acts through tau_c,
   so the same rerun gives ``d q/d tau_c``, Kr's refit included); those of Kg and Kr
   are propagated through :func:`~vetica_cli.extraction.vetica.sls_elements`
@@ -26,9 +27,9 @@ result by :func:`vetica_cli.extraction.extract_many` after the method ran).
 * ``full`` -- the larger of **the fit's Jacobian and residual** (``s^2 (J^T J)^-1``) and
   the **tap-robust sandwich** (delete-one-tap jackknife of the linearised fit, for
   residuals correlated within a tap, e.g. thermal noise; :mod:`.fullfit.uncertainty`),
-  kept as the method computes it (with the approach's Z1 reading error); when the
-  record's Z1 is thesis eq. 84's estimate (no approach segment), the fit's surface height
-  is pinned to it, so a Z1 term is added as for the tap methods (:func:`z1_term`).
+  kept as the method computes it (with the approach's Z1 reading error); a record's Z1 from
+  thesis eq. 84 (no approach segment) only starts the fit's surface height, which is then
+  fitted free (the height against eq. 84's lift bracket is a check, :mod:`.sanity`).
 
 Relative sigmas (fractions), as :class:`~vetica_cli.extraction.result.Estimate` holds
 them; ``info['uncertainty']`` says which source and the Z1 term.
@@ -78,10 +79,11 @@ def z1_sigma(record, taps, kr: float | None = None) -> float:
         kgi = stage1b_kg(record.z, record.f, taps, 10)
         kgi = kgi[np.isfinite(kgi)]
         s_kg = float(np.std(kgi, ddof=1)) / math.sqrt(len(kgi)) if len(kgi) > 1 else math.inf
-        if not (kg > 0 and kr is not None and 0 < kr <= kg):
+        if not kg > 0:
             return math.inf
-        bracket = 0.5 * fa * (1.0 / kr - 1.0 / kg)
-        return math.sqrt(scatter**2 + (s_fa / kg) ** 2 + (fa * s_kg / kg**2) ** 2 + bracket**2)
+        # the noise of eq. 84's inputs only: which lift holds (glassy Fa/Kg or rubbery Fa/Kr) is a model
+        # question the replicas of a record cannot show, judged by the flags (sanity: the lift bracket)
+        return math.sqrt(scatter**2 + (s_fa / kg) ** 2 + (fa * s_kg / kg**2) ** 2)
     if record.approach is not None and source.startswith("approach"):
         scatter = math.hypot(scatter, approach_jitter(*record.approach))
     return scatter
@@ -290,41 +292,9 @@ def calibrate(res: ExtractionResult, record, method=None, options=None) -> Extra
                          for k, e in res.estimates.items()}  # fmt: skip
     else:
         info = {"source": "the larger of the fit's Jacobian-and-residual error and the tap-robust sandwich"}
-        if method is not None and str(record.info.get("z1_source", "")).startswith("thesis eq. 84"):
-            info.update(z1_term(res, record, method, options or {}))
     if method is not None:  # a band-limited force: the bias of its low-pass (judged by the flags)
         band = band_term(res, record, method, options or {})
         if band:
             info["band"] = {"cutoff_hz": record.info.get("cutoff_hz"), "bias": band}
     res.info = {**res.info, "uncertainty": info}
     return res
-
-
-def z1_term(res: ExtractionResult, record, method, options) -> dict:
-    """A fit that takes Z1 from thesis eq. 84 (``a0 + Fa/Kg``, the record has no approach)
-    pins its surface height to an estimate uncertain by the lift bracket: the fit is run
-    twice more with Z1 moved by +-2 ``sigma_Z1`` (:func:`z1_sigma`) and half the larger
-    change of each quantity is added in quadrature to its sigma (in place; as the tap
-    methods' Z1 term).  Returns the bookkeeping for ``info['uncertainty']``."""
-    est = res.estimates
-    kr = next((est[q].value for q in ("k_inf", "k_r") if q in est and est[q].value), None)
-    try:
-        s_z1 = z1_sigma(record, find_taps(record.f), kr)
-    except Exception:  # noqa: BLE001 - no taps to judge Z1 by: the estimate stands unbounded
-        s_z1 = math.inf
-    if not (math.isfinite(s_z1) and s_z1 > 0):
-        if not math.isfinite(s_z1):
-            res.estimates = {k: dataclasses.replace(e, sigma=math.inf) if e.value is not None else e for k, e in est.items()}
-        return {"z1_sigma_m": s_z1, "z1_term": "Z1 from thesis eq. 84, its sigma unbounded" if not math.isfinite(s_z1)
-                else "none (Z1 exact)"}  # fmt: skip
-    moved = with_z1_moved(record, method, options, 2.0 * s_z1)
-    out = {}
-    for q, e in est.items():
-        changes = [m[q].value - e.value for m in moved if q in m and m[q].value is not None and e.value]
-        if not changes or e.value is None:
-            continue
-        term = 0.5 * max(abs(c) for c in changes) / abs(e.value)  # the +-2 sigma secant, halved: 1 sigma
-        base = e.sigma if e.sigma is not None else 0.0
-        out[q] = dataclasses.replace(e, sigma=math.sqrt(base * base + term * term))
-    res.estimates = {**est, **out}
-    return {"z1_sigma_m": s_z1, "z1_term": "refits with Z1 (thesis eq. 84) moved by +-2 sigma"}
