@@ -1,5 +1,5 @@
 """Can a user trust vetica's numbers on a record like an instrument's?  The coverage check of the
-error bars and flags on materials and noise seeds this script draws itself (issue 27).
+error bars and flags on materials and noise seeds this script draws itself.
 
 For ``--materials`` SLS surfaces drawn at random (``--draw-seed``; k_inf log-uniform in 1-10 N/m,
 k0:k_inf 4-64, cd log-uniform over 1e-5 .. 1e-3 kg/s, the thesis's probe) and each record

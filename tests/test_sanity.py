@@ -81,15 +81,14 @@ def test_a_flagged_stage_flags_what_is_computed_from_it(stage):
     assert not any(e.identifiable is False for e in ok.estimates.values())
 
 
-def test_a_fit_pinned_to_the_eq84_estimate_carries_its_z1_error():
-    """The whole-cycle fit on a record without approach and with a0 and the pull stated takes
-    Z1 from thesis eq. 84 (a0 + Fa/Kg), which is uncertain by the lift bracket: its sigma now
-    holds the change of a refit with Z1 moved by 2 sigma_Z1 (halved), so it is at least that
-    (reference: an independent refit at Z1 + 2 sigma_Z1; rtol 1e-6 on the halved change)."""
-    import dataclasses
-
-    from vetica_cli.extraction import extract, get
-    from vetica_cli.extraction.record import build_record
+def test_eq84_lift_bracket_is_a_check_not_a_standard_error():
+    """A record without approach and with a0 and the pull stated takes Z1 from thesis eq. 84
+    (a0 + Fa/Kg, the glassy lift).  Which lift holds is a model question no replica shows, so
+    it is not in sigma (it made sigma ~50x the replicas' scatter): VETICA's sigma of k0 stays
+    at the noise-free record's rounding level, and the lift check re-runs the method at the
+    lift over the pull's duration and records the moves beyond the tolerance
+    (``info.sanity.z1_lift_bracket``), flagging exactly those quantities."""
+    from vetica_cli.extraction import extract
     from vetica_cli.simulation.config import load
     from vetica_cli.simulation.simulate import simulate
 
@@ -97,16 +96,13 @@ def test_a_fit_pinned_to_the_eq84_estimate_carries_its_z1_error():
                                "surface.cd": 1e-4}))  # fmt: skip
     df = run.frame()
     df = df[df["segment"] == "steady"][["t", "z_tip", "f_ts"]].reset_index(drop=True)
-    res = extract(df, None, force="true", method="full", a0=0.2e-9, vdw_on_surface=True)
-    unc = res.info["uncertainty"]
-    assert unc["z1_term"].startswith("refits") and unc["z1_sigma_m"] > 0
-    m = get("full")
-    rec = build_record(df, None, "true", need_z1=False, a0=0.2e-9, vdw_on_surface=True)
-    assert str(rec.info["z1_source"]).startswith("thesis eq. 84")
-    up = m.run(dataclasses.replace(rec, z1=rec.z1 + 2 * unc["z1_sigma_m"]), m.options({})).estimates
-    k = res.estimates["k_inf"]
-    assert k.sigma >= 0.5 * abs(up["k_inf"].value - k.value) / abs(k.value) * (1 - 1e-6)
-
+    res = extract(df, None, force="true", method="vetica", a0=0.2e-9, vdw_on_surface=True)
+    assert str(res.info["z1_source"]).startswith("thesis eq. 84")
+    assert res.estimates["k0"].sigma < 1e-3  # noise-free: no bracket in the standard error
+    bracket = res.info["sanity"]["z1_lift_bracket"]
+    assert all(abs(v) > 0.1 for v in bracket.values())
+    for q in bracket:
+        assert res.estimates[q].identifiable is False and "eq. 84" in res.estimates[q].reason
 
 def test_noise_floor_reuses_only_an_unchanged_array():
     """The cached floor equals a fresh estimate; an array changed in place is estimated again."""

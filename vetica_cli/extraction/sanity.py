@@ -201,7 +201,8 @@ def _referee(res: ExtractionResult, record) -> dict:
     from .base import METHODS
 
     full = METHODS.get("full")
-    if full is None or record.model.key not in full.surface_models:
+    model = getattr(record, "model", None)
+    if full is None or model is None or model.key not in full.surface_models or not hasattr(record, "memo"):
         return {}
     key = ("full", id(record.f), record.z1)
     if key not in record.memo:
@@ -261,7 +262,7 @@ def _taps_against_cycles(res: ExtractionResult, record, info: dict, floor_f: flo
         return
     info["taps"], info["oscillation_cycles"] = n, cycles
     if n > cycles + 1:
-        _flag(res, list(res.estimates), f"{n} taps in {cycles} oscillation cycles: taps read in noise (noise "
+        _flag(res, list(res.estimates), f"{n} taps in {cycles} oscillation cycles of the tip: taps read in noise (noise "
                                         f"{floor_f:.3g} N, peak {peak:.3g} N)")  # fmt: skip
 
 

@@ -159,10 +159,10 @@ class ClosedTap:
             y, dy = np.empty(m), np.empty(m)
             superpose(delta, float(self.u[1] - self.u[0]), tau_r, y, dy)
             corr = relaxation(self.u[start:m], sigma0, tau_r) + (kg - kr) * (y[start:m] - delta[start:m])
-            from ..signals.slopes import _quad_slope
+            from ..signals.slopes import quad_slope
 
-            bc, _ = _quad_slope(corr, at)
-            bz, _ = _quad_slope(self.z[start:m], at)
+            bc, _ = quad_slope(corr, at)
+            bz, _ = quad_slope(self.z[start:m], at)
             return measured + bc / bz if bz != 0 else math.nan
         m = self.kg_points + 1
         delta = self.zc - self.z[:m]

@@ -1,5 +1,6 @@
 """The noise a record carries, measured from the record itself, and the low-pass of the
-force reconstruction chosen from it (SPEC §17).
+force reconstruction chosen from it: the inverted paddle noise grows as ``(f/f2)^2`` above
+the paddle's resonance, so the low-pass must come from the record's noise, not the Nyquist frequency.
 
 A steady tapping record repeats with the drive: its signal lives at the drive's harmonics
 ``k f1`` and nowhere else, so in the spectrum of ``P`` whole drive periods the signal sits in
@@ -15,10 +16,17 @@ both numbers an extraction needs, with no model of the instrument:
   noise.
 
 **The cut-off rule** (what :func:`choose_cutoff` does): the reconstruction keeps the
-harmonics that stand above the noise.  Walking up the bands, the cut-off is the upper edge of
-the last band whose harmonics carry more power than the noise beside them (signal-to-noise
-per bin >= 1, the Wiener filter's own cross-over) before the first run of
-:data:`DROP_RUN` bands where they carry less.  The inverted paddle noise grows as
+harmonics that stand above the measurement noise.  Walking up the bands, the cut-off is the
+upper edge of the last band whose harmonics carry more power than the noise floor beside them
+(signal-to-noise per bin >= 1, the Wiener filter's own cross-over) before the first run of
+:data:`DROP_RUN` bands where they carry less.  (A low-pass only where the noise is worth removing: when the noise over the whole sampled
+band is at most :data:`NEGLIGIBLE` of the signal's RMS, the whole band is kept -- a
+noise-free record whose taps drift, e.g. a scan pixel's transient, moves its sidebands above
+a rounding-level floor at high harmonics.)  The floor, not the raw power, because a record
+whose taps change from period to period -- a scan pixel's transient creep, the
+cantilever's thermal amplitude -- has sidebands beside every harmonic, up to ``(k dphi)^2`` of
+it for a timing that drifts by ``dphi`` (they outgrew the harmonics from ~350 f1 on a noise-free
+transient pixel); they are signal, and fall with the harmonics, where the floor does not.  The inverted paddle noise grows as
 ``(f/f2)^2`` above the paddle's resonance while a tap's harmonics fall as ``1/f^2`` (its kinks
 at contact and separation), so the two meet once; a noise-free simulated record never
 meets it and keeps the whole band to the Nyquist frequency (as before this rule).
@@ -38,6 +46,7 @@ noise near the Nyquist frequency and reads a low-passed force as noise-free (2.8
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from dataclasses import dataclass
 
@@ -47,6 +56,8 @@ BANDS_PER_DECADE = 8  # width of a band of harmonics: an eighth of a decade
 MIN_NOISE_BINS = 12  # a band holds at least this many inter-harmonic bins (merged with the next otherwise)
 DROP_RUN = 3  # bands in a row with the harmonics below the noise end the pass band
 MIN_PERIODS = 2.0  # fewer drive periods: no harmonic comb to read the noise between
+NEGLIGIBLE = 1e-3  # noise over the whole band below this fraction of the signal's RMS: no low-pass needed
+WHOLE = 0.01  # [periods] a window this close to a whole number of periods is read as it is; else cropped to one
 
 
 @dataclass(frozen=True)
@@ -60,18 +71,30 @@ class NoiseSpectrum:
     drive_hz: float  # [Hz] the drive frequency the comb was laid on
     periods: float  # drive periods in the window
     nyquist: float  # [Hz]
+    notch_guard: float = 0.0  # [Hz] bands from here up bound the floor below them (1.5 f2 for an inverted paddle signal)
 
     def floor(self) -> np.ndarray:
-        """The measurement noise's PSD per band [unit^2/Hz]: the inter-harmonic level, except in
-        the band of the fundamental, which takes the next band's: beside the strongest
-        harmonic by far, even through the Hann window, the bins hold the sidebands of the taps'
-        slow modulation (the cantilever's thermal motion changes the taps from period to period:
-        real, and what the spread over taps sees), up to 1e4 times the measurement noise on a
-        300 K record (paddle Brownian force, detector noise)."""
+        """The measurement noise's PSD per band [unit^2/Hz]: the inter-harmonic level, capped by
+        the lowest level of the bands above it (counted from :attr:`notch_guard` up).  Between
+        strong harmonics the bins hold the sidebands of the taps' slow change from period to
+        period -- the cantilever's thermal motion at 300 K (up to 1e4 times the measurement
+        noise beside the fundamental), a transient record's creep -- a fixed fraction of the
+        harmonic power that falls with it; the measurement noise does not fall with frequency
+        (the paddle's Brownian force is white, the inverted detector noise rises as ``(f/f2)^2``
+        above the paddle's resonance), so the level where the harmonics have faded bounds it.
+        The inverted detector noise dips at the paddle's resonance (``1/T`` is smallest there):
+        bands below ``notch_guard`` (1.5 f2) never bound the others."""
         out = self.noise.copy()
         if len(out) > 1:  # the first band always holds the fundamental
             out[0] = out[1]
-        return out
+        caps = np.where(self.f_lo >= self.notch_guard, out, np.inf)
+        cap = np.minimum.accumulate(caps[::-1])[::-1]  # the lowest level at or above each band
+        return np.minimum(out, cap)
+
+    def signal_rms(self) -> float:
+        """RMS of the periodic signal about its mean [unit]: the harmonics' power above the noise,
+        integrated over the bands."""
+        return math.sqrt(float(np.sum(np.clip(self.signal, 0.0, None) * (self.f_hi - self.f_lo))))
 
     def rms(self, fc: float) -> float:
         """RMS of the measurement noise below ``fc`` [unit] (:meth:`floor` integrated to ``fc``)."""
@@ -177,7 +200,8 @@ def harmonic_spectrum(power: np.ndarray, n: int, h: float, drive_hz: float,
 
 def choose_cutoff(spectrum: NoiseSpectrum) -> tuple[float, str]:
     """The cut-off rule of the module docstring: ``(cutoff_hz, rule text)``."""
-    above = spectrum.signal > spectrum.noise
+    floor = spectrum.floor()
+    above = spectrum.signal > floor
     run, last_ok = 0, -1
     for j, ok in enumerate(above):
         if ok:
@@ -194,15 +218,18 @@ def choose_cutoff(spectrum: NoiseSpectrum) -> tuple[float, str]:
         return fc, "no harmonic stands above the noise: the lowest band kept"
     fc = float(spectrum.f_hi[last_ok])
     return fc, (f"the harmonics meet the noise at {fc / spectrum.drive_hz:.3g} f1 "
-                f"(noise {math.sqrt(spectrum.noise[min(last_ok + 1, len(spectrum.noise) - 1)]):.2g} /sqrt(Hz) there)")  # fmt: skip
+                f"(noise {math.sqrt(floor[min(last_ok + 1, len(floor) - 1)]):.2g} /sqrt(Hz) there)")  # fmt: skip
 
 
 def measure(x: np.ndarray | None, h: float, drive_hz: float | None, cutoff_hz: float | None = None,
-            spectrum: np.ndarray | None = None, n: int | None = None) -> CutoffChoice | None:  # fmt: skip
+            spectrum: np.ndarray | None = None, n: int | None = None,
+            notch_hz: float | None = None) -> CutoffChoice | None:  # fmt: skip
     """The noise of the signal ``x`` (``n`` samples every ``h`` [s]): its spectrum in bands of
     the drive's harmonics, the cut-off the rule chooses (or ``cutoff_hz`` when given) and the
     noise left below it.  ``spectrum``: ``rfft`` of the ``n`` samples when the caller has it
-    (e.g. the inverted paddle spectrum; then ``x`` may be None).  The powers are read through a
+    (e.g. the inverted paddle spectrum of a whole number of periods; then ``x`` is None).  A
+    signal ``x`` that does not span a whole number of drive periods is read over its longest
+    stretch that does (from its start): the harmonics then fall on bins, not between them.  The powers are read through a
     Hann window (applied in the frequency domain, ``X_k/2 - (X_(k-1) + X_(k+1))/4``): the taps
     change slowly from period to period (the cantilever's thermal motion), and through the
     record's rectangular window that modulation leaks between the harmonics as ``1/d`` of the
@@ -210,10 +237,16 @@ def measure(x: np.ndarray | None, h: float, drive_hz: float | None, cutoff_hz: f
     the record has no harmonic comb to read (fewer than two periods, no drive frequency)."""
     if drive_hz is None or not drive_hz > 0:
         return None
-    if spectrum is None:
+    if x is not None:
         x = np.asarray(x, float)
         n = len(x)
+        periods = n * h * drive_hz
+        if periods >= MIN_PERIODS and abs(periods - round(periods)) > WHOLE:  # the harmonics between bins would
+            n = int(round(math.floor(periods) / (h * drive_hz)))  # leak everywhere: the longest whole-period stretch
+            x = x[:n]
         spectrum = np.fft.rfft(x - float(np.mean(x)))
+    elif spectrum is None:
+        return None
     spectrum = np.asarray(spectrum)
     hann = 0.5 * spectrum
     hann[1:-1] -= 0.25 * (spectrum[:-2] + spectrum[2:])
@@ -222,8 +255,15 @@ def measure(x: np.ndarray | None, h: float, drive_hz: float | None, cutoff_hz: f
     spec = harmonic_spectrum(power, int(n), h, drive_hz, harmonic_power=rect)
     if spec is None:
         return None
+    if notch_hz:
+        spec = dataclasses.replace(spec, notch_guard=1.5 * float(notch_hz))
     if cutoff_hz is None:
         fc, rule = choose_cutoff(spec)
+        signal = spec.signal_rms()
+        whole = spec.rms(spec.nyquist)
+        if fc < spec.nyquist and whole <= NEGLIGIBLE * signal:
+            fc, rule = spec.nyquist, (f"noise over the whole band {whole:.2g} (<= {NEGLIGIBLE:g} of the signal's RMS "
+                                      f"{signal:.2g}): no low-pass")  # fmt: skip
     else:
         fc, rule = min(float(cutoff_hz), spec.nyquist), "given"
     rms = spec.rms(fc)

@@ -105,7 +105,7 @@ def white_noise_floor(x: np.ndarray, samples: int = NOISE_SAMPLES) -> float:
     return float(1.4826 * np.median(np.abs(d2 - np.median(d2))) / math.sqrt(6.0))
 
 
-def _quad_slope(y: np.ndarray, at: float = 0.0) -> tuple[float, float]:
+def quad_slope(y: np.ndarray, at: float = 0.0) -> tuple[float, float]:
     """``(slope at sample ``at``, residual RMS)`` of a quadratic least-squares fit of ``y``
     against the sample index."""
     n = len(y)
@@ -225,8 +225,8 @@ def noise_aware_slopes(z: np.ndarray, f: np.ndarray, contact, separation, points
         for _ in range(2 if offset else 4):  # contact and window together: the hinge on the current window, then the window
             c = _hinge(f, c, n, prev_sep, isep)  # for TARGET from the slopes read at that contact
             a = c + offset
-            bf, _ = _quad_slope(f[a : a + n])
-            bz, _ = _quad_slope(z[a : a + n])
+            bf, _ = quad_slope(f[a : a + n])
+            bz, _ = quad_slope(z[a : a + n])
             if bf == 0 or bz == 0:
                 break
             rel2 = (sf / bf) ** 2 + (sz / bz) ** 2
@@ -237,8 +237,8 @@ def noise_aware_slopes(z: np.ndarray, f: np.ndarray, contact, separation, points
         a = c + offset
         # where the thesis's straight line reads the slope (its window's centre), or past the smear
         at = -float(offset) if offset else 1.0 + 0.5 * (points - 1)
-        bf, _ = _quad_slope(f[a : a + n], at)
-        bz, _ = _quad_slope(z[a : a + n], at)
+        bf, _ = quad_slope(f[a : a + n], at)
+        bz, _ = quad_slope(z[a : a + n], at)
         out.append(-bf / bz if bz != 0 else np.nan), windows.append(n), thesis.append(False)
         starts.append(int(a)), ats.append(at)
         prev_sep = isep

@@ -292,7 +292,11 @@ def reconstruct_force(
         from .noise import measure
 
         inverted = spec * gain
-        choice = measure(None, h, drive_hz, spectrum=inverted, n=n)
+        periods = n * h * (drive_hz or 0.0)
+        if abs(periods - round(periods)) <= 0.01:  # whole periods: the spectrum as it is
+            choice = measure(None, h, drive_hz, spectrum=inverted, n=n, notch_hz=f2)
+        else:  # the unfiltered force, read over its longest whole-period stretch
+            choice = measure(np.fft.irfft(inverted, n) + (m2 * b2 + c2 * b1 + k2 * b), h, drive_hz, notch_hz=f2)
         if choice is not None:
             fc = choice.cutoff_hz
     if taper > 0:

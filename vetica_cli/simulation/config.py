@@ -232,12 +232,13 @@ INSTRUMENTS = {
 }  # fmt: skip
 INSTRUMENT_SOURCES = {
     "lab": {
-        "temperature": "room temperature, 300 K: Brownian force of each probe mode by fluctuation-dissipation "
-                       "(SPEC 15; 2.4 pm RMS on the 700 N/m paddle)",
-        "detector_noise_density": "50 fm/sqrt(Hz): within the 10-100 fm/sqrt(Hz) of good optical-beam-deflection "
-                                  "detectors (SPEC 17); 17 fm/sqrt(Hz) is the best reported (Fukuma et al., Rev. Sci. "
-                                  "Instrum. 76, 053704, 2005)",
-        "detector_bandwidth": "5 MHz: 'a few MHz on fast set-ups' (SPEC 17), 100 drive harmonics at 50 kHz",
+        "temperature": "room temperature, 300 K: the Brownian force of each probe mode by fluctuation-dissipation "
+                       "(2.4 pm RMS on the 700 N/m paddle, 20 pm on the 10 N/m cantilever)",
+        "detector_noise_density": "50 fm/sqrt(Hz): good optical-beam-deflection detectors reach 10-100 fm/sqrt(Hz); "
+                                  "17 fm/sqrt(Hz) is the lowest reported (Fukuma et al., Rev. Sci. Instrum. 76, "
+                                  "053704, 2005)",
+        "detector_bandwidth": "5 MHz: the photodetector and amplifier of a fast set-up (a few MHz), 100 drive "
+                              "harmonics at 50 kHz",
         "print_step": "2 ns: a 500 MS/s digitiser, Nyquist 250 MHz, far above the detector band (the thesis samples "
                       "0.125-8 ns, table 1)",
         "adc_resolution": "0.3 pm: a 16-bit ADC over a +-10 nm range of the deflection channel (20 nm / 65536); the "

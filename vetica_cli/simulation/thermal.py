@@ -30,8 +30,12 @@ minus that driven by the noise-free tip, both by the prescribed-trajectory kerne
 Without it the record would put the first contact -- where Z1 is read -- at the
 noise-free time while ``z_tip`` there carries the cantilever's thermal offset
 (~20 pm at 300 K), an error no instrument has: the tip meets the surface where it
-actually is.  (The tip's own reaction to that change of force, over the part of a
-period the approach window spends near the surface, is left out.)
+actually is.  The probe's own reaction to that change of force (each mode driven by it
+from rest, :func:`forced_motion`) is added to ``zc`` and ``zp`` and the force recomputed,
+twice: the paddle signal the force is reconstructed from then carries the contact where the
+noisy tip makes it (without it the reconstructed approach put Z1's force minimum at the
+noise-free time, and Z1 scattered by +-35 pm from replica to replica at 300 K, 0.5 ns,
+against +-0.3 pm on the true force).
 
 Seeded by ``numerics.noise_seed`` (the detector noise of
 :mod:`.instrument` comes after and uses the same seed through its own generator).
@@ -204,8 +208,7 @@ def add_thermal(run, kern, s0, cfg, d) -> None:
         for _ in range(APPROACH_PASSES):  # the probe's own reaction to the changed force, then the force again
             react = [forced_motion(m, k, q, h, df) for (m, k, q) in modes(cfg, d)]
             df = approach_response(z_free + react[0] + react[1], z_clean, kern.setup, d)
-        react = [forced_motion(m, k, q, h, df) for (m, k, q) in modes(cfg, d)]
-        for col, th, re in zip((ic, ip), free, react):
+        for col, th, re in zip((ic, ip), free, react):  # the force is the surface's under the tip recorded
             ap[:, col] += th + re
         ap[:, it] = ap[:, ib] + ap[:, ic] + ap[:, ip]
         ap[:, iff] += df
