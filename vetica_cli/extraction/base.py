@@ -13,6 +13,8 @@ ExtractionResult``.  The CLI's
 
 from __future__ import annotations
 
+import math
+
 from abc import ABC, abstractmethod
 from dataclasses import dataclass
 from typing import Any, ClassVar
@@ -127,6 +129,25 @@ class ExtractionMethod(ABC):
     @abstractmethod
     def run(self, record: Record, options: dict) -> ExtractionResult:
         """Extract the surface from one prepared record (options as :meth:`options` returns them)."""
+
+    per_tap_statistic: ClassVar[str] = "mean"  # what a value is of its per-tap (per-period) values: mean | median
+
+    def sigmas(self, res: ExtractionResult, record: Record, options: dict) -> tuple[dict, dict]:
+        """``({quantity: relative 1-sigma}, bookkeeping)`` of the estimates that carry no sigma of
+        their own (the hook of :func:`vetica_cli.extraction.uncertainty.calibrate`).  Default: the
+        standard error of the per-tap (or per-period) values' mean, ``s/sqrt(n)`` (times
+        ``sqrt(pi/2)`` = 1.2533 for a median: its asymptotic efficiency on Gaussian values),
+        scaled by ``t(0.975, n-1)/1.96``; a quantity with fewer than two values has none."""
+        from .uncertainty import t_factor
+
+        scale = math.sqrt(math.pi / 2.0) if self.per_tap_statistic == "median" else 1.0
+        out = {}
+        for q, e in res.estimates.items():
+            sp = e.spread
+            if e.value is None or e.sigma is not None or sp is None or sp.std is None or not e.value:
+                continue
+            out[q] = scale * sp.std / math.sqrt(sp.n) * t_factor(sp.n) / abs(e.value) if sp.n >= 2 else math.inf
+        return out, {"source": f"spread over taps (standard error of the {self.per_tap_statistic}, t-scaled)"}
 
     def detail_lines(self, res: ExtractionResult) -> list[str]:
         """Lines the text table adds about what the method did, e.g. what was fitted and what

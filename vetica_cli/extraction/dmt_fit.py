@@ -149,6 +149,8 @@ def adhesion_theory(record: Record) -> float | None:
 class DmtFit(ModelFreeMethod):
     """Per-tap adhesion, DMT modulus on the unloading branch, dissipation and deformation."""
 
+    per_tap_statistic = "median"  # values are medians over the taps
+
     key = "dmt-fit"
     description = ("per-tap force-curve analysis (PeakForce/HarmoniX style): adhesion, DMT modulus on the unloading "
                    "branch, loop dissipation, deformation")  # fmt: skip

@@ -96,6 +96,31 @@ def first_harmonic(t: np.ndarray, z: np.ndarray, f_drive: float, t0: float = 0.0
     return math.hypot(c, s), math.degrees(math.atan2(s, c)), periods, abs(exact - n)
 
 
+def per_period(t: np.ndarray, z: np.ndarray, inp: dict, omega: float) -> dict:
+    """``{quantity: Spread}`` of the lock-in and the energy balance over each whole drive period
+    of the record on its own (their scatter: what the error bar of the record's values is
+    computed from); {} for fewer than two periods."""
+    from .result import Spread
+
+    f_d, t0 = inp["drive_frequency"], inp["drive_t0"]
+    h = (t[-1] - t[0]) / (len(t) - 1)
+    per_samples = 1.0 / (f_d * h)
+    n_periods = int(math.floor(len(t) / per_samples * (1.0 + 1e-9)))
+    if n_periods < 2:
+        return {}
+    rows = []
+    for p in range(n_periods):
+        a, b = int(round(p * per_samples)), int(round((p + 1) * per_samples))
+        ph = 2.0 * math.pi * f_d * (t[a:b] - t0)
+        c, s_ = 2.0 * float(np.mean(z[a:b] * np.cos(ph))), 2.0 * float(np.mean(z[a:b] * np.sin(ph)))
+        amp, phase = math.hypot(c, s_), math.degrees(math.atan2(s_, c))
+        obs = am_observables(amp, phase, inp["free_amplitude"], inp["k1"], inp["q1"], omega)
+        rows.append((amp, phase, obs["e_diss"] / EV, obs["virial"] / EV, obs["tan_delta"]))
+    arr = np.array(rows)
+    return {k: Spread.of(arr[:, i]) for i, k in enumerate(("amplitude_obs", "phase_obs", "e_diss_obs", "virial_obs",
+                                                           "tan_delta_am"))}  # fmt: skip
+
+
 def am_observables(amp: float, phase_deg: float, a0: float, k1: float, q1: float, omega: float = 1.0) -> dict:
     """``E_diss`` [J per cycle], ``V_ts`` [J] and ``tan d_AM`` from amplitude [m], phase [deg],
     free amplitude [m], ``k1`` [N/m], ``Q1`` and ``Omega = f_drive/f1`` (module docstring, the AM-AFM energy balance)."""
@@ -179,6 +204,7 @@ class Observables(ModelFreeMethod):
         obs = am_observables(amp, phase, inp["free_amplitude"], inp["k1"], inp["q1"], omega)
         values = {"amplitude_obs": amp, "phase_obs": phase, "e_diss_obs": obs["e_diss"] / EV,
                   "virial_obs": obs["virial"] / EV, "tan_delta_am": obs["tan_delta"]}  # fmt: skip
+        per = per_period(record.t, record.z, inp, omega)  # the same, period by period: their spread
         refs = dynamic_references(record, inp["drive_frequency"])
         ko = record.observables
         truth = {"amplitude_obs": ko.get("amplitude"), "phase_obs": ko.get("phase_deg"),
@@ -202,7 +228,8 @@ class Observables(ModelFreeMethod):
         timing = {"reconstruction": record.reconstruction_s, "lock_in": time.perf_counter() - t0,
                   "total": time.perf_counter() - record.t_start}  # fmt: skip
         return ExtractionResult(method=self.key, force=record.force, taps=_taps(record), model=record.model.key,
-                                estimates=estimates(values, units, truth), info=dict(record.info), diagnostics=diag,
+                                estimates=estimates(values, units, truth, spreads=per), info=dict(record.info),
+                                diagnostics=diag,
                                 warnings=warnings, timing_s=timing, references=refs)  # fmt: skip
 
     def detail_lines(self, res: ExtractionResult) -> list[str]:

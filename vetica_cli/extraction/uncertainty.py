@@ -45,7 +45,6 @@ import numpy as np
 from ..signals.taps import find_taps
 from .result import ExtractionResult
 
-TAP_METHODS = ("vetica", "vetica-prestress")
 STAGES = ("tau_c", "k_g", "k_r")  # per-tap measurements the tap methods average
 
 
@@ -279,19 +278,28 @@ def band_term(res: ExtractionResult, record, method, options) -> dict:
     return out
 
 
+def tap_method_sigmas(res: ExtractionResult, record, method, options) -> tuple[dict, dict]:
+    """The tap methods' :meth:`~vetica_cli.extraction.base.ExtractionMethod.sigmas` hook:
+    :func:`tap_sigmas`, and where a stage failed Kg keeps its taps' standard error and the rest is
+    unbounded."""
+    sig, info = tap_sigmas(res, record, method, options)
+    for k, e in res.estimates.items():
+        if e.value is not None and k not in sig:
+            sp = e.spread
+            ok = k == "k_g" and sp is not None and sp.n >= 2 and sp.std is not None
+            sig[k] = sp.std / math.sqrt(sp.n) * t_factor(sp.n) / abs(e.value) if ok else math.inf
+    return sig, info
+
+
 def calibrate(res: ExtractionResult, record, method=None, options=None) -> ExtractionResult:
-    """Give every estimate of ``res`` its standard error (module docstring); in place."""
-    if res.method in TAP_METHODS and method is not None:
-        sig, info = tap_sigmas(res, record, method, options or {})
-        for k, e in res.estimates.items():  # a stage failed: Kg keeps its taps' standard error, the rest is unbounded
-            if e.value is not None and k not in sig:
-                sp = e.spread
-                ok = k == "k_g" and sp is not None and sp.n >= 2 and sp.std is not None
-                sig[k] = sp.std / math.sqrt(sp.n) * t_factor(sp.n) / abs(e.value) if ok else math.inf
-        res.estimates = {k: dataclasses.replace(e, sigma=sig.get(k, e.sigma)) if e.value is not None else e
+    """Give every estimate of ``res`` its standard error (module docstring): the method's own
+    ``sigmas`` hook (:meth:`~vetica_cli.extraction.base.ExtractionMethod.sigmas`), then the band
+    term of a low-passed force; in place."""
+    info = {}
+    if method is not None:
+        sig, info = method.sigmas(res, record, options or {})
+        res.estimates = {k: dataclasses.replace(e, sigma=sig[k]) if k in sig and e.value is not None else e
                          for k, e in res.estimates.items()}  # fmt: skip
-    else:
-        info = {"source": "the larger of the fit's Jacobian-and-residual error and the tap-robust sandwich"}
     if method is not None:  # a band-limited force: the bias of its low-pass (judged by the flags)
         band = band_term(res, record, method, options or {})
         if band:

@@ -587,6 +587,12 @@ class Vetica(ExtractionMethod):
                            "sum-of-sines fit)", one_of(*STAGE2)), KG_WINDOW, KG_SCALE)  # fmt: skip
     seconds_per_point = 0.45  # both forces, 10 periods at 0.125 ns: 0.44 CPU s measured with standard errors and checks
 
+    def sigmas(self, res: ExtractionResult, record: Record, options: dict) -> tuple[dict, dict]:
+        """Spread over taps with the Z1 and Kg terms (:func:`vetica_cli.extraction.uncertainty.tap_method_sigmas`)."""
+        from .uncertainty import tap_method_sigmas
+
+        return tap_method_sigmas(res, record, self, options)
+
     def run(self, record: Record, options: dict) -> ExtractionResult:
         ex = vetica(record.t, record.z, record.f, record.z1, kg_points=options["kg_points"],
                     kr_guess=options["kr_guess"], stage2=options["stage2"], taps=record.taps,

@@ -406,6 +406,12 @@ class VeticaPrestress(ExtractionMethod):
             raise InputError(f"stage2 {opts['stage2']!r} not allowed; choose one of: {', '.join(STAGE2)}")
         return opts
 
+    def sigmas(self, res: ExtractionResult, record: Record, options: dict) -> tuple[dict, dict]:
+        """Spread over taps with the Z1 and Kg terms (:func:`vetica_cli.extraction.uncertainty.tap_method_sigmas`)."""
+        from .uncertainty import tap_method_sigmas
+
+        return tap_method_sigmas(res, record, self, options)
+
     def run(self, record: Record, options: dict) -> ExtractionResult:
         mode = options["prestress"]
         if mode == "auto":  # the record's knowledge of the pull; unknown: the method's premise, it does

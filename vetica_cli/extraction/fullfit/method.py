@@ -288,6 +288,10 @@ class FullFit(ExtractionMethod):
             raise InputError(f"nu {nu!r} not allowed; expected a Poisson ratio > -1 and <= 0.5")
         return opts
 
+    def sigmas(self, res: ExtractionResult, record: Record, options: dict) -> tuple[dict, dict]:
+        """The fit's own sigma, computed in :meth:`run` (nothing to add)."""
+        return {}, {"source": "the larger of the fit's Jacobian-and-residual error and the tap-robust sandwich"}
+
     def run(self, record: Record, options: dict) -> ExtractionResult:
         """Fit the surface's parameters (and what the record does not say: the surface height,
         ``H R``, the surface pull) to the record (:mod:`vetica_cli.extraction.fullfit`)."""
