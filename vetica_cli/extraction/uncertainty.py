@@ -251,30 +251,35 @@ def band_term(res: ExtractionResult, record, method, options) -> dict:
     more noise), the changes ``D1``, ``D2`` fitted by a bias growing as ``fc^-p`` (``D2/D1 =
     2^(p/2) + 1``, ``p`` clamped to 1..4), and the bias at ``fc`` is ``D1/(2^(p/2) - 1)``
     (measured on the worked example's 16:1 surface with the pull off, noise-free, low-passed:
-    tau_c -1.8 % at 30 MHz, -8.5 % at 15 MHz).  Not a standard error: a systematic error of the
-    band, which the flags compare with the tolerance (:mod:`.sanity`)."""
+    tau_c -1.8 % at 30 MHz, -8.5 % at 15 MHz).  A systematic error of the band: added to sigma in
+    quadrature (an error bar of the record's answer against the noise-free one at the whole band),
+    and compared with the tolerance by the flags (:mod:`.sanity`)."""
     alts = []
     for step in BAND_STEPS:
         rec2 = band_record(record, step)
         if rec2 is None:
-            return {}
+            break
         try:
             alts.append(method.run(rec2, options).estimates)
-        except Exception:  # noqa: BLE001 - the narrower band is refused: no term (the noise terms stand)
-            return {}
+        except Exception:  # noqa: BLE001 - the narrower band is refused: the steps before it stand
+            break
+    if not alts:
+        return {}
     out = {}
     for q, e in res.estimates.items():
-        a1, a2 = (a.get(q) for a in alts)
-        if not (e.value and a1 is not None and a2 is not None and a1.value is not None and a2.value is not None):
+        d = []
+        for a in alts:
+            v = a.get(q)
+            d.append((v.value - e.value) / abs(e.value) if e.value and v is not None and v.value is not None else math.nan)
+        if not math.isfinite(d[0]):
             continue
-        d1, d2 = (a1.value - e.value) / abs(e.value), (a2.value - e.value) / abs(e.value)
-        if not (math.isfinite(d1) and math.isfinite(d2)):
-            continue
-        if d1 * d2 > 0 and abs(d2) > abs(d1):  # monotonic: extrapolate with the fitted order
-            r = min(max(d2 / d1 - 1.0, math.sqrt(2.0)), 4.0)  # 2^(p/2), p in 1..4
-            out[q] = abs(d1) / (r - 1.0)
+        if len(d) < 2 or not math.isfinite(d[1]):  # one step: the bias growing as 1/fc^2 (the minima's shift)
+            out[q] = abs(d[0])
+        elif d[0] * d[1] > 0 and abs(d[1]) > abs(d[0]):  # monotonic: extrapolate with the fitted order
+            r = min(max(d[1] / d[0] - 1.0, math.sqrt(2.0)), 4.0)  # 2^(p/2), p in 1..4
+            out[q] = abs(d[0]) / (r - 1.0)
         else:  # not monotonic in the band: the larger change, as for p = 1
-            out[q] = max(abs(d1), abs(d2)) / (math.sqrt(2.0) - 1.0)
+            out[q] = max(abs(d[0]), abs(d[1])) / (math.sqrt(2.0) - 1.0)
     return out
 
 
@@ -300,9 +305,12 @@ def calibrate(res: ExtractionResult, record, method=None, options=None) -> Extra
         sig, info = method.sigmas(res, record, options or {})
         res.estimates = {k: dataclasses.replace(e, sigma=sig[k]) if k in sig and e.value is not None else e
                          for k, e in res.estimates.items()}  # fmt: skip
-    if method is not None:  # a band-limited force: the bias of its low-pass (judged by the flags)
+    if method is not None:  # a band-limited force: the bias of its low-pass, in quadrature (and judged by the flags)
         band = band_term(res, record, method, options or {})
         if band:
             info["band"] = {"cutoff_hz": record.info.get("cutoff_hz"), "bias": band}
+            res.estimates = {k: dataclasses.replace(e, sigma=math.hypot(e.sigma, band[k]))
+                             if k in band and e.value is not None and e.sigma is not None else e
+                             for k, e in res.estimates.items()}  # fmt: skip
     res.info = {**res.info, "uncertainty": info}
     return res

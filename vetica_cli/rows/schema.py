@@ -25,6 +25,7 @@ from .. import surfaces
 from ..extraction import METHODS
 from ..extraction.material import CONTACT_UNITS, MATERIAL_UNITS, contact_metadata, contact_model, moduli
 from ..simulation.observables import OBSERVABLE_UNITS
+from .replicas import replica_columns, replica_meta
 
 ACCEPT_ERR_PCT = 30.0  # [%] tau_c error below which a point is accepted (thesis fig. 52; study.acceptance)
 # row status: ok = steady record, every reported quantity estimated; no_estimate = steady record, the
@@ -69,10 +70,11 @@ def method_quantities(models, methods) -> tuple[list[str], list[str]]:
     return list(est), [r for r in refs if r not in est and r not in own]
 
 
-def result_columns(models=None, methods=None) -> list[str]:
+def result_columns(models=None, methods=None, replicas: int = 1) -> list[str]:
     """Columns a job fills for each (point, force source), in table order, for points of the
     surface ``models`` (default: the default model) extracted by ``methods`` (keys; their own
-    quantities and references after the models')."""
+    quantities and references after the models'); with ``replicas`` > 1 the replicas' summary
+    (:mod:`.replicas`) after the sigma columns."""
     models = models or [surfaces.get(surfaces.DEFAULT_MODEL)]
     extra, refs = method_quantities(models, methods)
     quantities = list(dict.fromkeys([*(q for m in models for q in m.quantities), *extra]))
@@ -82,6 +84,8 @@ def result_columns(models=None, methods=None) -> list[str]:
         cols += [name, f"{name}_theory", f"{name}_err_pct"]
     cols += [f"{name}_theory" for name in refs]
     cols += [f"{name}_sigma_pct" for name in sigmas]
+    if replicas > 1:
+        cols += replica_columns(sigmas)
     cols += ["unidentified", "taps", *OBSERVABLES, *MATERIAL_INPUTS, "stop_reason", "sim_time", "status", "error",
              "wall_s"]  # fmt: skip
     return cols
@@ -108,7 +112,7 @@ def split_unit(text: str) -> tuple[str, str]:
     return "", text
 
 
-def column_meta(models, methods=None) -> dict:
+def column_meta(models, methods=None, replicas: int = 1) -> dict:
     """``column -> (unit, description)`` of every row column for points of the surface
     ``models`` extracted by ``methods`` (keys) (module docstring: the unit parses with a unit
     library, ``''`` for none)."""
@@ -138,6 +142,8 @@ def column_meta(models, methods=None) -> dict:
                     meta[f"{name}_theory"] = (unit, getattr(meth, "theory_sources", {}).get(name, "theory value"))
                 else:
                     meta[f"{name}_theory"] = (unit, f"the surface's {q.description} (theory only)")
+    if replicas > 1:
+        meta.update(replica_meta(list(dict.fromkeys(q for m in models for q in sigma_names(m)))))
     meta["unidentified"] = ("", "fitted parameters the method flags not identifiable, comma-separated ('' = none)")
     meta["taps"] = ("", "complete taps in the record")
     for name in OBSERVABLES:

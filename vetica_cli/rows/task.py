@@ -18,9 +18,10 @@ from dataclasses import dataclass
 from ..extraction import DEFAULT_METHOD, METHODS, ExtractionResult, extract
 from ..simulation.config import Config, from_dict
 from ..simulation.instrument import noise_free
-from ..simulation.simulate import Run, simulate
+from ..simulation.simulate import Run, replica_set, simulate
 from .plan import point_run
 from .extract import point_sources
+from .replicas import replica_columns, summarise
 from .schema import MATERIAL_INPUTS, OBSERVABLES, sigma_names
 
 Item = tuple  # (point key, resolved config dict, extract.method, extract.force)
@@ -107,6 +108,10 @@ def row_status(steady_ok: bool, missing: list[str], res: ExtractionResult) -> tu
     return ("no_estimate" if missing else "ok"), error
 
 
+def _empty_replica_columns(cfg: Config) -> dict:
+    return dict.fromkeys(replica_columns(sigma_names(cfg.surface.surface_model)), math.nan)
+
+
 def failed_rows(cfg: Config, exc: BaseException, where: str, wall: float, method: str, force: str) -> Rows:
     rows = []
     for source in point_sources(force):
@@ -126,6 +131,8 @@ class PointTask:
 
     simulate: Callable[[Config], Run] = simulate
     extract: Callable[..., ExtractionResult] = extract_point
+    replicas: int = 1  # sweep.replicas: each point recorded this many times with independent noise (rows.replicas)
+    replica_set: Callable = replica_set  # (cfg, n) -> (noise-free reference run, [noisy runs])
 
     def __call__(self, items: list[Item]) -> list[tuple[str, Rows]]:
         """``items`` = ``(point key, resolved config dict, extract.method, extract.force)`` of
@@ -133,6 +140,8 @@ class PointTask:
         most in the method and the instrument keys).  Returns ``[(point key, rows), ...]``.  Never raises for a point: errors become rows with
         status 'failed'."""
         cfgs = [from_dict(d) for _, d, _, _ in items]
+        if len(items) == 1 or self.replicas > 1:  # replicated points draw their own noise: nothing shared
+            return [(key, self.simulate_point(cfg, method, force)) for (key, _, method, force), cfg in zip(items, cfgs)]
         if len(items) == 1:
             (key, _, method, force), cfg = items[0], cfgs[0]
             return [(key, self.simulate_point(cfg, method, force))]
@@ -152,13 +161,41 @@ class PointTask:
         return out
 
     def simulate_point(self, cfg: Config, method: str, force: str) -> Rows:
-        """One point on its own: simulate, then extract."""
+        """One point on its own: simulate, then extract (``replicas`` > 1: :meth:`replicated_rows`)."""
+        if self.replicas > 1:
+            return self.replicated_rows(cfg, method, force)
         t0 = time.perf_counter()
         try:
             run = self.simulate(cfg)
         except Exception as exc:  # noqa: BLE001
             return failed_rows(cfg, exc, "simulate", time.perf_counter() - t0, method, force)
         return self.rows_for_run(cfg, run, time.perf_counter() - t0, method, force)
+
+    def replicated_rows(self, cfg: Config, method: str, force: str) -> Rows:
+        """The point recorded :attr:`replicas` times with independent noise and once without
+        (:func:`vetica_cli.simulation.simulate.replica_set`), every record extracted, one row per
+        force source summarising the replicas (:func:`vetica_cli.rows.replicas.summarise`)."""
+        t0 = time.perf_counter()
+        try:
+            reference, runs = self.replica_set(cfg, self.replicas)
+        except Exception as exc:  # noqa: BLE001
+            rows = failed_rows(cfg, exc, "simulate", time.perf_counter() - t0, method, force)
+            return [{**r, **_empty_replica_columns(cfg), "replicas": self.replicas} for r in rows]
+        sim_wall = (time.perf_counter() - t0) / (len(runs) + 1)
+        fitted = sigma_names(cfg.surface.surface_model)
+        out = []
+        for source in point_sources(force):
+            try:
+                ref = self.extract(reference.frame(), reference.metadata(), source, method)
+            except Exception:  # noqa: BLE001 - no reference: coverage unknown, the rows still say the rest
+                ref = None
+            rows, results = [], []
+            for run in runs:
+                row = self.rows_for_run(cfg, run, sim_wall, method, source)
+                row = next(r for r in row if r["force_source"] == source)
+                rows.append(row)
+            out.append(summarise(rows, results, ref, fitted))
+        return out
 
     def rows_for_run(self, cfg: Config, run: Run, sim_wall: float, method: str, force: str) -> Rows:
         """Extract a finished run with each force source -> one row each."""

@@ -321,6 +321,44 @@ def replicas(cfg: Config, seeds) -> list[Run]:
     return out
 
 
+REFERENCE_TEMPERATURE = 1e-9  # [K] the noise-free reference of a thermal record: its recording path, no noise to speak of
+
+
+def replica_seeds(noise_seed: int, n: int) -> list[int]:
+    """``n`` noise seeds of the replicas of a point whose own seed is ``noise_seed``: independent
+    streams (``SeedSequence([noise_seed, i])``), reproducible, none equal to the point's."""
+    from ..checks import MAX_SEED
+
+    return [int(np.random.SeedSequence([int(noise_seed), i]).generate_state(1)[0]) % MAX_SEED for i in range(1, n + 1)]
+
+
+def replica_set(cfg: Config, n: int) -> tuple[Run, list[Run]]:
+    """``(reference, replicas)``: ``n`` noisy recordings of ``cfg`` (:func:`replica_seeds`), and the
+    noise-free record made by the same recording path -- the thermal kernel at
+    :data:`REFERENCE_TEMPERATURE` when the point is at a temperature (its discretisation differs
+    from the fine kernel's by more than a thermal error bar), without the detector's noise and
+    quantisation -- all from one solution of the noise-free orbit."""
+    import copy
+    import dataclasses
+
+    run, kern, s0, d = _noise_free(cfg)
+    quiet = dataclasses.replace(cfg.numerics, position_noise=0.0, force_noise=0.0, adc_resolution=0.0,
+                                detector_noise_density=0.0,
+                                temperature=REFERENCE_TEMPERATURE if cfg.numerics.temperature else 0.0)  # fmt: skip
+    configs = [dataclasses.replace(cfg, numerics=quiet)]
+    configs += [dataclasses.replace(cfg, numerics=dataclasses.replace(cfg.numerics, noise_seed=seed))
+                for seed in replica_seeds(cfg.numerics.noise_seed, n)]  # fmt: skip
+    out = []
+    for c in configs:
+        r = copy.copy(run)
+        r.approach, r.steady, r.info, r.params = run.approach.copy(), run.steady.copy(), dict(run.info), c.to_dict()
+        if kern is not None and c.numerics.temperature:
+            add_thermal(r, kern, s0, c, d)
+        apply_instrument(r, c)
+        out.append(r)
+    return out[0], out[1:]
+
+
 def _noise_free(cfg: Config):
     """The point's noise-free run (orbit, records, observables) and what the thermal
     recording starts from: ``(run, kernel or None, state at the window start, derived)``."""

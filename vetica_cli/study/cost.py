@@ -174,7 +174,31 @@ def grid_cost(g: Grid) -> Cost:
     used = [any(f) for f in ext_factors]
     rest = math.prod(len(f) for f, u in zip(ext_factors, used) if not u)
     extract_s = rest * _sum_over([f for f, u in zip(ext_factors, used) if u], extract)
+    if g.replicas > 1:  # each point recorded replicas + 1 times (the noise-free reference), each record extracted
+        extract_s *= g.replicas + 1
+        kernel_s += g.n_points * (g.replicas + 1) * thermal_seconds(g)
     return Cost(points=g.n_points, simulations=simulations, kernel_s=kernel_s, extract_s=extract_s)
+
+
+THERMAL_STEP_S = 7e-8  # [s] one fine step of the thermal recording kernel (scripts/trust.py records: 0.6 s a 10-period replica)
+
+
+def thermal_seconds(g: Grid) -> float:
+    """Core-seconds of one thermal recording of the base point (its recorded periods and the two
+    settling ones at the fine step), 0 for a point without temperature."""
+    from ..simulation.config import INSTRUMENTS
+
+    preset = INSTRUMENTS.get(_base_value(g, "numerics.instrument", "thesis"), {})
+    try:
+        t = float(number(_base_value(g, "numerics.temperature", preset.get("temperature", 0.0))))
+        if not t:
+            return 0.0
+        f1 = float(number(_base_value(g, "probe.f1", 50e3)))
+        dt = float(number(_base_value(g, "numerics.dt", 0.025e-9)))
+        cycles = float(number(_base_value(g, "numerics.record_cycles", 10)))
+    except (TypeError, ValueError):
+        return 0.0
+    return (cycles + 2.0) / f1 / dt * THERMAL_STEP_S
 
 
 def study_core_seconds(study) -> float:
@@ -184,8 +208,9 @@ def study_core_seconds(study) -> float:
         total += kernel_seconds(task.points[0].config)
         for p in task.points:
             n = p.config.numerics
+            reps = p.replicas + 1 if p.replicas > 1 else 1  # the replicas and their noise-free reference
             total += (get(p.method).seconds_per_point * len(point_sources(p.force)) / 2
-                      * record_cost_scale(n.record_cycles, n.print_step))  # fmt: skip
+                      * record_cost_scale(n.record_cycles, n.print_step)) * reps  # fmt: skip
     return total
 
 

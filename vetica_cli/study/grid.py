@@ -15,7 +15,9 @@ to values::
 
 Keys combine as a cartesian product in the order they are written (the first
 key varies slowest); a ``zip:`` group (a mapping, or a list of mappings for
-several groups) is one factor whose lists have equal lengths.
+several groups) is one factor whose lists have equal lengths.  ``replicas: N`` (not a
+key) records every point N times with independent noise (a noisy point: thermal or
+detector noise) and summarises them in its rows (:mod:`vetica_cli.rows.replicas`).
 
 Derived keys (thesis ch. 4) may be swept or set in the base sections:
 
@@ -113,6 +115,7 @@ class Point:
     key: str  # hash of the resolved config and the extraction method (names the persisted part)
     method: str = DEFAULT_METHOD  # extract.method: how the point's run is analysed
     force: str = "both"  # extract.force: which force sources are extracted
+    replicas: int = 1  # sweep.replicas: independent noisy recordings of the point, summarised in its rows
 
     def label(self) -> str:
         return ", ".join(f"{k}={v!r}" for k, v in self.values.items())
@@ -128,6 +131,7 @@ class Study:
     sweep: dict  # the sweep block as given
     extract: dict = None  # the base 'extract:' section as given (after overrides), e.g. {"method": "full"}
     material: dict = None  # the 'material:' section as given (after overrides), e.g. {"nu_sample": 0.45}
+    replicas: int = 1  # sweep.replicas
 
     def resolved(self) -> dict:
         """A re-runnable study config: every base key resolved, sweep block as given."""
@@ -154,7 +158,7 @@ class Study:
         return out
 
 
-def point_key(cfg: Config, method: str = DEFAULT_METHOD, force: str = "both") -> str:
+def point_key(cfg: Config, method: str = DEFAULT_METHOD, force: str = "both", replicas: int = 1) -> str:
     """Stable 16-hex hash of a resolved point config (and the package version),
     and of the extraction keys that are not the default (so points with the
     default extraction keep the keys they had before extraction keys existed)."""
@@ -163,6 +167,8 @@ def point_key(cfg: Config, method: str = DEFAULT_METHOD, force: str = "both") ->
         d["method"] = method
     if force != EXTRACT_KEYS["extract.force"][1]:
         d["force"] = force
+    if replicas != 1:
+        d["replicas"] = replicas
     blob = json.dumps(d, sort_keys=True)
     return hashlib.sha256(blob.encode()).hexdigest()[:16]
 
@@ -356,6 +362,7 @@ class Grid:
     sweep: Any  # the sweep block as given
     extract: dict  # the base 'extract:' section (after overrides)
     material: dict = None  # the 'material:' section (after overrides)
+    replicas: int = 1  # sweep.replicas: noisy recordings of each point
 
     @property
     def n_points(self) -> int:
@@ -381,7 +388,7 @@ class Grid:
     def point(self, index: int, assign: dict | None = None) -> Point:
         """Point ``index`` resolved and validated (ConfigError naming the point)."""
         assign = self.assignment(index) if assign is None else assign
-        return _point(index, list(self.keys), assign, self.extract, self.base_clean, self.base_derived)
+        return _point(index, list(self.keys), assign, self.extract, self.base_clean, self.base_derived, self.replicas)
 
     def check_values(self, limit: int = CHECKED_VALUES) -> int:
         """Resolve, for swept values, the point that has it and the first value of every other
@@ -425,7 +432,8 @@ class Grid:
     def study(self, on_progress=None) -> Study:
         """The :class:`Study` with every point resolved (:meth:`points`)."""
         return Study(name=self.name, description=self.description, keys=self.keys, points=self.points(on_progress),
-                     base=self.base, sweep=self.sweep, extract=self.extract, material=self.material)  # fmt: skip
+                     base=self.base, sweep=self.sweep, extract=self.extract, material=self.material,
+                     replicas=self.replicas)  # fmt: skip
 
 
 def grid(raw: dict, name: str = "study", overrides: dict | None = None) -> Grid:
@@ -444,6 +452,10 @@ def grid(raw: dict, name: str = "study", overrides: dict | None = None) -> Grid:
     base = {k: (dict(v) if isinstance(v, dict) else v) for k, v in raw.items() if k in SECTIONS}
     extract = extract_section(raw.get(EXTRACT_SECTION))
     material = _material_section(raw.get(MATERIAL_SECTION))
+    replicas = 1
+    if isinstance(sweep, dict) and "replicas" in sweep:
+        replicas = _replicas(sweep["replicas"])
+        sweep = {k: v for k, v in sweep.items() if k != "replicas"}
     keys, factors = _factors(sweep)
     overrides = dict(overrides or {})
     for key in [k for k in overrides if k.startswith(MATERIAL_SECTION + ".")]:
@@ -452,10 +464,22 @@ def grid(raw: dict, name: str = "study", overrides: dict | None = None) -> Grid:
     _apply_overrides(base, extract, keys, overrides)
     base_clean, base_derived = _split_derived(base)
     g = Grid(name=name, description=description, keys=tuple(keys), factors=tuple(factors), base=base,
-                base_clean=base_clean, base_derived=base_derived, sweep=sweep, extract=extract,
-                material=material)  # fmt: skip
+                base_clean=base_clean, base_derived=base_derived, sweep=raw.get("sweep"), extract=extract,
+                material=material, replicas=replicas)  # fmt: skip
     g.check_size()
     return g
+
+
+MAX_REPLICAS = 200  # sweep.replicas: noisy recordings of one point (coverage of a 2-sigma claim needs ~30)
+
+
+def _replicas(value: Any) -> int:
+    """``sweep.replicas``: an integer in 1..MAX_REPLICAS; ConfigError (one line) otherwise."""
+    v = number(value)
+    if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(float(v)) or v != int(v) or not (
+            1 <= v <= MAX_REPLICAS):  # fmt: skip
+        raise ConfigError(f"sweep.replicas: {value!r} is not allowed; expected an integer in 1..{MAX_REPLICAS}")
+    return int(v)
 
 
 def expand(raw: dict, name: str = "study", overrides: dict | None = None) -> Study:
@@ -480,7 +504,8 @@ def _apply_overrides(base: dict, extract: dict, keys: list, overrides: dict) -> 
         base[sec][kname] = value
 
 
-def _point(i: int, keys: list, assign: dict, extract: dict, base_clean: dict, base_derived: dict) -> Point:
+def _point(i: int, keys: list, assign: dict, extract: dict, base_clean: dict, base_derived: dict,
+           replicas: int = 1) -> Point:  # fmt: skip
     """Point ``i`` of the grid from its swept assignments: config resolved and validated,
     extraction keys from the assignment or the base ``extract:`` section."""
     values = {k: assign[k] for k in keys}
@@ -508,7 +533,18 @@ def _point(i: int, keys: list, assign: dict, extract: dict, base_clean: dict, ba
         raise ConfigError(f"point {i} ({label}): extract.method {method!r} cannot extract {surface} (it extracts: "
                           f"{', '.join(METHODS[method].surface_models)}); expected extract.method: "
                           f"{' or '.join(able) or 'none registered'}")  # fmt: skip
-    return Point(index=i, values=resolved, config=cfg, key=point_key(cfg, method, force), method=method, force=force)
+    if replicas > 1 and not _noisy(cfg):
+        raise ConfigError(f"point {i} ({label}): sweep.replicas {replicas} needs a noisy record (numerics.temperature, "
+                          "detector noise or numerics.instrument: lab); this point is noise-free, so every replica "
+                          "would be the same")  # fmt: skip
+    return Point(index=i, values=resolved, config=cfg, key=point_key(cfg, method, force, replicas), method=method,
+                 force=force, replicas=replicas)  # fmt: skip
+
+
+def _noisy(cfg: Config) -> bool:
+    """Whether a point's record carries noise that a replica draws anew."""
+    n = cfg.numerics
+    return bool(n.temperature or n.position_noise or n.force_noise or n.detector_noise_density or n.adc_resolution)
 
 
 def _model_of(sections: dict) -> str:

@@ -153,7 +153,7 @@ def run_sweep(
 
     core_s = study_core_seconds(study)
     bar = Bar(name="sweep", unit="points", estimate_s=wall_estimate(core_s, 1 if jobs == 1 else jobs), notice=notice)
-    res, run = run_batch(output, jobs_, task or PointTask(), split, fingerprint=code_fingerprint(SWEEP_ROOTS),
+    res, run = run_batch(output, jobs_, task or PointTask(replicas=study.replicas), split, fingerprint=code_fingerprint(SWEEP_ROOTS),
                          finish=finish, check=check_point_part, bar=bar, backend=backend, n_jobs=jobs,
                          scheduler=scheduler, launcher=launcher, serial_estimate=core_s if auto_serial else None,
                          serial_below_s=SERIAL_BELOW_S, resume=resume, progress=progress, console=console,

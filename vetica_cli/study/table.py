@@ -25,7 +25,8 @@ def study_methods(study: Study) -> list[str]:
 
 def rows_frame(point: Point, rows: list[dict]) -> pd.DataFrame:
     """A point's rows as a frame with the columns of its surface model."""
-    return pd.DataFrame(rows, columns=result_columns([point.config.surface.surface_model], [point.method]))
+    return pd.DataFrame(rows, columns=result_columns([point.config.surface.surface_model], [point.method],
+                                                     point.replicas))
 
 
 def column_meta_of(study: Study) -> dict:
@@ -36,7 +37,7 @@ def column_meta_of(study: Study) -> dict:
     for k in study.keys:
         if k not in EXTRACT_KEYS:
             meta[k] = (units.get(k, ""), "swept key, SI as in the config schema")
-    meta.update(column_meta(models, study_methods(study)))
+    meta.update(column_meta(models, study_methods(study), study.replicas))
     return meta
 
 
@@ -55,7 +56,7 @@ def study_material_metadata(study: Study) -> dict:
 def assemble(study: Study, done: dict) -> pd.DataFrame:
     """The tidy table from the points' rows (``done``: point key -> frame): points in grid
     order, 'true' before 'reconstructed', the swept keys after the point key."""
-    columns = result_columns(study_models(study), study_methods(study))
+    columns = result_columns(study_models(study), study_methods(study), study.replicas)
     frames = []
     for p in study.points:
         df = done[p.key].reindex(columns=columns)
