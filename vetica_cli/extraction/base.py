@@ -27,7 +27,7 @@ from ..signals.taps import KG_WINDOWS
 from ..surfaces import MODELS, Quantity, SurfaceModel
 from ..surfaces.base import DYNAMIC_QUANTITIES
 from .record import Record
-from .result import ExtractionResult
+from .result import ExtractionResult, t_factor
 
 
 @dataclass(frozen=True)
@@ -138,8 +138,6 @@ class ExtractionMethod(ABC):
         standard error of the per-tap (or per-period) values' mean, ``s/sqrt(n)`` (times
         ``sqrt(pi/2)`` = 1.2533 for a median: its asymptotic efficiency on Gaussian values),
         scaled by ``t(0.975, n-1)/1.96``; a quantity with fewer than two values has none."""
-        from .uncertainty import t_factor
-
         scale = math.sqrt(math.pi / 2.0) if self.per_tap_statistic == "median" else 1.0
         out = {}
         for q, e in res.estimates.items():

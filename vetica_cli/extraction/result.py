@@ -112,3 +112,21 @@ def estimates(
             spread=None if spreads is None else spreads.get(name),
         )
     return out
+
+
+def t_factor(n: int) -> float:
+    """``t(0.975, n - 1) / 1.96``: the standard error of a mean of ``n`` values scaled so
+    that +-2 sigma is its 95 % interval (inf below two values).  The t quantile from
+    ``scipy.special.stdtrit`` (not scipy.stats: half a second of imports for one number)."""
+    if n < 2:
+        return math.inf
+    from scipy.special import stdtrit
+
+    return float(stdtrit(n - 1, 0.975) / 1.959963984540054)
+
+
+def sls_elements(tau_c: float, k_g: float, k_r: float) -> dict:
+    """SLS elements from the characteristic constants (thesis eqs. 76, 81-83)."""
+    tau_r = tau_c * k_r / k_g
+    k0 = k_g - k_r
+    return {"tau_c": tau_c, "k_g": k_g, "k_r": k_r, "tau_r": tau_r, "k0": k0, "k_inf": k_r, "cd": tau_r * k0}

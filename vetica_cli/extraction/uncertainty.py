@@ -43,19 +43,11 @@ import math
 import numpy as np
 
 from ..signals.taps import find_taps
-from .result import ExtractionResult
+from .result import ExtractionResult, sls_elements, t_factor  # noqa: F401  (t_factor re-exported)
 
 STAGES = ("tau_c", "k_g", "k_r")  # per-tap measurements the tap methods average
 
 
-def t_factor(n: int) -> float:
-    """``t(0.975, n - 1) / 1.96``: the standard error of a mean of ``n`` values scaled so
-    that +-2 sigma is its 95 % interval (inf below two values)."""
-    if n < 2:
-        return math.inf
-    from scipy.stats import t
-
-    return float(t.ppf(0.975, n - 1) / 1.959963984540054)
 
 
 def z1_sigma(record, taps, kr: float | None = None) -> float:
@@ -73,9 +65,9 @@ def z1_sigma(record, taps, kr: float | None = None) -> float:
         fa = -float(np.median(fc))
         kg = (record.z1 - record.a0) and fa / (record.z1 - record.a0)
         s_fa = float(np.std(fc, ddof=1)) / math.sqrt(len(fc)) if len(fc) > 1 else math.inf
-        from .vetica import stage1b_kg
+        from ..signals.taps import contact_slopes
 
-        kgi = stage1b_kg(record.z, record.f, taps, 10)
+        kgi = contact_slopes(record.z, record.f, taps, 10)
         kgi = kgi[np.isfinite(kgi)]
         s_kg = float(np.std(kgi, ddof=1)) / math.sqrt(len(kgi)) if len(kgi) > 1 else math.inf
         if not kg > 0:
@@ -110,7 +102,6 @@ def approach_jitter(z, f, i, sf: float | None = None) -> float:
 def log_gradients(values: dict, rel: float = 1e-6) -> dict:
     """``d ln q / d ln s`` of every quantity ``q`` of ``sls_elements`` against each stage
     ``s`` of :data:`STAGES` (central differences)."""
-    from .vetica import sls_elements
 
     base = [values[s] for s in STAGES]
     out = {}

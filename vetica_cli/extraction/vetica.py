@@ -65,16 +65,11 @@ from ..errors import InputError
 from ..signals.taps import Taps, contact_slopes, find_taps
 from .base import KG_SCALE, KG_POINTS, KG_WINDOW, ExtractionMethod, Option, register
 from .record import Record
-from .result import ExtractionResult, Spread, estimates
+from .result import ExtractionResult, Spread, estimates, sls_elements  # noqa: F401  (sls_elements re-exported)
 
 MIN_CONTACT_SAMPLES = 20  # stage 2 needs the contact resolved: 3 sines + constant = 10 parameters
 
 
-def sls_elements(tau_c: float, k_g: float, k_r: float) -> dict:
-    """SLS elements from the characteristic constants (thesis eqs. 76, 81-83)."""
-    tau_r = tau_c * k_r / k_g
-    k0 = k_g - k_r
-    return {"tau_c": tau_c, "k_g": k_g, "k_r": k_r, "tau_r": tau_r, "k0": k0, "k_inf": k_r, "cd": tau_r * k0}
 
 
 # ----------------------------------------------------------------------------- stage 1
