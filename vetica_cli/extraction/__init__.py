@@ -15,6 +15,8 @@ from __future__ import annotations
 
 from dataclasses import asdict, replace
 
+import numpy as np
+
 from ..errors import InputError
 from ..io import read_table
 from .base import DEFAULT_METHOD, METHODS, ExtractionMethod, get, register
@@ -102,12 +104,27 @@ def extract_many(df, meta: dict | None, force: str, methods: dict, *, contact=No
             )
     out = {}
     for key, m in ms.items():
-        res = m.run(record, opts[key])
+        try:
+            res = m.run(record, opts[key])
+        except InputError as exc:
+            raise InputError(_with_noise(str(exc), record)) from None
         calibrate(res, record, m, opts[key])  # a standard error for every estimate (.uncertainty)
         check(res, record, opts[key])  # identifiability and sanity checks: no silent wrong answer (.sanity)
         add_material(res, record, cm, radius_source)
         out[key] = res
     return out
+
+
+def _with_noise(text: str, record: Record) -> str:
+    """A refusal for want of taps, with the record's force noise when the taps may be lost in it."""
+    noise = record.info.get("noise") or {}
+    rms = noise.get("force_rms_n")
+    peak = float(np.max(record.f)) if len(record.f) else 0.0
+    if text.startswith("too few taps") and rms and peak > 0 and rms > 0.1 * peak:
+        band = f" at its band {noise['cutoff_hz'] / 1e6:.3g} MHz" if noise.get("cutoff_hz") else ""
+        text += (f"; the force's noise ({rms:.2g} N RMS{band}) is {rms / peak:.2g} of its peak: the taps do not "
+                 "stand above it")  # fmt: skip
+    return text
 
 
 def add_material(res: ExtractionResult, record: Record, cm: ContactModel, radius_source: str) -> None:
