@@ -9,6 +9,8 @@ from __future__ import annotations
 
 import time
 
+from ..checks import duration  # noqa: F401  (re-exported: where the estimates format a time)
+
 
 def _estimate_column(progress_mod, bar):
     """A rich column: rich's measured time left once a job of this run has finished, the
@@ -91,14 +93,3 @@ class Progress:
             self.groups[0] += groups
         if self.progress is not None:
             self.progress.update(self.task, advance=n, failed=failed, groups=self._groups())
-
-
-def duration(seconds: float) -> str:
-    """``seconds`` as a short human duration: 45 s, 12 min, 3.4 h, 2.1 days."""
-    if seconds < 90:
-        return f"{seconds:.0f} s"
-    if seconds < 5400:
-        return f"{seconds / 60:.0f} min"
-    if seconds < 48 * 3600:
-        return f"{seconds / 3600:.1f} h"
-    return f"{seconds / 86400:.1f} days"

@@ -58,6 +58,7 @@ from ..batch.run import (
 )
 from ..batch.run import Terminated  # noqa: F401 - raised by SIGTERM/SIGHUP during a sweep
 from ..batch.run import default_output as batch_output
+from ..checks import CONFIRM_ITEMS, CONFIRM_WALL_S
 from ..errors import InputError
 from ..io import write_table, write_text
 from ..rows.extract import point_sources
@@ -73,12 +74,11 @@ from .table import assemble, column_meta_of, rows_frame, study_material_metadata
 # the modules whose import closure computes a point's rows: the point task (simulation and
 # extraction), the print-step policy that shares simulations, and the points and their keys
 SWEEP_ROOTS = ("rows/task.py", "rows/plan.py", "study/grid.py", "study/table.py")
-CONFIRM_POINTS = 5000  # a study with more points needs --yes
+CONFIRM_POINTS = CONFIRM_ITEMS  # a study with more points needs --yes (the threshold every command asks past)
 # Below this estimate of core-seconds a sweep runs in its own process: each worker costs ~1.5
 # CPU-seconds to start (imports, numba's target and cache), and measured on the project machine
 # a 4-point sweep took 3.0 s in one process against 5.3 s with two workers
 SERIAL_BELOW_S = 8.0
-CONFIRM_WALL_S = 2 * 3600.0  # [s] ... as does one estimated to take longer on the given workers
 SweepInterrupted = BatchInterrupted  # Ctrl-C, SIGTERM or SIGHUP during a sweep (message and exit code)
 
 
