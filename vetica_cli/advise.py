@@ -47,7 +47,7 @@ import numpy as np
 import pandas as pd
 
 from . import surfaces
-from .checks import confirm_cost, finite, limit
+from .checks import CONFIRM_ITEMS, confirm_cost, finite, limit
 from .ranges import check_range
 from .errors import ConfigError, InputError
 from .extraction import METHODS, SOURCES, extract, extract_many
@@ -317,6 +317,9 @@ def advise(material: Material, overrides: dict | None = None, knobs: dict | None
         raise InputError(f"--force {force!r} not allowed; choose one of: {', '.join(SOURCES)}")
     values = knob_values(knobs)
     base = base_config(material, overrides)
+    n = math.prod(len(v) for v in values.values())
+    if n > CONFIRM_ITEMS:  # refused before n configs are built (160 000 took 13 s)
+        confirm_cost(f"this advice ({n} settings)", 0.0, yes, n, "settings")
     settings = []
     for f1 in sorted(values["probe.f1"]):  # slow (low f1) settings first: the workers finish together
         for sp in values["operation.setpoint"]:

@@ -153,9 +153,9 @@ def confirm_cost(what: str, wall_s: float, yes: bool, items: int | None = None, 
     names the work, e.g. 'this scan (64 x 64 pixels, 1 pass)'."""
     if yes or ((items is None or items <= CONFIRM_ITEMS) and wall_s <= CONFIRM_WALL_S):
         return
-    count = f"{items} {unit}, " if items is not None else ""
-    raise InputError(f"{what} is estimated at {count}{duration(wall_s)} (over {CONFIRM_ITEMS} {unit} or "
-                     f"{duration(CONFIRM_WALL_S)}): add --yes to start it")  # fmt: skip
+    count, over = (f"{items} {unit}, ", f"{CONFIRM_ITEMS} {unit} or ") if items is not None else ("", "")
+    raise InputError(f"{what} is estimated at {count}{duration(wall_s)} (over {over}{duration(CONFIRM_WALL_S)}): add "
+                     "--yes to start it")  # fmt: skip
 
 
 def limit(key: str, what: str | None = None) -> Rule:
@@ -171,7 +171,20 @@ class _StrictLoader(yaml.SafeLoader):
     """YAML's safe loader that refuses duplicate keys (the last one would win silently) and
     anchors/aliases (an alias bomb expands to gigabytes; no vetica config needs them)."""
 
+    depth = 0  # nesting depth of the node being composed
+
     def compose_node(self, parent, index):
+        if self.depth >= MAX_YAML_DEPTH:  # checked while parsing: deep nesting ends in RecursionError otherwise
+            mark = self.peek_event().start_mark
+            raise ConfigError(f"{self.name}: nesting deeper than {MAX_YAML_DEPTH} levels at line {mark.line + 1} is not "
+                              "allowed; expected sections of plain values and short lists")  # fmt: skip
+        self.depth += 1
+        try:
+            return self._compose_node(parent, index)
+        finally:
+            self.depth -= 1
+
+    def _compose_node(self, parent, index):
         if self.check_event(yaml.AliasEvent):
             event = self.peek_event()
             raise ConfigError(f"{self.name}: an alias (*{event.anchor}) at line {event.start_mark.line + 1} is not "
@@ -194,8 +207,17 @@ class _StrictLoader(yaml.SafeLoader):
         return super().construct_mapping(node, deep=deep)
 
 
+MAX_YAML_DEPTH = 32  # nesting levels of a YAML document: a config needs 5 (sample.features.0.surface.arms.0)
+MAX_YAML_BYTES = 1 << 20  # a config file: the largest study config is ~2 KB; long value lists are written as ranges
+
+
 def load_yaml(text: str, name: str = "config") -> Any:
-    """Parse YAML ``text`` strictly (:class:`_StrictLoader`; ``name`` in the messages)."""
+    """Parse YAML ``text`` strictly (:class:`_StrictLoader`; ``name`` in the messages): at most
+    :data:`MAX_YAML_BYTES` of text and :data:`MAX_YAML_DEPTH` levels of nesting, checked
+    before and while parsing (ConfigError, one line)."""
+    if len(text) > MAX_YAML_BYTES:
+        raise ConfigError(f"{name}: {len(text)} characters are not allowed; expected at most {MAX_YAML_BYTES} (a "
+                          "config; write long value lists as ranges, e.g. {logspace: [-5, 3, 33]})")  # fmt: skip
     loader = _StrictLoader(text)
     loader.name = name
     try:

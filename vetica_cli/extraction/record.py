@@ -36,6 +36,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from .. import surfaces
+from ..checks import check, coerce
 from ..errors import ConfigError, InputError
 from ..ranges import check_range, range_of
 from ..signals.spectral import reconstruct_force, reconstruction_error
@@ -384,6 +385,31 @@ def drive_periods(f: np.ndarray) -> float | None:
     return len(f) / taps.spacing if taps.spacing > 0 else None
 
 
+NAMED_KEYS = ("steady", "integrator")  # numerics keys whose values are names
+
+
+def check_params(params: dict) -> None:
+    """InputError (one line) for a metadata ``params`` a method cannot use: a probe, operation or
+    numerics value that is not a number (a name where the key takes one), or a surface key its
+    model refuses (each model's own parser and ranges).  Unknown keys pass (other versions)."""
+    for sec in ("probe", "operation", "numerics"):
+        for key, value in (params.get(sec) or {}).items():
+            named = sec == "numerics" and key in NAMED_KEYS
+            if value is not None and not named and (isinstance(value, str) or not isinstance(value, (int, float))):
+                raise InputError(f"the file's metadata: params.{sec}.{key} is {value!r}; expected a number")
+    surface = params.get("surface") or {}
+    try:
+        model = surfaces.get(surface.get("model", surfaces.DEFAULT_MODEL))
+        for key, value in surface.items():
+            if key in model.config_keys:
+                model.parse_key(key, value)
+            elif key in surfaces.COMMON_KEYS:
+                spec = surfaces.COMMON_KEYS[key]
+                check(f"surface.{key}", value, coerce(f"surface.{key}", value, spec.type), spec.rule)
+    except ConfigError as exc:
+        raise InputError(f"the file's metadata: {exc}") from None
+
+
 def surface_of(params: dict) -> tuple[surfaces.SurfaceModel, dict | None]:
     """The surface model of a run's resolved parameters (the default for measured data) and
     its theory values, or None when the parameters do not hold every key of the model."""
@@ -461,6 +487,7 @@ def build_record(
         if value is not None:  # a stated constant within its quantity's one range (vetica_cli.ranges)
             check_range(flag, value, flag)
     meta = meta or {}
+    check_params(meta.get("params") or {})
     force = resolve_force(df, force)
     t_start = time.perf_counter()
     steady = _steady_segment(df)

@@ -22,7 +22,7 @@ from typing import Any
 import yaml
 
 from .. import surfaces
-from ..checks import MAX_CYCLES, MAX_ORBIT_PERIODS, MAX_SEED, check, coerce, limit, load_yaml, number
+from ..checks import MAX_CYCLES, MAX_ORBIT_PERIODS, MAX_SEED, MAX_YAML_BYTES, check, coerce, limit, load_yaml, number
 from ..checks import nonneg as _nonneg
 from ..checks import one_of
 from ..checks import open_unit as _open_unit
@@ -406,6 +406,10 @@ def read_yaml(path: str | Path) -> dict:
     if not is_file:
         raise ConfigError(f"config file {str(p)!r} does not exist")
     try:
+        size = p.stat().st_size
+        if size > MAX_YAML_BYTES:  # before reading it: a 30 MB list took 575 s and 3.2 GB to refuse
+            raise ConfigError(f"config file {str(p)!r} holds {size} bytes; expected at most {MAX_YAML_BYTES} (a config; "
+                              "write long value lists as ranges, e.g. {logspace: [-5, 3, 33]})")  # fmt: skip
         data = load_yaml(p.read_bytes().decode("utf-8"), f"config file {str(p)!r}")
     except (OSError, UnicodeDecodeError) as exc:
         raise ConfigError(f"config file {str(p)!r} cannot be read as UTF-8 text ({type(exc).__name__})") from None
