@@ -50,11 +50,11 @@ from . import surfaces
 from .checks import CONFIRM_ITEMS, confirm_cost, finite, limit
 from .ranges import check_range
 from .errors import ConfigError, InputError
-from .extraction import METHODS, SOURCES, extract, extract_many
+from .extraction import METHODS, SOURCES, extract, extract_many, extraction_modules
 from .extraction.material import ContactModel, contact_model, stiffness
 from .simulation.config import from_dict, load
 from .simulation.cost import kernel_seconds
-from .simulation.jit import compile_notice
+from .simulation.jit import compile_notice, simulation_modules
 from .simulation.simulate import simulate
 from .batch.launch import make_launcher
 from .batch.progress import Progress
@@ -344,7 +344,8 @@ def advise(material: Material, overrides: dict | None = None, knobs: dict | None
     t0 = time.perf_counter()
     rows: list = [None] * len(items)
     bar = Progress(len(items), 0, 0, enabled=progress, name="advise", unit="simulations",
-                   notice=compile_notice() if progress else None)
+                   notice=compile_notice(simulation_modules(settings[0].config) | extraction_modules(methods, (force,)))
+                   if progress else None)  # fmt: skip
     failed = 0
 
     def on_result(i, res):

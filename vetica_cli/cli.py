@@ -145,11 +145,10 @@ def simulate(
     """
     from .report import run_summary
     from .simulation.config import parse_set
-    from .simulation.jit import compile_notice
     from .simulation.simulate import simulate_file
 
-    notice = None if quiet else compile_notice()
-    run = simulate_file(config, output, parse_set(set_), notice=lambda: notice and typer.echo(notice, err=True), yes=yes)
+    notice = None if quiet else (lambda line: typer.echo(line, err=True))  # said only when kernels will compile
+    run = simulate_file(config, output, parse_set(set_), notice=notice, yes=yes)
     if not quiet:
         typer.echo(run_summary(run, output))
 

@@ -2,8 +2,9 @@
 
 Until the first job of this run has finished, rich has no speed to measure, so the time
 left shown is the caller's cost-model estimate (``estimate_s``, marked ``~``); a line
-printed before the bar (``notice``) says what a silent start is (e.g. numba compiling
-its kernels on a first run)."""
+printed before the bar (``notice``) says what a silent start is (numba compiling its
+kernels on a first run), and while it lasts -- until the first job has finished -- the
+bar says ``compiling`` instead of counting the estimate down."""
 
 from __future__ import annotations
 
@@ -18,9 +19,12 @@ def _estimate_column(progress_mod, bar):
 
     class Column(progress_mod.TimeRemainingColumn):
         def render(self, task):
+            from rich.text import Text
+
+            if task.completed == bar.done0 and bar.notice:  # the kernels compile before the first job ends
+                return Text("compiling", style="progress.remaining")
             if task.completed > bar.done0 or bar.estimate_s is None:
                 return super().render(task)
-            from rich.text import Text
 
             left = max(0.0, bar.estimate_s - (time.monotonic() - bar.t0))
             m, s = divmod(int(round(left)), 60)

@@ -65,7 +65,8 @@ from ..rows.extract import point_sources
 from ..rows.plan import group
 from ..rows.schema import STATUSES, units_metadata
 from ..rows.task import PointTask
-from ..simulation.jit import compile_notice
+from ..extraction import extraction_modules
+from ..simulation.jit import compile_notice, simulation_modules
 from .acceptance import ACCEPT_ERR_PCT, acceptance_regime, format_acceptance
 from .cost import Cost, dry_run_text, duration, grid_cost, study_core_seconds, wall_estimate
 from .grid import Study, load_grid
@@ -235,6 +236,16 @@ def size_guard(cost: Cost, jobs: int, yes: bool) -> None:
     )
 
 
+def study_modules(study: Study) -> set[str]:
+    """The cached core modules the study's points compile (simulations and extractions)."""
+    mods: set[str] = set()
+    for kind in {(p.config.surface.model, p.config.numerics.temperature > 0, p.method, p.force) for p in study.points}:
+        p = next(q for q in study.points if (q.config.surface.model, q.config.numerics.temperature > 0, q.method,
+                                               q.force) == kind)  # fmt: skip
+        mods |= simulation_modules(p.config) | extraction_modules((p.method,), point_sources(p.force))
+    return mods
+
+
 def cores() -> int:
     """CPU cores this process may use."""
     try:
@@ -276,5 +287,6 @@ def sweep_command(
         log(f"checking the {cost.points} points of {g.name} ...")
     study = g.study()
     with signals_as_interrupt():
-        res = run_sweep(study, out, jobs=jobs, log=log, auto_serial=auto, notice=compile_notice(), **run_kw)
+        res = run_sweep(study, out, jobs=jobs, log=log, auto_serial=auto, notice=compile_notice(study_modules(study)),
+                        **run_kw)  # fmt: skip
     return summary(res, study)

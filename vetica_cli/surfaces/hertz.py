@@ -73,6 +73,7 @@ class Hertz(SurfaceModel):
         "nu": limit("surface.nu"),
     }
     common_defaults: ClassVar[dict[str, Any]] = {"vdw_on_surface": False}
+    kernel_modules: ClassVar[tuple[str, ...]] = ("mdr", "tapping", "expm")
     theory_source = "Prony-series modulus of the hertz surface (MDR, Popov & Hess 2015)"
     item_help = "surface.arms.<i>.e, surface.arms.<i>.tau (hertz, i the list index from 0)"
 
@@ -101,7 +102,7 @@ class Hertz(SurfaceModel):
     def parse_key(self, name: str, value: Any) -> Any:
         if name == "arms":
             if not isinstance(value, list) or not value or len(value) > MAX_ARMS:
-                shown = value if not isinstance(value, list) else f"a list of {len(value)} arms"
+                shown = f"a list of {len(value)} arms" if isinstance(value, list) and value else repr(value)
                 raise ConfigError(
                     f"surface.arms: {shown} is not allowed; expected a list of 1..{MAX_ARMS} arms {{e: Pa, tau: s}}"
                 )

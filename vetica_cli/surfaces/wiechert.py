@@ -93,7 +93,7 @@ class Wiechert(SurfaceModel):
         if name != "arms":
             return super().parse_key(name, value)
         if not isinstance(value, list) or not value or len(value) > MAX_ARMS:
-            shown = value if not isinstance(value, list) else f"a list of {len(value)} arms"
+            shown = f"a list of {len(value)} arms" if isinstance(value, list) and value else repr(value)
             raise ConfigError(
                 f"surface.arms: {shown} is not allowed; expected a list of 1..{MAX_ARMS} arms {{k: N/m, cd: kg/s}}"
             )
