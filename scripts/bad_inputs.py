@@ -10,13 +10,14 @@ a subprocess (its own process group, killed at the time limit) on a small record
 (``vetica simulate`` of a cheap point, ~5 s warm); nothing is written outside ``--work``.
 Prints one line per case and the tallies; exit status 1 when a case did not end clean.
 
-    python scripts/bad_inputs.py [--work /tmp/bad_inputs] [--timeout 60] [-k SUBSTRING]
+    python scripts/bad_inputs.py [--work /tmp/bad_inputs] [--timeout 60] [-k SUBSTRING] [--command CMD]
 """
 
 from __future__ import annotations
 
 import argparse
 import os
+import shlex
 import shutil
 import signal
 import subprocess
@@ -34,7 +35,12 @@ ROOT = Path(__file__).resolve().parents[1]
 CHEAP = ["--set", "numerics.dt=0.05e-9", "--set", "numerics.record_cycles=3", "--set", "numerics.print_step=0.5e-9"]
 
 
+COMMAND: list[str] = []  # how to run vetica (--command); default the installed console script
+
+
 def vetica() -> list[str]:
+    if COMMAND:
+        return COMMAND
     exe = shutil.which("vetica")
     return [exe] if exe else [sys.executable, "-m", "vetica_cli"]
 
@@ -238,9 +244,12 @@ def main() -> int:
     ap.add_argument("--work", type=Path, default=Path("/tmp/bad_inputs"), help="folder for the inputs and outputs")
     ap.add_argument("--timeout", type=float, default=60.0, help="seconds before a case counts as a runaway")
     ap.add_argument("-k", default="", help="run only the cases whose name contains this")
+    ap.add_argument("--command", default="", help="how to run vetica for the cases, e.g. 'env PYTHONPATH=/old "
+                    "python -m vetica_cli' to tally another version (the inputs are made with the installed one)")
     a = ap.parse_args()
     a.work.mkdir(parents=True, exist_ok=True)
     files = make_inputs(a.work)
+    COMMAND[:] = shlex.split(a.command)
     out = a.work / "out"
     tally: Counter = Counter()
     by_kind: dict = {}
