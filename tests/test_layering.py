@@ -4,7 +4,7 @@ Imports point one way only (cli -> plots -> the batch commands scan, study (swee
 advise, bench, report, siblings that never import each other -> the rows layer (point
 task, row schema) and the batch layer (launchers, lock, progress, parts; no physics)
 -> extraction/simulation -> surfaces/signals -> core; ``errors``, ``io``,
-``constants``, ``checks``, ``interrupt`` usable from anywhere), there is no import cycle, and no
+``constants``, ``checks``, ``ranges``, ``interrupt`` usable from anywhere), there is no import cycle, and no
 module -- in the package, the tests or the scripts -- imports another module's
 ``_private`` name or patches one.
 """
@@ -29,7 +29,7 @@ LAYERS = (
     {"surfaces", "signals"},
     {"core"},
 )
-FOUNDATION = {"__init__", "errors", "io", "constants", "checks", "interrupt"}
+FOUNDATION = {"__init__", "errors", "io", "constants", "checks", "ranges", "interrupt"}
 
 
 def module_name(path: Path) -> str:

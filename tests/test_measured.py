@@ -20,7 +20,7 @@ from typer.testing import CliRunner
 
 from vetica_cli import surfaces
 from vetica_cli.cli import app
-from vetica_cli.errors import InputError
+from vetica_cli.errors import ConfigError, InputError
 from vetica_cli.extraction import extract
 from vetica_cli.extraction.record import build_record, z1_estimate
 from vetica_cli.simulation.config import load
@@ -142,7 +142,7 @@ def test_z1_that_cannot_be_determined_is_a_one_line_error_naming_the_inputs(runs
         build_record(s, {}, "true")
     with pytest.raises(InputError, match="--vdw-on-surface or --no-vdw-on-surface"):
         build_record(s, {}, "true", a0=A0)
-    with pytest.raises(InputError, match="a0 -1e-10 not allowed"):
+    with pytest.raises(ConfigError, match=r"--a0: -1e-10 is not allowed; expected a distance in \[1e-10, 1e-09\] m"):
         build_record(s, {}, "true", a0=-1e-10, vdw_on_surface=False)
 
 

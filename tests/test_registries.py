@@ -11,6 +11,7 @@ from __future__ import annotations
 import inspect
 import json
 import math
+import re
 
 import numpy as np
 import pytest
@@ -72,7 +73,7 @@ def test_surface_section_is_validated_by_its_model(model):
     section round-trips through the config."""
     for name, (pred, allowed) in model.rules.items():
         if not pred(-1.0):
-            with pytest.raises(ConfigError, match=rf"surface\.{name}: -1.0 is not allowed; expected {allowed}"):
+            with pytest.raises(ConfigError, match=rf"surface\.{name}: -1.0 is not allowed; expected {re.escape(allowed)}"):
                 from_dict({"surface": {"model": model.key, name: -1.0}})
     with pytest.raises(ConfigError, match=r"unknown key 'surface.nope'; allowed in surface: model, "):
         from_dict({"surface": {"model": model.key, "nope": 1.0}})
@@ -123,12 +124,12 @@ def test_wiechert_section_and_arm_keys():
     assert getattr(cfg.surface, "arms.2.cd") == 1.0
     assert load(None, {"surface.model": "wiechert", "surface.arms.1.cd": 2e-3}).surface.arms[0]["cd"] == 2e-3
     bad = {
-        r"surface.arms.2.cd: -1 is not allowed; expected a dashpot coefficient > 0 kg/s": [{"k": 1, "cd": 1}, {"k": 1, "cd": -1}],
+        r"surface.arms.2.cd: -1 is not allowed; expected a dashpot coefficient in \[1e-18, 1e\+10\] kg/s": [{"k": 1, "cd": 1}, {"k": 1, "cd": -1}],
         r"surface.arms.1.k: 'x' is not allowed; expected a finite number": [{"k": "x", "cd": 1}],
         r"surface.arms.1: \{'k': 1\} has no 'cd'": [{"k": 1}],
         r"unknown key 'surface.arms.1.tau'; allowed in an arm: k, cd": [{"k": 1, "cd": 1, "tau": 1}],
         r"surface.arms: \[\] is not allowed; expected a list of 1..8 arms": [],
-        r"surface.arms: \[.*\] is not allowed; expected a list of 1..8 arms": [{"k": 1, "cd": 1}] * 9,
+        r"surface.arms: a list of 9 arms is not allowed; expected a list of 1..8 arms": [{"k": 1, "cd": 1}] * 9,
     }  # fmt: skip
     for message, arms in bad.items():
         with pytest.raises(ConfigError, match=message):

@@ -60,7 +60,8 @@ def test_bad_yaml_file_and_unknown_section_exit_2(tmp_path):
 
 
 def test_config_error_messages_state_allowed_values():
-    with pytest.raises(ConfigError, match=r"surface\.k_inf: -1.0 is not allowed; expected a stiffness > 0 N/m"):
+    with pytest.raises(ConfigError, match=r"surface\.k_inf: -1.0 is not allowed; expected a stiffness in \[1e-06, "
+                       r"1e\+06\] N/m \(a contact's spring"):  # the one range of the quantity (vetica_cli.ranges)
         from_dict({"surface": {"k_inf": -1.0}})
     with pytest.raises(ConfigError, match="allowed in probe"):
         load(None, {"probe.mass": 1.0})

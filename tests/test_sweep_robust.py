@@ -247,6 +247,55 @@ def test_workers_exit_within_seconds_when_the_sweep_is_killed(tmp_path):
     assert f"{SLOW_N - persisted} computed, {persisted} reused" in text
 
 
+def _group(pgid: int) -> list[int]:
+    """Live (not zombie) processes of process group ``pgid``."""
+    out = subprocess.run(["pgrep", "-g", str(pgid)], capture_output=True, text=True).stdout
+    return [int(x) for x in out.split() if _alive(int(x))]
+
+
+def _workers(pids: list[int]) -> list[int]:
+    """The loky workers among ``pids`` (their command line runs loky's popen_loky_posix)."""
+    out = []
+    for pid in pids:
+        try:
+            if b"popen_loky_posix" in Path(f"/proc/{pid}/cmdline").read_bytes():
+                out.append(pid)
+        except OSError:
+            continue
+    return out
+
+
+@pytest.mark.slow
+@pytest.mark.skipif(sys.platform != "linux", reason="process groups and /proc are Linux's")
+@pytest.mark.parametrize("after", [0.0, 0.3, 1.0])
+def test_kill_9_of_the_sweep_at_start_leaves_no_process_of_its_group_2_s_later(tmp_path, after):
+    """kill -9 of the sweep's main process ``after`` seconds after its first loky worker appears,
+    while the workers are still starting or loading their first task (before: both workers and
+    loky's two resource trackers stayed ~333 s, loky's idle timeout, for a kill 1-1.5 s after the
+    start): 2 s later no process of its group is left (the pool's initializer watches the parent
+    from the worker's start)."""
+    cfg = tmp_path / "cheap.yaml"
+    cfg.write_text(CHEAP_STUDY.format(n=SLOW_N))
+    code = "import sys; from vetica_cli.cli import main; sys.argv[0] = 'vetica'; main()"
+    proc = subprocess.Popen([sys.executable, "-c", code, "sweep", str(cfg), "-o", str(tmp_path / "o.parquet"), "-q",
+                             "--jobs", "2"], stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, cwd=ROOT,
+                            start_new_session=True)  # fmt: skip
+    deadline = time.monotonic() + 120
+    while not _workers(_group(proc.pid)) and proc.poll() is None and time.monotonic() < deadline:
+        time.sleep(0.02)
+    time.sleep(after)
+    started = _group(proc.pid)
+    workers = _workers(started)
+    proc.kill()
+    proc.wait(timeout=30)
+    time.sleep(2.0)
+    left = _group(proc.pid)
+    for pid in left:  # do not leave them to the next test
+        os.kill(pid, signal.SIGKILL)
+    assert workers, "the sweep had not started its workers: nothing was tested"
+    assert left == [], f"{len(left)} of the group's {len(started)} processes alive 2 s after kill -9"
+
+
 def test_shm_left_by_a_killed_process_group_is_removed_and_live_entries_kept(tmp_path):
     """What kill -9 of a whole sweep process group leaves (loky semaphores, joblib memmapping
     folders named after the dead sweep's pid) is removed; entries of a live pid and other

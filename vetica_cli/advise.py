@@ -47,12 +47,14 @@ import numpy as np
 import pandas as pd
 
 from . import surfaces
-from .checks import finite, limit
+from .checks import CONFIRM_ITEMS, confirm_cost, finite, limit
+from .ranges import check_range
 from .errors import ConfigError, InputError
-from .extraction import METHODS, SOURCES, extract, extract_many
+from .extraction import METHODS, SOURCES, extract, extract_many, extraction_modules
 from .extraction.material import ContactModel, contact_model, stiffness
 from .simulation.config import from_dict, load
-from .simulation.jit import compile_notice
+from .simulation.cost import kernel_seconds
+from .simulation.jit import compile_notice, simulation_modules
 from .simulation.simulate import simulate
 from .batch.launch import make_launcher
 from .batch.progress import Progress
@@ -86,6 +88,7 @@ KNOBS = {
     "numerics.print_step": Knob((0.5e-9, 2e-9, 8e-9), 0.125e-9, 8e-9, "s", "print step (thesis table 1, figs. 59-61)"),
     "probe.k2": Knob((200.0, 700.0), 70.0, 1200.0, "N/m", "paddle stiffness k2 (thesis table 1: 70-700; fig. 30: 200-1200)"),
 }  # fmt: skip
+MAX_KNOB_VALUES = 20  # values of one knob: the defaults have 2-4, the thesis's figures 5-9 a range
 SETTING_KEYS = ("probe.f1", "probe.f2", "operation.setpoint", "numerics.print_step", "probe.k2")
 
 
@@ -105,12 +108,6 @@ class Material:
         return surfaces.get("sls").theory({"k_inf": self.k_inf, "k0": self.k0, "cd": self.cd})
 
 
-def _positive(name: str, v) -> float:
-    if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v) or v <= 0:
-        raise InputError(f"{name} {v!r} is not allowed; expected a finite number > 0")
-    return float(v)
-
-
 def material_from(k_inf=None, k0=None, cd=None, e_glassy=None, e_rubbery=None, tau_r=None,
                   depth: float = DEFAULT_DEPTH, cm: ContactModel | None = None) -> Material:  # fmt: skip
     """The material from ``k_inf, k0, cd`` [N/m, N/m, kg/s], or from the glassy and rubbery
@@ -127,12 +124,12 @@ def material_from(k_inf=None, k0=None, cd=None, e_glassy=None, e_rubbery=None, t
     if s_given and m_given:
         raise InputError(f"{' '.join(s_given)} and {' '.join(m_given)} mix two ways of giving the material; {how}")
     if len(s_given) == 3:
-        vals = {k: _positive(k, v) for k, v in springs.items()}
+        vals = {k: check_range(k, v) for k, v in springs.items()}
         return Material(vals["--k-inf"], vals["--k0"], vals["--cd"],
                         f"k_inf {vals['--k-inf']:g} N/m, k0 {vals['--k0']:g} N/m, cd {vals['--cd']:g} kg/s")  # fmt: skip
     if len(m_given) == 3:
-        eg, er, tr = (_positive(k, v) for k, v in mods.items())
-        depth = _positive("--depth", depth)
+        eg, er, tr = (check_range(k, v) for k, v in mods.items())
+        depth = check_range("--depth", depth)
         if not eg > er:
             raise InputError(
                 f"--e-glassy {eg:g} must exceed --e-rubbery {er:g} (a relaxing solid: E_glassy > E_rubbery)"
@@ -140,6 +137,8 @@ def material_from(k_inf=None, k0=None, cd=None, e_glassy=None, e_rubbery=None, t
         cm = cm or ContactModel()
         k_inf = stiffness(er, depth, cm)
         k0 = stiffness(eg, depth, cm) - k_inf
+        for name, k in (("k_inf", k_inf), ("k0", k0), ("cd", tr * k0)):  # the springs the moduli make, in range too
+            check_range(f"surface.{name}", k, f"{name} {k:.4g} from --e-glassy --e-rubbery --tau-r at --depth {depth:g}")
         return Material(k_inf, k0, tr * k0,
                         f"E_glassy {eg:g} Pa, E_rubbery {er:g} Pa, tau_r {tr:g} s as springs at {depth * 1e9:g} nm "
                         f"(thesis eqs. 90-92, R {cm.tip_radius * 1e9:g} nm): k_inf {k_inf:.4g} N/m, k0 {k0:.4g} N/m, "
@@ -154,6 +153,9 @@ def knob_values(given: dict | None) -> dict:
     out = {}
     for key, knob in KNOBS.items():
         vals = (given or {}).get(key) or knob.default
+        if len(vals) > MAX_KNOB_VALUES:
+            raise ConfigError(f"{key}: {len(vals)} values are not allowed; expected at most {MAX_KNOB_VALUES} (each "
+                              "value multiplies the simulations)")  # fmt: skip
         clean = []
         for v in vals:
             if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
@@ -287,7 +289,8 @@ def base_config(material: Material, overrides: dict | None = None) -> dict:
 
 
 def advise(material: Material, overrides: dict | None = None, knobs: dict | None = None,
-           methods=DEFAULT_METHODS, force: str = "reconstructed", jobs: int = 2, progress: bool = False) -> Advice:  # fmt: skip
+           methods=DEFAULT_METHODS, force: str = "reconstructed", jobs: int = 2, progress: bool = False,
+           yes: bool = False) -> Advice:  # fmt: skip
     """Run the advice study (module docstring) and rank its settings.
 
     ``overrides``: ``--set`` keys of the probe, operation, numerics or surface attraction
@@ -314,6 +317,9 @@ def advise(material: Material, overrides: dict | None = None, knobs: dict | None
         raise InputError(f"--force {force!r} not allowed; choose one of: {', '.join(SOURCES)}")
     values = knob_values(knobs)
     base = base_config(material, overrides)
+    n = math.prod(len(v) for v in values.values())
+    if n > CONFIRM_ITEMS:  # refused before n configs are built (160 000 took 13 s)
+        confirm_cost(f"this advice ({n} settings)", 0.0, yes, n, "settings")
     settings = []
     for f1 in sorted(values["probe.f1"]):  # slow (low f1) settings first: the workers finish together
         for sp in values["operation.setpoint"]:
@@ -328,12 +334,18 @@ def advise(material: Material, overrides: dict | None = None, knobs: dict | None
                     except ConfigError as exc:
                         raise ConfigError(f"setting f1 {f1:g} Hz, set point {sp:g}, print step {ps:g} s, k2 {k2:g} N/m: "
                                           f"{exc}") from None  # fmt: skip
+    tasks = group(settings)
+    seconds = sum(kernel_seconds(t.points[0].config) + len(t.points) * sum(METHODS[m].seconds_per_point for m in methods)
+                  for t in tasks)  # fmt: skip
+    confirm_cost(f"this advice ({len(settings)} settings, {len(tasks)} simulations on {jobs} worker(s))",
+                 seconds / max(1, min(jobs, len(tasks))), yes, len(tasks), "simulations")  # fmt: skip
     items = [{"configs": [p.config.to_dict() for p in task.points], "methods": methods, "force": force}
-             for task in group(settings)]  # fmt: skip
+             for task in tasks]  # fmt: skip
     t0 = time.perf_counter()
     rows: list = [None] * len(items)
     bar = Progress(len(items), 0, 0, enabled=progress, name="advise", unit="simulations",
-                   notice=compile_notice() if progress else None)
+                   notice=compile_notice(simulation_modules(settings[0].config) | extraction_modules(methods, (force,)))
+                   if progress else None)  # fmt: skip
     failed = 0
 
     def on_result(i, res):

@@ -60,6 +60,39 @@ def _period_ms(run, cfg) -> tuple[float, float]:
 
 PIXEL = {"numerics.print_step": 1e-9, "numerics.record_cycles": 4}  # a scan pixel's record (configs/scan_blend.yaml)
 SURFACES = {"stiff": {}, "soft": {"surface.k_inf": 2.0, "surface.k0": 32.0, "surface.cd": 3e-4}}
+METHODS = ("vetica", "vetica-prestress", "full")  # the extraction bench's methods (those a surface model supports)
+PARTS = ("all", "simulation", "extraction")
+
+
+def extraction_plan(overrides: dict | None = None, methods: tuple = METHODS) -> list[tuple[str, object, tuple]]:
+    """``(surface name, config, methods)`` of the extraction bench: the stiff and soft SLS
+    pixels, or, when ``overrides`` choose another surface model (``--set surface.model=hertz``),
+    that one surface ('given'); each with the methods of ``methods`` that extract its model.
+    Every config is checked here (ConfigError before any work)."""
+    from .extraction import get
+
+    surfaces_ = SURFACES if "surface.model" not in (overrides or {}) else {"given": {}}
+    out = []
+    for name, surf in surfaces_.items():
+        cfg = load(None, {**PIXEL, **surf, **(overrides or {})})
+        out.append((name, cfg, tuple(m for m in methods if cfg.surface.model in get(m).surface_models)))
+    return out
+
+
+def check_bench(overrides: dict | None, repeat: int, part: str = "all", yes: bool = False) -> None:
+    """Every config the bench of ``part`` runs, checked, and its cost estimated before any work:
+    ConfigError for a bad ``--set``, InputError past the threshold every command asks past
+    (:func:`vetica_cli.checks.confirm_cost`) without ``yes``."""
+    from .checks import confirm_cost
+    from .simulation.cost import simulation_seconds
+
+    seconds = 0.0
+    if part in ("all", "simulation"):
+        seconds += sum((repeat + 1) * simulation_seconds(load(None, {**(overrides or {}), "numerics.integrator": i}))
+                       for i in ("verlet", "hybrid"))  # fmt: skip
+    if part in ("all", "extraction"):
+        seconds += sum(simulation_seconds(cfg) for _, cfg, _ in extraction_plan(overrides))
+    confirm_cost(f"this bench ({repeat} timed runs after a warm-up)", seconds, yes)
 
 
 def _cpu_ms(fn, repeat: int) -> float:
@@ -72,8 +105,7 @@ def _cpu_ms(fn, repeat: int) -> float:
     return 1e3 * statistics.median(out)
 
 
-def run_extraction_bench(methods: tuple = ("vetica", "vetica-prestress", "full"), repeat: int = 20,
-                         overrides: dict | None = None) -> str:  # fmt: skip
+def run_extraction_bench(methods: tuple = METHODS, repeat: int = 20, overrides: dict | None = None) -> str:
     """CPU ms per pixel record of each extraction method (module docstring); ``repeat`` timed
     calls after two warm-up calls (compilation, caches), fewer for the whole-cycle fit."""
     from .extraction import extract, get
@@ -83,10 +115,10 @@ def run_extraction_bench(methods: tuple = ("vetica", "vetica-prestress", "full")
              f"calls (the whole-cycle fit: {max(3, repeat // 5)}), one core"]  # fmt: skip
     lines.append(f"{'surface':<6} {'method':<17} {'extract':>8} {'record':>8} {'method':>8}   "
                  "stage2 thesis fit (sines) for comparison")  # fmt: skip
-    for name, surf in SURFACES.items():
-        run = simulate(load(None, {**PIXEL, **surf, **(overrides or {})}))
+    for name, cfg, supported in extraction_plan(overrides, methods):
+        run = simulate(cfg)
         df, meta = run.frame(), run.metadata()
-        for key in methods:
+        for key in supported:
             m = get(key)
             n = max(3, repeat // 5) if key == "full" else repeat
             opts = m.options({})

@@ -1,8 +1,8 @@
 """The one validator vocabulary of every config (simulate, sweep, scan, advise) and command
 option: YAML read strictly (:func:`load_yaml`: duplicate keys, anchors and aliases refused),
 YAML scalars coerced to the declared type (:func:`coerce`, :func:`finite`), range rules
-(:func:`within`, :data:`LIMITS`: each physical or practical range with where it comes
-from), and one-line :class:`~vetica_cli.errors.ConfigError` messages that name the key,
+(:func:`within`; :func:`limit`: each physical range with where it comes from, from
+the one table :mod:`vetica_cli.ranges`), and one-line :class:`~vetica_cli.errors.ConfigError` messages that name the key,
 the value and what is allowed (STYLE: validate once, at the boundary, before any work).
 """
 
@@ -14,7 +14,8 @@ from typing import Any
 
 import yaml
 
-from .errors import ConfigError
+from .errors import ConfigError, InputError
+from .ranges import range_rule
 
 Rule = tuple[Callable[[Any], bool], str]  # (predicate, description of what is allowed)
 
@@ -119,34 +120,48 @@ def within(lo: float, hi: float, what: str, unit: str = "", why: str = "") -> Ru
     return (lambda v: lo <= v <= hi, text)
 
 
-# key -> (lo, hi, unit, where the range comes from): nonsense refused before any work
-LIMITS = {
-    "probe.tip_radius": (0.5e-9, 1e-6, "m", "sharp tips are 1-20 nm, the thesis's 10 nm (table 2); a blunt tip up "
-                         "to 1 um; larger probes are outside the point-tip vdW and contact model"),
-    "surface.hamaker": (1e-21, 1e-18, "J", "Hamaker constants of condensed media across air lie in 4e-21 .. 5e-19 J "
-                        "(Israelachvili, Intermolecular and Surface Forces, ch. 13); the thesis's 2e-19 J"),
-    "surface.a0": (0.1e-9, 1e-9, "m", "the intermolecular cut-off distance is ~0.165-0.2 nm (thesis table 2: 0.2 nm)"),
-    "operation.free_amplitude": (0.1e-9, 1e-6, "m", "tapping-mode free amplitudes are 1-100 nm (thesis table 1: 100 nm)"),
-    "probe.q1": (0.5, 1e6, "", "underdamped; air ~100-1000, vacuum up to ~1e5"),
-    "probe.q2": (0.5, 1e6, "", "underdamped; air ~100-1000, vacuum up to ~1e5"),
-    "probe.f1": (1e2, 1e8, "Hz", "cantilever resonances lie in 1 kHz .. 10 MHz (thesis table 1: 10-100 kHz)"),
-    "probe.f2": (1e2, 1e9, "Hz", "torsional resonances lie above the flexural ones (thesis 2.4.2: f2 = 15 f1)"),
-    "probe.k1": (1e-3, 1e3, "N/m", "cantilever stiffnesses lie in 0.01 .. 100 N/m (thesis table 1: 10 N/m)"),
-    "probe.k2": (1e-1, 1e5, "N/m", "torsional stiffnesses (thesis table 1: 70-700 N/m; fig. 30 up to 1200)"),
-}
 MAX_CYCLES = 10000  # drive periods recorded or settled: 10000 periods at 50 kHz are 0.2 s, far beyond a steady state
 MAX_ORBIT_PERIODS = 100000  # period evaluations of the orbit solver (default 150)
 MAX_SEED = 2**32 - 1  # numpy's legacy seed range, which every generator accepts
-MAX_ARMS = 8  # Maxwell arms of a Wiechert surface or fit: the thesis uses 1-2 (5.3.2); 8 relaxation times per
+MAX_ARMS = 8  # Maxwell arms of a Wiechert or hertz surface, or a fit: the thesis uses 1-2 (5.3.2); 8 relaxation times per
 #               decade-spaced record are already beyond what one tapping record identifies
 MAX_VALUES_PER_KEY = 1_000_000  # values one sweep key (a range's count) may have
 MAX_POINTS = 10_000_000  # points of one sweep: a larger grid is refused outright (--yes cannot start it)
+MAX_LIST = 1000  # values of one command option's comma-separated list (advise --f1 ...): each multiplies the work
+
+# The one threshold past which every command asks for --yes before it starts (sweep, scan, advise, simulate,
+# bench): its estimated wall time, or the number of items (points, pixels, simulations) it would run
+CONFIRM_ITEMS = 5000
+CONFIRM_WALL_S = 2 * 3600.0  # [s]
 
 
-def limit(key: str, what: str) -> Rule:
-    """The rule of ``key`` from :data:`LIMITS` (``what``: the noun, e.g. 'a radius')."""
-    lo, hi, unit, why = LIMITS[key]
-    return within(lo, hi, what, unit, why)
+def duration(seconds: float) -> str:
+    """``seconds`` as a short human duration: 45 s, 12 min, 3.4 h, 2.1 days."""
+    if seconds < 90:
+        return f"{seconds:.0f} s"
+    if seconds < 5400:
+        return f"{seconds / 60:.0f} min"
+    if seconds < 48 * 3600:
+        return f"{seconds / 3600:.1f} h"
+    return f"{seconds / 86400:.1f} days"
+
+
+def confirm_cost(what: str, wall_s: float, yes: bool, items: int | None = None, unit: str = "items") -> None:
+    """InputError (one line, how to go on) when a command's estimated wall time ``wall_s`` is over
+    :data:`CONFIRM_WALL_S` or its ``items`` over :data:`CONFIRM_ITEMS`, unless ``yes``: every
+    command estimates its cost before any work and asks past the same threshold.  ``what``
+    names the work, e.g. 'this scan (64 x 64 pixels, 1 pass)'."""
+    if yes or ((items is None or items <= CONFIRM_ITEMS) and wall_s <= CONFIRM_WALL_S):
+        return
+    count, over = (f"{items} {unit}, ", f"{CONFIRM_ITEMS} {unit} or ") if items is not None else ("", "")
+    raise InputError(f"{what} is estimated at {count}{duration(wall_s)} (over {over}{duration(CONFIRM_WALL_S)}): add "
+                     "--yes to start it")  # fmt: skip
+
+
+def limit(key: str, what: str | None = None) -> Rule:
+    """The rule of a config key, option or quantity from the one table of ranges
+    (:data:`vetica_cli.ranges.QUANTITIES`; ``what``: the noun, e.g. 'a radius')."""
+    return range_rule(key, what)
 
 
 # --------------------------------------------------------------------------- YAML
@@ -156,7 +171,20 @@ class _StrictLoader(yaml.SafeLoader):
     """YAML's safe loader that refuses duplicate keys (the last one would win silently) and
     anchors/aliases (an alias bomb expands to gigabytes; no vetica config needs them)."""
 
+    depth = 0  # nesting depth of the node being composed
+
     def compose_node(self, parent, index):
+        if self.depth >= MAX_YAML_DEPTH:  # checked while parsing: deep nesting ends in RecursionError otherwise
+            mark = self.peek_event().start_mark
+            raise ConfigError(f"{self.name}: nesting deeper than {MAX_YAML_DEPTH} levels at line {mark.line + 1} is not "
+                              "allowed; expected sections of plain values and short lists")  # fmt: skip
+        self.depth += 1
+        try:
+            return self._compose_node(parent, index)
+        finally:
+            self.depth -= 1
+
+    def _compose_node(self, parent, index):
         if self.check_event(yaml.AliasEvent):
             event = self.peek_event()
             raise ConfigError(f"{self.name}: an alias (*{event.anchor}) at line {event.start_mark.line + 1} is not "
@@ -179,8 +207,17 @@ class _StrictLoader(yaml.SafeLoader):
         return super().construct_mapping(node, deep=deep)
 
 
+MAX_YAML_DEPTH = 32  # nesting levels of a YAML document: a config needs 5 (sample.features.0.surface.arms.0)
+MAX_YAML_BYTES = 1 << 20  # a config file: the largest study config is ~2 KB; long value lists are written as ranges
+
+
 def load_yaml(text: str, name: str = "config") -> Any:
-    """Parse YAML ``text`` strictly (:class:`_StrictLoader`; ``name`` in the messages)."""
+    """Parse YAML ``text`` strictly (:class:`_StrictLoader`; ``name`` in the messages): at most
+    :data:`MAX_YAML_BYTES` of text and :data:`MAX_YAML_DEPTH` levels of nesting, checked
+    before and while parsing (ConfigError, one line)."""
+    if len(text) > MAX_YAML_BYTES:
+        raise ConfigError(f"{name}: {len(text)} characters are not allowed; expected at most {MAX_YAML_BYTES} (a "
+                          "config; write long value lists as ranges, e.g. {logspace: [-5, 3, 33]})")  # fmt: skip
     loader = _StrictLoader(text)
     loader.name = name
     try:

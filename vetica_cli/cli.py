@@ -139,6 +139,7 @@ def _cutoff_option(value):
 
 
 SET_HELP = "Override one config key, e.g. --set surface.cd=1e-4 (repeatable)."
+YES_HELP = "Start work estimated over 2 h (or 5000 items), the threshold every command asks past."
 
 
 @app.command()
@@ -148,6 +149,7 @@ def simulate(
     set_: Optional[List[str]] = typer.Option(None, "--set", help=SET_HELP),
     output: Path = typer.Option(Path("run.parquet"), "-o", "--output", help="Parquet file to write (checked first)."),
     quiet: bool = typer.Option(False, "--quiet", "-q", help="Do not print the summary."),
+    yes: bool = typer.Option(False, "--yes", "-y", help=YES_HELP),
 ):
     """Simulate one point to steady state and write the recorded signals.
 
@@ -158,11 +160,10 @@ def simulate(
     """
     from .report import run_summary
     from .simulation.config import parse_set
-    from .simulation.jit import compile_notice
     from .simulation.simulate import simulate_file
 
-    notice = None if quiet else compile_notice()
-    run = simulate_file(config, output, parse_set(set_), notice=lambda: notice and typer.echo(notice, err=True))
+    notice = None if quiet else (lambda line: typer.echo(line, err=True))  # said only when kernels will compile
+    run = simulate_file(config, output, parse_set(set_), notice=notice, yes=yes)
     if not quiet:
         typer.echo(run_summary(run, output))
 
@@ -178,18 +179,21 @@ def bench(
         "all", help="all | simulation | extraction (per pixel record and method).",
         callback=checked("one of: all, simulation, extraction", lambda v: v in ("all", "simulation", "extraction")),
     ),  # fmt: skip
+    yes: bool = typer.Option(False, "--yes", "-y", help=YES_HELP),
 ):
     """Time the simulation on the worked example, all-fine Verlet against the hybrid
     integrator: ns per fine step, ms per drive period, seconds per point (approach,
     steady state, recorded window); and the extraction of a scan pixel's record per
     method (CPU ms); medians of the repeated runs, one core."""
-    from .bench import run_bench, run_extraction_bench
+    from .bench import check_bench, run_bench, run_extraction_bench
     from .simulation.config import parse_set
 
+    overrides = parse_set(set_)
+    check_bench(overrides, repeat, part, yes)  # every config and the cost, before any work
     if part in ("all", "simulation"):
-        typer.echo(run_bench(parse_set(set_), repeat))
+        typer.echo(run_bench(overrides, repeat))
     if part in ("all", "extraction"):
-        typer.echo(run_extraction_bench(repeat=max(5, 5 * repeat), overrides=parse_set(set_)))
+        typer.echo(run_extraction_bench(repeat=max(5, 5 * repeat), overrides=overrides))
 
 
 @app.command()
@@ -265,6 +269,7 @@ def scan(
     dry_run: bool = typer.Option(False, "--dry-run", help="Print the pixels, domains and a cost estimate, run nothing."),
     quiet: bool = typer.Option(False, "--quiet", "-q", help="No progress bar."),
     keep_parts: bool = typer.Option(False, "--keep-parts", help="Keep <output>.parts/ after success."),
+    yes: bool = typer.Option(False, "--yes", "-y", help=YES_HELP),
 ):
     """Image a heterogeneous sample as a tapping-mode AFM does: scan it line by line, pixel by
     pixel (the cantilever and the controller carry over, the surface under each pixel starts
@@ -279,7 +284,7 @@ def scan(
     from .scan.run import scan_command
     from .simulation.config import parse_set
 
-    text = scan_command(config, output, parse_set(set_), dry_run=dry_run, jobs=jobs, backend=backend,
+    text = scan_command(config, output, parse_set(set_), dry_run=dry_run, jobs=jobs, backend=backend, yes=yes,
                         scheduler=scheduler, resume=resume, progress=not quiet, keep_parts=keep_parts,
                         log=lambda line: typer.echo(line, err=True))  # fmt: skip
     typer.echo(text)
@@ -526,6 +531,7 @@ def advise(
     table: Optional[Path] = typer.Option(None, "--table", help="Also write every setting's row as Parquet."),
     json_out: bool = typer.Option(False, "--json", help="Print one JSON object: {\"settings\": [...], ...}."),
     quiet: bool = typer.Option(False, "--quiet", "-q", help="No progress bar."),
+    yes: bool = typer.Option(False, "--yes", "-y", help=YES_HELP),
 ):
     """Which settings make the extraction work for a material: a small study over the
     drive frequency (f2 = 15 f1), set point, print step and paddle stiffness within the
@@ -562,7 +568,7 @@ def advise(
     if table is not None:
         check_output_file(table, "--table", ".parquet")
     adv = run_advice(material, overrides, knobs, [m.strip() for m in methods.split(",") if m.strip()], force, jobs,
-                     progress=not (quiet or json_out))  # fmt: skip
+                     progress=not (quiet or json_out), yes=yes)  # fmt: skip
     figure = write_advice_figure(adv, output)
     if table is not None:
         try:

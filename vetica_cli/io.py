@@ -196,9 +196,34 @@ def read_meta(path: str | Path) -> dict:
     if not raw:
         return {}
     try:
-        return json.loads(raw)
-    except json.JSONDecodeError:
+        meta = json.loads(raw)
+    except (json.JSONDecodeError, UnicodeDecodeError, RecursionError):
         raise InputError(f"{path}: the 'vetica' metadata is not valid JSON") from None
+    check_meta(meta, path)
+    return meta
+
+
+# the 'vetica' metadata's keys whose values are mappings, and the sections of its 'params'
+META_MAPPINGS = ("params", "units", "observables", "energy_ev_per_cycle", "config")
+PARAM_SECTIONS = ("probe", "operation", "surface", "numerics")
+
+
+def check_meta(meta, path) -> None:
+    """InputError (one line) for ``vetica`` metadata of the wrong shape: not a mapping, or a
+    known key (:data:`META_MAPPINGS`, the sections of ``params``) that is not a mapping, or
+    ``warnings`` that is not a list (a file edited by hand or written by another tool)."""
+    if not isinstance(meta, dict):
+        raise InputError(f"{path}: the 'vetica' metadata is a {type(meta).__name__}; expected a JSON object")
+    where = [(k, meta.get(k)) for k in META_MAPPINGS]
+    params = meta.get("params")
+    if isinstance(params, dict):
+        where += [(f"params.{k}", params.get(k)) for k in PARAM_SECTIONS]
+    for key, value in where:
+        if value is not None and not isinstance(value, dict):
+            raise InputError(f"{path}: the 'vetica' metadata's {key} is a {type(value).__name__}; expected a mapping")
+    if meta.get("warnings") is not None and not isinstance(meta["warnings"], list):
+        raise InputError(f"{path}: the 'vetica' metadata's warnings are a {type(meta['warnings']).__name__}; "
+                         "expected a list")  # fmt: skip
 
 
 def read_table(path: str | Path, columns: tuple | None = None) -> tuple[pd.DataFrame, dict]:

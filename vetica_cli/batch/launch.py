@@ -12,11 +12,13 @@ Inner numba/BLAS threads are capped at one per worker (:data:`THREAD_VARS`) so
 two workers use two cores.  A launcher is opened before any output is written,
 so an unreachable scheduler exits with one line and leaves nothing.
 
-A worker process whose parent is the sweep watches it (:func:`watch_parent`) and
-exits within :data:`PARENT_POLL_S` seconds once the sweep is gone (``kill -9`` of the
-sweep): loky would otherwise keep its idle workers for five minutes, and with them its
-two resource trackers and their semaphores in /dev/shm, which the trackers remove
-when the last worker has exited.  What a ``kill -9`` of the whole process group leaves
+A loky worker watches the sweep that started it from the moment it starts (the pool's
+initializer, :func:`worker_init`, before any task arrives) and exits within
+:data:`PARENT_POLL_S` seconds once the sweep is gone (``kill -9`` of the sweep at any
+moment, even while the worker is still starting): loky would otherwise keep its idle
+workers for five minutes, and with them its two resource trackers and their semaphores in
+/dev/shm, which the trackers remove when the last worker has exited.  A Dask worker the
+sweep started directly starts the same watch with its first task (:func:`indexed_call`).  What a ``kill -9`` of the whole process group leaves
 in /dev/shm (nobody is left to remove it) the next loky sweep removes
 (:func:`remove_orphaned_shm`).
 """
@@ -67,6 +69,16 @@ def watch_parent(sweep_pid: int) -> bool:
 
     threading.Thread(target=watch, name="vetica-parent-watch", daemon=True).start()
     return True
+
+
+def worker_init(sweep_pid: int) -> None:
+    """The loky pool's initializer: runs in every worker as it starts, before its first task.
+    A loky worker is a child of the sweep process ``sweep_pid``; if it has already been
+    re-parented, the sweep died while the worker was starting and the worker exits at once,
+    else it watches the sweep (:func:`watch_parent`)."""
+    if os.getppid() != sweep_pid:
+        os._exit(1)
+    watch_parent(sweep_pid)
 
 
 SHM = Path("/dev/shm")  # where loky's named semaphores and joblib's memmapping folders live (Linux)
@@ -178,7 +190,8 @@ class LokyLauncher(_JoblibLauncher):
     def _config(self):
         from joblib import parallel_config
 
-        return parallel_config(backend="loky", n_jobs=self.jobs, inner_max_num_threads=1), {"pre_dispatch": "n_jobs"}
+        return (parallel_config(backend="loky", n_jobs=self.jobs, inner_max_num_threads=1, initializer=worker_init,
+                                initargs=(os.getpid(),)), {"pre_dispatch": "n_jobs"})  # fmt: skip
 
 
 class DaskLauncher(_JoblibLauncher):

@@ -2,12 +2,15 @@
 
 Until the first job of this run has finished, rich has no speed to measure, so the time
 left shown is the caller's cost-model estimate (``estimate_s``, marked ``~``); a line
-printed before the bar (``notice``) says what a silent start is (e.g. numba compiling
-its kernels on a first run)."""
+printed before the bar (``notice``) says what a silent start is (numba compiling its
+kernels on a first run), and while it lasts -- until the first job has finished -- the
+bar says ``compiling`` instead of counting the estimate down."""
 
 from __future__ import annotations
 
 import time
+
+from ..checks import duration  # noqa: F401  (re-exported: where the estimates format a time)
 
 
 def _estimate_column(progress_mod, bar):
@@ -16,9 +19,12 @@ def _estimate_column(progress_mod, bar):
 
     class Column(progress_mod.TimeRemainingColumn):
         def render(self, task):
+            from rich.text import Text
+
+            if task.completed == bar.done0 and bar.notice:  # the kernels compile before the first job ends
+                return Text("compiling", style="progress.remaining")
             if task.completed > bar.done0 or bar.estimate_s is None:
                 return super().render(task)
-            from rich.text import Text
 
             left = max(0.0, bar.estimate_s - (time.monotonic() - bar.t0))
             m, s = divmod(int(round(left)), 60)
@@ -91,14 +97,3 @@ class Progress:
             self.groups[0] += groups
         if self.progress is not None:
             self.progress.update(self.task, advance=n, failed=failed, groups=self._groups())
-
-
-def duration(seconds: float) -> str:
-    """``seconds`` as a short human duration: 45 s, 12 min, 3.4 h, 2.1 days."""
-    if seconds < 90:
-        return f"{seconds:.0f} s"
-    if seconds < 5400:
-        return f"{seconds / 60:.0f} min"
-    if seconds < 48 * 3600:
-        return f"{seconds / 3600:.1f} h"
-    return f"{seconds / 86400:.1f} days"

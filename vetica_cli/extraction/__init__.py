@@ -34,6 +34,19 @@ from .material import ContactModel, contact_metadata, contact_model, material_en
 from .record import FORCES, RECORD_KEYS, SOURCES, Record, RecordInputs, build_record
 
 RECORD_COLUMNS = ("t", "z_tip", "f_ts", "z_paddle", "segment")  # what any method reads of a run table
+
+
+def extraction_modules(methods, forces=SOURCES) -> set[str]:
+    """The cached core modules extracting with ``methods`` (keys) from the force ``forces``
+    compiles (:mod:`vetica_cli.simulation.jit`): each method's own, and ``paddle`` for a
+    force reconstructed in the tap windows."""
+    mods: set[str] = set()
+    for key in methods:
+        m = get(key)
+        mods |= set(m.kernel_modules)
+        if m.tap_windows and "reconstructed" in forces:
+            mods.add("paddle")
+    return mods
 from .result import Estimate, ExtractionResult, Spread
 from .sanity import check
 from .uncertainty import calibrate

@@ -85,6 +85,7 @@ class ExtractionMethod(ABC):
     surface_note: ClassVar[str] = ""  # why it extracts only its surface_models (for the refusal message)
     uniform_sampling: ClassVar[bool] = False  # needs a constant time step in the steady record
     tap_windows: ClassVar[bool] = False  # reads a reconstructed force only in the tap windows (signals.tapforce)
+    kernel_modules: ClassVar[tuple[str, ...]] = ()  # cached core modules it compiles (simulation.jit)
     seconds_per_point: ClassVar[float] = 1.0  # both force sources, 10 periods at 0.125 ns (dry-run estimate)
     option_specs: ClassVar[tuple[Option, ...]] = (KG_POINTS,)  # the options a user may set (--option key=value)
 

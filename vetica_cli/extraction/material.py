@@ -37,6 +37,7 @@ from dataclasses import asdict, dataclass
 import numpy as np
 
 from ..constants import TIP_RADIUS
+from ..ranges import range_of, range_rule
 from ..errors import ConfigError
 from ..signals.taps import find_taps
 
@@ -58,12 +59,7 @@ class ContactModel:
 
 
 # key -> (unit, predicate, what is allowed)
-CONTACT_KEYS = {
-    "tip_radius": ("m", lambda v: v > 0, "a radius > 0 m"),
-    "nu_tip": ("", lambda v: -1 < v <= 0.5, "a Poisson ratio in (-1, 0.5]"),
-    "nu_sample": ("", lambda v: -1 < v <= 0.5, "a Poisson ratio in (-1, 0.5]"),
-    "e_tip": ("Pa", lambda v: v > 0, "a modulus > 0 Pa"),
-}
+CONTACT_KEYS = {key: (range_of(key).unit, *range_rule(key)) for key in ("tip_radius", "nu_tip", "nu_sample", "e_tip")}
 
 # name -> (unit, description); the order of the table, the JSON object and the study columns
 MATERIAL_UNITS = {

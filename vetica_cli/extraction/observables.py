@@ -43,6 +43,7 @@ from typing import Any, ClassVar
 import numpy as np
 
 from ..constants import EV
+from ..ranges import check_range
 from ..errors import InputError
 from ..surfaces import Quantity
 from ..surfaces.base import DYNAMIC_QUANTITIES
@@ -191,6 +192,9 @@ class Observables(ModelFreeMethod):
     def options(self, given: dict) -> dict:
         opts = super().options(given)
         check_positive(opts, {k: v[1] for k, v in INPUTS.items() if k != "drive_t0"})
+        for k, (flag, _, _) in INPUTS.items():  # the one range of each quantity (vetica_cli.ranges)
+            if k != "drive_t0" and opts.get(k) is not None:
+                check_range(flag, opts[k], flag)
         t0 = opts["drive_t0"]
         if t0 is not None and (isinstance(t0, bool) or not isinstance(t0, (int, float)) or not math.isfinite(t0)):
             raise InputError(f"drive-t0 {t0!r} not allowed; expected a time in s")
@@ -201,6 +205,10 @@ class Observables(ModelFreeMethod):
         t0 = time.perf_counter()
         omega = inp["drive_frequency"] / inp["f1"]
         amp, phase, periods, misfit = first_harmonic(record.t, record.z, inp["drive_frequency"], inp["drive_t0"])
+        if not inp["free_amplitude"] > amp:
+            raise InputError(f"{INPUTS['free_amplitude'][0]}: {inp['free_amplitude']:g} m ({src['free_amplitude']}) is not "
+                             f"allowed for this record; expected a free amplitude above the record's amplitude "
+                             f"{amp:.4g} m (tapping sets the amplitude below the free one)")  # fmt: skip
         obs = am_observables(amp, phase, inp["free_amplitude"], inp["k1"], inp["q1"], omega)
         values = {"amplitude_obs": amp, "phase_obs": phase, "e_diss_obs": obs["e_diss"] / EV,
                   "virial_obs": obs["virial"] / EV, "tan_delta_am": obs["tan_delta"]}  # fmt: skip

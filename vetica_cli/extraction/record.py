@@ -36,10 +36,12 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from .. import surfaces
+from ..checks import check, coerce
 from ..errors import ConfigError, InputError
+from ..ranges import check_range, range_of
 from ..signals.spectral import reconstruct_force, reconstruction_error
 from ..signals.tapforce import TapForce, approach_force, reconstruct_taps
-from ..signals.taps import Taps, contact_slopes, find_taps, first_contact_minimum
+from ..signals.taps import Taps, contact_slopes, find_taps, first_contact_minimum, oscillation_cycles
 
 if TYPE_CHECKING:
     import pandas as pd
@@ -136,7 +138,9 @@ def check_record(t: np.ndarray, z: np.ndarray, f: np.ndarray | None, meta: dict,
     negative times, a time step over :data:`MAX_TIME_STEP`, a non-uniform time step (more than
     :data:`JITTER` off the mean) unless the metadata declares ``time_sampling: nonuniform``,
     positions beyond :data:`MAX_POSITION` or forces beyond :data:`MAX_FORCE` (lengths in nm,
-    forces in nN)."""
+    forces in nN), a tip that oscillates (:func:`~vetica_cli.signals.taps.oscillation_cycles`)
+    at a frequency no cantilever has or more than a factor 2 off the drive frequency ``f1``
+    the metadata states (its probe section, or the key ``f1``): a time in ms or us."""
     h = (t[-1] - t[0]) / (len(t) - 1)
     if t[0] < 0:
         raise InputError(f"time column 't' starts at {t[0]:.4g} s in {where}; expected times >= 0 s")
@@ -146,6 +150,19 @@ def check_record(t: np.ndarray, z: np.ndarray, f: np.ndarray | None, meta: dict,
     if meta.get("time_sampling") != "nonuniform" and np.max(np.abs(np.diff(t) - h)) > JITTER * h:
         raise InputError(f"time column 't' is not uniformly sampled in {where} (steps vary by more than {JITTER:g} of "
                          "the mean); expected a constant step, or metadata time_sampling: nonuniform")  # fmt: skip
+    cycles = oscillation_cycles(z)
+    if cycles >= 3:  # the drive frequency the record shows: a cantilever's, and the stated one when there is one
+        f_rec = cycles / (t[-1] - t[0])
+        fr = range_of("flexural_frequency")
+        if not fr.ok(f_rec):
+            raise InputError(f"time column 't' makes the tip oscillate at {f_rec:.4g} Hz ({cycles} cycles in "
+                             f"{t[-1] - t[0]:.4g} s) in {where}; expected a drive frequency in [{fr.lo:g}, {fr.hi:g}] Hz "
+                             "(cantilever resonances): is t in seconds?")  # fmt: skip
+        f1 = meta.get("f1") or ((meta.get("params") or {}).get("probe") or {}).get("f1")
+        if f1 and not 0.5 <= f_rec / f1 <= 2.0:
+            raise InputError(f"time column 't' makes the tip oscillate at {f_rec:.4g} Hz in {where}, {f_rec / f1:.3g} "
+                             f"times the drive frequency f1 {f1:g} Hz; expected within a factor 2 of it: is t in "
+                             "seconds, or f1 the probe's?")  # fmt: skip
     zmax = float(np.max(np.abs(z)))
     if zmax > MAX_POSITION:
         raise InputError(f"column 'z_tip' reaches {zmax:.4g} m in {where}; expected metres, |z_tip| <= "
@@ -434,6 +451,31 @@ def drive_periods(f: np.ndarray) -> float | None:
     return len(f) / taps.spacing if taps.spacing > 0 else None
 
 
+NAMED_KEYS = ("steady", "integrator")  # numerics keys whose values are names
+
+
+def check_params(params: dict) -> None:
+    """InputError (one line) for a metadata ``params`` a method cannot use: a probe, operation or
+    numerics value that is not a number (a name where the key takes one), or a surface key its
+    model refuses (each model's own parser and ranges).  Unknown keys pass (other versions)."""
+    for sec in ("probe", "operation", "numerics"):
+        for key, value in (params.get(sec) or {}).items():
+            named = sec == "numerics" and key in NAMED_KEYS
+            if value is not None and not named and (isinstance(value, str) or not isinstance(value, (int, float))):
+                raise InputError(f"the file's metadata: params.{sec}.{key} is {value!r}; expected a number")
+    surface = params.get("surface") or {}
+    try:
+        model = surfaces.get(surface.get("model", surfaces.DEFAULT_MODEL))
+        for key, value in surface.items():
+            if key in model.config_keys:
+                model.parse_key(key, value)
+            elif key in surfaces.COMMON_KEYS:
+                spec = surfaces.COMMON_KEYS[key]
+                check(f"surface.{key}", value, coerce(f"surface.{key}", value, spec.type), spec.rule)
+    except ConfigError as exc:
+        raise InputError(f"the file's metadata: {exc}") from None
+
+
 def surface_of(params: dict) -> tuple[surfaces.SurfaceModel, dict | None]:
     """The surface model of a run's resolved parameters (the default for measured data) and
     its theory values, or None when the parameters do not hold every key of the model."""
@@ -507,7 +549,11 @@ def build_record(
     """
     inputs = replace(inputs or RecordInputs(), **keywords)  # TypeError for an unknown keyword, as before
     k2, f2, q2, z1, f1, cutoff_hz, taper, a0, vdw_on_surface = astuple(inputs)
+    for flag, value in (("--k2", k2), ("--f2", f2), ("--q2", q2), ("--f1", f1), ("--a0", a0)):
+        if value is not None:  # a stated constant within its quantity's one range (vetica_cli.ranges)
+            check_range(flag, value, flag)
     meta = meta or {}
+    check_params(meta.get("params") or {})
     force = resolve_force(df, force)
     t_start = time.perf_counter()
     steady = _steady_segment(df)
@@ -515,8 +561,8 @@ def build_record(
     t = column(steady, "t", "the steady record")
     check_time(t, "the steady record")
     z = column(steady, "z_tip", "the steady record")
-    check_record(t, z, column(steady, "f_ts", "the steady record") if force == "true" else None, meta,
-                 "the steady record")
+    check_record(t, z, column(steady, "f_ts", "the steady record") if force == "true" else None,
+                 {**meta, "f1": f1} if f1 is not None else meta, "the steady record")
     if z1 is not None and not (math.isfinite(z1) and z.min() <= z1 <= z.max()):
         raise InputError(
             f"--z1 {z1!r} is not allowed for this record; expected a tip position within its z_tip range "

@@ -573,6 +573,7 @@ class Vetica(ExtractionMethod):
     title = "VETICA"
     surface_models = ("sls",)
     tap_windows = True  # the force is read only around the contacts (and the approach's first contact)
+    kernel_modules = ("superposition",)  # stage 2, closed (measured: simulation.jit)
     surface_note = "VETICA assumes one relaxation time (thesis 3.3)"
     options_default: ClassVar[dict[str, Any]] = {"kg_points": 10, "kr_guess": None, "stage2": "closed", "kg_window": "noise",
                                                  "kg_scale": 1.0}  # fmt: skip

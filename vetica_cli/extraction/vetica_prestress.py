@@ -392,6 +392,7 @@ class VeticaPrestress(ExtractionMethod):
     title = "VETICA with pre-stress"
     surface_models = ("sls",)
     tap_windows = True  # the force is read only around the contacts (and the approach's first contact)
+    kernel_modules = ("superposition",)  # stage 2, closed (measured: simulation.jit)
     options_default: ClassVar[dict[str, Any]] = {"kg_points": 10, "kr_guess": None, "prestress": "auto",
                                                  "stage2": "closed", "kg_window": "noise", "kg_scale": 1.0}  # fmt: skip
     option_specs = (*get("vetica").option_specs,

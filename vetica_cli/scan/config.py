@@ -48,7 +48,7 @@ from typing import Any
 
 import yaml
 
-from ..checks import finite
+from ..checks import MAX_LIST, finite, limit
 from ..errors import ConfigError
 from ..extraction import DEFAULT_METHOD, METHODS
 from ..simulation.config import Config, from_dict, read_yaml
@@ -151,6 +151,8 @@ def _as_list(key: str, v: Any) -> list:
     out = v if isinstance(v, list) else [v]
     if not out:
         raise ConfigError(f"{key}: an empty list is not allowed; expected at least one value")
+    if len(out) > MAX_LIST:
+        raise ConfigError(f"{key}: a list of {len(out)} values is not allowed; expected at most {MAX_LIST}")
     return out
 
 
@@ -172,7 +174,7 @@ def parse_scan(raw: Any, extract: dict) -> ScanSpec:
     for v in px:
         if isinstance(v, bool) or not isinstance(v, (int, float)) or v != int(v) or not 1 <= v <= MAX_PIXELS:
             raise ConfigError(f"scan.pixels: {px!r} is not allowed; expected [nx, ny], two integers in 1..{MAX_PIXELS}")
-    sx, sy = _pair("scan.size", d["size"], lambda v: v > 0, "a length > 0 m")
+    sx, sy = _pair("scan.size", d["size"], *limit("scan.size"))
     steady = []
     for st in _as_list("scan.steady", d["steady"]):
         if st not in STEADY:
@@ -182,7 +184,7 @@ def parse_scan(raw: Any, extract: dict) -> ScanSpec:
         steady.append(st)
     times = []
     for t in _as_list("scan.pixel_time", d["pixel_time"]):
-        t = _num("scan.pixel_time", t, lambda v: v > 0, "a time > 0 s (or a list of them)")
+        t = _num("scan.pixel_time", t, *limit("scan.pixel_time"))
         if t in times:
             raise ConfigError(f"scan.pixel_time: {t!r} appears twice")
         times.append(t)

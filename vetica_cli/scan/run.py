@@ -39,10 +39,12 @@ from ..batch.launch import Launcher, check_launcher_options
 from ..batch.parts import code_fingerprint, parts_dir
 from ..batch.run import Bar, BatchInterrupted, Job, check_batch_output, default_output, run_batch, sidecar
 from ..batch.run import signals_as_interrupt
+from ..checks import confirm_cost
 from ..io import write_table, write_text
 from ..rows.schema import STATUSES
-from ..simulation.jit import compile_notice
+from ..simulation.jit import compile_notice, simulation_modules
 from ..batch.progress import duration
+from ..extraction import extraction_modules
 from ..extraction import get as get_method
 from ..extraction.base import record_cost_scale
 from .analysis import summary_markdown
@@ -261,18 +263,31 @@ def scan_seconds(cfg: ScanConfig) -> float:
     return sum(pass_pixel_seconds(cfg, p) for p in cfg.scan.passes()) * r.nx * r.ny
 
 
+def scan_modules(cfg: ScanConfig) -> set[str]:
+    """The cached core modules a scan compiles: its surfaces' simulations and its methods."""
+    mods = extraction_modules(cfg.scan.methods, ("true", "reconstructed") if cfg.force == "both" else (cfg.force,))
+    for surface in [cfg.sample.background, *(f.surface for f in cfg.sample.features)]:
+        for steady in cfg.scan.steady:
+            mods |= simulation_modules(cfg.material_config(surface, steady))
+    return mods
+
+
 def scan_command(config: str | Path, output: str | Path | None = None, overrides: dict | None = None,
-                 dry_run: bool = False, jobs: int = 2, log=None, **run_kw) -> str:  # fmt: skip
+                 dry_run: bool = False, jobs: int = 2, log=None, yes: bool = False, **run_kw) -> str:  # fmt: skip
     """``vetica scan CONFIG``: load the scan (``overrides`` as dotted keys) and check every
     output path, then print its plan and cost (``dry_run``) or run it (:func:`run_scan`
     keywords in ``run_kw``).  The table goes to ``output`` (default
     ``sweeps/<config stem>.parquet``, git-ignored).  Raises :class:`ScanInterrupted` on
-    Ctrl-C, SIGTERM or SIGHUP."""
+    Ctrl-C, SIGTERM or SIGHUP.  A scan estimated over the threshold every command shares
+    (:func:`vetica_cli.checks.confirm_cost`) needs ``yes``."""
     cfg = load_scan(config, overrides)
     out = check_scan_output(Path(output) if output is not None else default_output(config, DEFAULT_FOLDER))
     check_launcher_options(run_kw.get("backend", "loky"), jobs, run_kw.get("scheduler"))
     if dry_run:
         return dry_run_text(cfg, out, jobs)
+    r, passes = cfg.scan.raster, len(cfg.scan.passes())
+    confirm_cost(f"this scan ({r.nx} x {r.ny} pixels, {passes} pass{'es' if passes > 1 else ''}, {jobs} worker(s))",
+                 SCAN_START_S + scan_seconds(cfg) / jobs, yes, r.nx * r.ny * passes, "pixel records")  # fmt: skip
     with signals_as_interrupt():
-        res = run_scan(cfg, out, jobs=jobs, log=log, notice=compile_notice(), **run_kw)
+        res = run_scan(cfg, out, jobs=jobs, log=log, notice=compile_notice(scan_modules(cfg)), **run_kw)
     return summary(res)

@@ -401,15 +401,23 @@ def _noise_free(cfg: Config):
     return run, kern, (rr.window.states[0] if kern is not None else None), d
 
 
-def simulate_file(config=None, output="run.parquet", overrides: dict | None = None, notice=None) -> Run:
+def simulate_file(config=None, output="run.parquet", overrides: dict | None = None, notice=None,
+                  yes: bool = False) -> Run:  # fmt: skip
     """``vetica simulate``: load a one-point YAML config (None = the defaults) with dotted
     ``overrides``, simulate it and write the run to ``output`` (Parquet with metadata).
-    The config and the output path are checked before the simulation starts; ``notice()``
-    is called then (e.g. to say that numba compiles its kernels)."""
+    The config, the output path and the estimated cost (past the threshold every command
+    asks past it needs ``yes``) are checked before the simulation starts; ``notice(line)``
+    is called then when numba will compile the kernels this simulation needs (warm: not)."""
+    from ..checks import confirm_cost
+    from .cost import simulation_seconds
+    from .jit import compile_notice, simulation_modules
+
     cfg = load(config, overrides)
     check_output_file(output)
-    if notice is not None:
-        notice()
+    confirm_cost("this simulation", simulation_seconds(cfg), yes)
+    line = compile_notice(simulation_modules(cfg)) if notice is not None else None
+    if line:
+        notice(line)
     run = simulate(cfg)
     write_run(run, output)
     return run

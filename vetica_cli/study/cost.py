@@ -13,25 +13,13 @@ from ..checks import number
 from ..extraction import METHODS, get
 from ..extraction.base import record_cost_scale
 from ..simulation.config import Numerics, Probe
+from ..simulation.cost import kernel_seconds, kernel_seconds_of  # noqa: F401  (re-exported)
 from ..simulation.instrument import INSTRUMENT_KEYS
 from ..batch.parts import parts_dir
 from ..rows.extract import EXTRACT_KEYS, point_sources
 from ..rows.plan import group
 from .grid import Grid
 from ..batch.progress import duration  # noqa: F401  (re-exported: the sweep's and scan's estimates)
-
-# Measured on the project machine (2 cores, `vetica bench` and whole points of the print-step
-# study, worked example): a hybrid drive period costs ~0.10 of the fine steps of a period at
-# NS_PER_STEP each (the tip is within the switch gap of the surface for ~10 % of it), a recorded
-# one RECORD_NS per print-step sample more (the kernel's recording, the table and its
-# observables: 0.35 s for 1.86 M samples); an orbit solve with its approach takes ORBIT_PERIODS
-# periods (p90 over the study grid), a transient up to numerics.max_time.  Each extraction
-# method states its own seconds per point (ExtractionMethod.seconds_per_point, both force
-# sources, scaled by extraction.base.record_cost_scale).  Used only for estimates.
-NS_PER_STEP = 18.0
-NEAR_FRACTION = 0.10
-RECORD_NS = 190.0
-ORBIT_PERIODS = 60
 
 # keys the kernel-time estimate reads (section.name -> default), and keys that never need a
 # simulation of their own (points differing only in them share one: rows.plan)
@@ -49,22 +37,6 @@ EXACT_COMBOS = 20000  # cost combinations summed one by one; above, a regular sa
 
 
 RECORD_KEYS = ("numerics.record_cycles", "numerics.print_step")  # an extraction's cost scales with its record's samples
-
-
-def kernel_seconds_of(f1, dt, print_step, record_cycles, integrator, steady, max_time) -> float:
-    """Rough upper estimate of one simulation's kernel time [s] (module comment)."""
-    steps = round(1.0 / f1 / dt)
-    fraction = NEAR_FRACTION if integrator == "hybrid" else 1.0
-    period = steps * fraction * NS_PER_STEP * 1e-9
-    periods = ORBIT_PERIODS if steady == "orbit" else max_time * f1
-    record = record_cycles * steps / max(1, round(print_step / dt)) * RECORD_NS * 1e-9
-    return periods * period + record
-
-
-def kernel_seconds(cfg) -> float:
-    """:func:`kernel_seconds_of` a resolved config."""
-    n = cfg.numerics
-    return kernel_seconds_of(cfg.probe.f1, n.dt, n.print_step, n.record_cycles, n.integrator, n.steady, n.max_time)
 
 
 @dataclass(frozen=True)

@@ -58,13 +58,15 @@ from ..batch.run import (
 )
 from ..batch.run import Terminated  # noqa: F401 - raised by SIGTERM/SIGHUP during a sweep
 from ..batch.run import default_output as batch_output
+from ..checks import CONFIRM_ITEMS, CONFIRM_WALL_S
 from ..errors import InputError
 from ..io import write_table, write_text
 from ..rows.extract import point_sources
 from ..rows.plan import group
 from ..rows.schema import STATUSES, units_metadata
 from ..rows.task import PointTask
-from ..simulation.jit import compile_notice
+from ..extraction import extraction_modules
+from ..simulation.jit import compile_notice, simulation_modules
 from .acceptance import ACCEPT_ERR_PCT, acceptance_regime, format_acceptance
 from .cost import Cost, dry_run_text, duration, grid_cost, study_core_seconds, wall_estimate
 from .grid import Study, load_grid
@@ -73,12 +75,11 @@ from .table import assemble, column_meta_of, rows_frame, study_material_metadata
 # the modules whose import closure computes a point's rows: the point task (simulation and
 # extraction), the print-step policy that shares simulations, and the points and their keys
 SWEEP_ROOTS = ("rows/task.py", "rows/plan.py", "study/grid.py", "study/table.py")
-CONFIRM_POINTS = 5000  # a study with more points needs --yes
+CONFIRM_POINTS = CONFIRM_ITEMS  # a study with more points needs --yes (the threshold every command asks past)
 # Below this estimate of core-seconds a sweep runs in its own process: each worker costs ~1.5
 # CPU-seconds to start (imports, numba's target and cache), and measured on the project machine
 # a 4-point sweep took 3.0 s in one process against 5.3 s with two workers
 SERIAL_BELOW_S = 8.0
-CONFIRM_WALL_S = 2 * 3600.0  # [s] ... as does one estimated to take longer on the given workers
 SweepInterrupted = BatchInterrupted  # Ctrl-C, SIGTERM or SIGHUP during a sweep (message and exit code)
 
 
@@ -235,6 +236,16 @@ def size_guard(cost: Cost, jobs: int, yes: bool) -> None:
     )
 
 
+def study_modules(study: Study) -> set[str]:
+    """The cached core modules the study's points compile (simulations and extractions)."""
+    mods: set[str] = set()
+    for kind in {(p.config.surface.model, p.config.numerics.temperature > 0, p.method, p.force) for p in study.points}:
+        p = next(q for q in study.points if (q.config.surface.model, q.config.numerics.temperature > 0, q.method,
+                                               q.force) == kind)  # fmt: skip
+        mods |= simulation_modules(p.config) | extraction_modules((p.method,), point_sources(p.force))
+    return mods
+
+
 def cores() -> int:
     """CPU cores this process may use."""
     try:
@@ -276,5 +287,6 @@ def sweep_command(
         log(f"checking the {cost.points} points of {g.name} ...")
     study = g.study()
     with signals_as_interrupt():
-        res = run_sweep(study, out, jobs=jobs, log=log, auto_serial=auto, notice=compile_notice(), **run_kw)
+        res = run_sweep(study, out, jobs=jobs, log=log, auto_serial=auto, notice=compile_notice(study_modules(study)),
+                        **run_kw)  # fmt: skip
     return summary(res, study)

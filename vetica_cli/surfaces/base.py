@@ -126,6 +126,7 @@ class SurfaceModel(ABC):
     theory_source: ClassVar[str]  # what the theory values are, for the table units
     item_help: ClassVar[str] = ""  # the dotted item keys (item_key), for messages, e.g. "surface.arms.<i>.cd"
     common_defaults: ClassVar[dict[str, Any]] = {}  # COMMON_KEYS defaults the model changes (hertz: no pull on the surface)
+    kernel_modules: ClassVar[tuple[str, ...]] = ("tapping", "expm")  # cached core modules its simulation compiles
 
     @property
     def config_keys(self) -> tuple[str, ...]:

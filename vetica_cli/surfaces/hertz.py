@@ -11,13 +11,13 @@ from typing import Any, ClassVar
 
 import numpy as np
 
-from ..checks import Rule, positive
+from ..checks import MAX_ARMS, Rule, limit
 from ..errors import ConfigError
 from .base import Quantity, SurfaceModel, parse_arm, parse_arm_field, register
 
 ARM_FIELDS: dict[str, tuple[str, Rule]] = {  # field of one arm -> (unit, rule)
-    "e": ("Pa", (positive, "a modulus > 0 Pa")),
-    "tau": ("s", (positive, "a relaxation time > 0 s")),
+    "e": ("Pa", limit("surface.arms.e")),
+    "tau": ("s", limit("surface.arms.tau")),
 }
 ITEM = re.compile(r"^arms\.(\d+)\.(\w+)$")  # surface.arms.<i>.<field>, i the list index (from 0)
 MAX_ELEMENTS = 2000
@@ -26,10 +26,6 @@ MAX_ELEMENTS = 2000
 def arm_keys(n_arms: int) -> tuple[str, ...]:
     """Fit/result parameters of ``n_arms`` arms: ``e_1, tau_1, ..., e_N, tau_N``."""
     return tuple(f"{f}_{i}" for i in range(1, n_arms + 1) for f in ("e", "tau"))
-
-
-def _nu_ok(v) -> bool:
-    return -1.0 < v < 0.5 or v == 0.5
 
 
 def _elements_ok(v) -> bool:
@@ -73,10 +69,11 @@ class Hertz(SurfaceModel):
         "elements": "auto",
     }
     rules: ClassVar[dict[str, Rule]] = {
-        "e_inf": (positive, "a modulus > 0 Pa"),
-        "nu": (_nu_ok, "a Poisson ratio > -1 and <= 0.5"),
+        "e_inf": limit("surface.e_inf"),
+        "nu": limit("surface.nu"),
     }
     common_defaults: ClassVar[dict[str, Any]] = {"vdw_on_surface": False}
+    kernel_modules: ClassVar[tuple[str, ...]] = ("mdr", "tapping", "expm")
     theory_source = "Prony-series modulus of the hertz surface (MDR, Popov & Hess 2015)"
     item_help = "surface.arms.<i>.e, surface.arms.<i>.tau (hertz, i the list index from 0)"
 
@@ -104,9 +101,10 @@ class Hertz(SurfaceModel):
 
     def parse_key(self, name: str, value: Any) -> Any:
         if name == "arms":
-            if not isinstance(value, list) or not value:
+            if not isinstance(value, list) or not value or len(value) > MAX_ARMS:
+                shown = f"a list of {len(value)} arms" if isinstance(value, list) and value else repr(value)
                 raise ConfigError(
-                    f"surface.arms: {value!r} is not allowed; expected a list of one or more arms {{e: Pa, tau: s}}"
+                    f"surface.arms: {shown} is not allowed; expected a list of 1..{MAX_ARMS} arms {{e: Pa, tau: s}}"
                 )
             return [parse_arm(i, arm, ARM_FIELDS) for i, arm in enumerate(value)]
         if name == "elements":

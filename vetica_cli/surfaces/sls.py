@@ -6,7 +6,7 @@ from typing import Any, ClassVar
 
 import numpy as np
 
-from ..checks import Rule, positive
+from ..checks import Rule, limit
 from .base import DerivedKey, Quantity, SurfaceModel, register
 
 
@@ -48,9 +48,9 @@ class SLS(SurfaceModel):
     parameter_axis_labels: ClassVar[dict[str, str]] = {"cd": "dashpot $c_d$"}
     defaults: ClassVar[dict[str, Any]] = {"k_inf": 4.0, "k0": 128.0, "cd": 3e-5}
     rules: ClassVar[dict[str, Rule]] = {
-        "k_inf": (positive, "a stiffness > 0 N/m"),
-        "k0": (positive, "a stiffness > 0 N/m"),
-        "cd": (positive, "a dashpot coefficient > 0 kg/s"),
+        "k_inf": limit("surface.k_inf"),
+        "k0": limit("surface.k0"),
+        "cd": limit("surface.cd"),
     }
     quantities: ClassVar[dict[str, Quantity]] = {
         "tau_c": Quantity("s", "tau_c", r"$\tau_c$", "µs", 1e6, True, "retardation time"),

@@ -10,13 +10,13 @@ from typing import Any, ClassVar
 
 import numpy as np
 
-from ..checks import MAX_ARMS, Rule, positive
+from ..checks import MAX_ARMS, Rule, limit
 from ..errors import ConfigError
 from .base import Quantity, SurfaceModel, parse_arm, parse_arm_field, register
 
 ARM_FIELDS: dict[str, tuple[str, Rule]] = {  # field of one arm -> (unit, rule)
-    "k": ("N/m", (positive, "a stiffness > 0 N/m")),
-    "cd": ("kg/s", (positive, "a dashpot coefficient > 0 kg/s")),
+    "k": ("N/m", limit("surface.arms.k")),
+    "cd": ("kg/s", limit("surface.arms.cd")),
 }
 ITEM = re.compile(r"^arms\.(\d+)\.(\w+)$")  # surface.arms.<i>.<field>, i from 1
 
@@ -59,7 +59,7 @@ class Wiechert(SurfaceModel):
     key = "wiechert"
     name = "Wiechert"
     defaults: ClassVar[dict[str, Any]] = {"k_inf": 4.0, "arms": [{"k": 64.0, "cd": 3.0e-5}, {"k": 32.0, "cd": 1.0e-3}]}
-    rules: ClassVar[dict[str, Rule]] = {"k_inf": (positive, "a stiffness > 0 N/m")}
+    rules: ClassVar[dict[str, Rule]] = {"k_inf": limit("surface.k_inf")}
     theory_source = "Wiechert theory value"
     item_help = "surface.arms.<i>.k, surface.arms.<i>.cd (wiechert, arm i from 1)"
     parameter_axis_labels: ClassVar[dict[str, str]] = {}
@@ -93,8 +93,9 @@ class Wiechert(SurfaceModel):
         if name != "arms":
             return super().parse_key(name, value)
         if not isinstance(value, list) or not value or len(value) > MAX_ARMS:
+            shown = f"a list of {len(value)} arms" if isinstance(value, list) and value else repr(value)
             raise ConfigError(
-                f"surface.arms: {value!r} is not allowed; expected a list of 1..{MAX_ARMS} arms {{k: N/m, cd: kg/s}}"
+                f"surface.arms: {shown} is not allowed; expected a list of 1..{MAX_ARMS} arms {{k: N/m, cd: kg/s}}"
             )
         return [parse_arm(i, arm, ARM_FIELDS) for i, arm in enumerate(value, start=1)]
 

@@ -261,6 +261,7 @@ class FullFit(ExtractionMethod):
     needs_approach = True
     needs_z1 = False
     uniform_sampling = True
+    kernel_modules = ("prescribed", "sls", "superposition")  # the forward model and the checks (measured: simulation.jit)
     # both force sources, 10 periods at PS 0.125 ns, cd = 1e-3 kg/s at 16:1: 1.2 s (true) + 1.8 s
     # (reconstructed), measured while the other core was busy
     seconds_per_point = 1.8  # both forces, 10 periods at 0.125 ns: 1.76 CPU s measured
