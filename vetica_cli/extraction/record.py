@@ -451,7 +451,7 @@ def drive_periods(f: np.ndarray) -> float | None:
     return len(f) / taps.spacing if taps.spacing > 0 else None
 
 
-NAMED_KEYS = ("steady", "integrator")  # numerics keys whose values are names
+NAMED_KEYS = ("steady", "integrator", "instrument")  # numerics keys whose values are names
 
 
 def check_params(params: dict) -> None:
