@@ -133,6 +133,14 @@ LIMITS = {
     "probe.f2": (1e2, 1e9, "Hz", "torsional resonances lie above the flexural ones (thesis 2.4.2: f2 = 15 f1)"),
     "probe.k1": (1e-3, 1e3, "N/m", "cantilever stiffnesses lie in 0.01 .. 100 N/m (thesis table 1: 10 N/m)"),
     "probe.k2": (1e-1, 1e5, "N/m", "torsional stiffnesses (thesis table 1: 70-700 N/m; fig. 30 up to 1200)"),
+    # force curves (vetica fit): the probe of a force curve may be a colloidal bead, far beyond the tapping tip's
+    # 1 um (whose bound is the point-tip vdW model's); the lower bound is the same sharp tip's
+    "fit.tip_radius": (0.5e-9, 1e-4, "m", "sharp tips of 1-20 nm up to colloidal probes of 100 um radius (beads "
+                       "of 2-200 um diameter are glued to cantilevers for cells and tissue)"),
+    "probe.sensitivity": (1e-10, 1e-5, "m/V", "optical-lever sensitivities are ~10-500 nm/V (the afmformats "
+                          "example files: 45-91 nm/V)"),
+    "record.rate": (1.0, 1e9, "Hz", "force curves are sampled at 10 Hz to 1 MHz (the afmformats example files: "
+                    "205 Hz to 10.7 kHz); 1 GHz is a tapping record's 1 ns print step"),
 }
 MAX_CYCLES = 10000  # drive periods recorded or settled: 10000 periods at 50 kHz are 0.2 s, far beyond a steady state
 MAX_ORBIT_PERIODS = 100000  # period evaluations of the orbit solver (default 150)

@@ -560,34 +560,47 @@ def advise(
 @app.command()
 @user_errors
 def fit(
-    curves: List[Path] = typer.Argument(..., help="Force-curve files (stress relaxation or creep) or folders of them."),
-    tip_radius: Optional[float] = typer.Option(None, "--tip-radius", help="Radius R [m] of the spherical tip (required)."),
+    curves: List[Path] = typer.Argument(..., help="Force-curve files (force-distance, stress relaxation, creep; any "
+                                        "format afmformats reads, and JPK text exports) or folders of them."),
+    tip_radius: Optional[float] = typer.Option(None, "--tip-radius", help="Radius R [m] of the spherical tip "
+                                               "(required; 0.5 nm to 100 um)."),
+    modulus: str = typer.Option("power-law", "--modulus", help="Force-distance curves: power-law (E = e0 (t/1 s)^-beta) "
+                                "or maxwell (e_inf + 1-3 arms e_i exp(-t/tau_i))."),
     nu: float = typer.Option(0.5, "--nu", help="Poisson ratio of the sample (default 0.5, incompressible)."),
+    meta: Optional[List[str]] = typer.Option(None, "--meta", help="Metadata a file lacks or gets wrong, KEY=VALUE "
+                                             "(repeatable): spring_constant (N/m), sensitivity (m/V), rate (Hz)."),
     height: str = typer.Option("measured", "--height", help="Height channel: measured (closed-loop sensor) or piezo."),
     criterion: str = typer.Option("bic", "--criterion", help="Arm-count selection: bic or aic."),
-    window: str = typer.Option("dwell", "--window",
-                               help="Residuals on the dwell (approach as loading history; contact from the approach) or all."),
+    window: str = typer.Option("dwell", "--window", help="Dwell curves: residuals on the dwell (approach as loading "
+                               "history; contact from the approach) or all."),
+    points: int = typer.Option(400, "--points", help="Force-distance curves: grid points the curve is binned to "
+                               "(50-5000; the fit's cost grows as their square)."),
     output: Path = typer.Option(Path("fit.parquet"), "-o", "--output", help="Parquet table to write (checked first)."),
-    figures: Optional[Path] = typer.Option(None, "--figures", help="Folder for the figures (fits, histograms, map)."),
-    jobs: int = typer.Option(2, "--jobs", "-j", help="Parallel worker processes.",
-                             callback=checked("an integer >= 1", lambda v: v >= 1)),
+    figures: Optional[Path] = typer.Option(None, "--figures", help="Folder for the figures (fits, histograms, maps)."),
+    jobs: int = typer.Option(2, "--jobs", "-j", help="Parallel worker processes; more than the cores warns; a small "
+                             "batch runs in this process.", callback=checked("an integer >= 1", lambda v: v >= 1)),
+    resume: bool = typer.Option(True, "--resume/--no-resume", help="Reuse curves persisted in <output>.parts/ by an "
+                                "earlier (killed) run."),
     quiet: bool = typer.Option(False, "--quiet", "-q", help="No progress bar or summary."),
-):
-    """Fit the viscoelastic Hertz model (Lee-Radok, E(t) = e_inf + sum e_i exp(-t/tau_i), 1-3 arms)
-    to force curves with a dwell read through afmformats (pip install -e ".[formats]").
+):  # fmt: skip
+    """Fit viscoelastic models to measured force curves (pip install -e ".[formats]").
 
-    One row per curve and arm count: e_inf, e_i [Pa], tau_i [s] (tau_1 < tau_2 < ...), their
-    standard errors, contact, AIC, BIC, selected, status, error; units in the Parquet metadata.
+    Force-distance curves (approach and retract; single curves, force maps, QI data): Ting's
+    viscoelastic Hertz contact through loading and unloading with a power-law modulus (e0, beta)
+    or Maxwell arms, and the approach's elastic Hertz modulus e_hertz beside it.  Dwell curves
+    (stress relaxation, creep): Lee-Radok with 1-3 Maxwell arms.  One row per curve (and arm
+    count) with standard errors, the contact, AIC, BIC, selected, status (ok, or why not) and
+    error; a file that cannot be read or fitted is a row with its reason and the rest go on.
+    Units in the Parquet metadata.  Ctrl-C, SIGTERM and SIGHUP stop it; a rerun fits only the
+    missing curves.
     """
     from .curves.batch import fit_files
 
-    df = fit_files(curves, tip_radius, output, figures, nu=nu, height=height, criterion=criterion, window=window,
-                   jobs=jobs, progress=not quiet)  # fmt: skip
+    res = fit_files(curves, tip_radius, output, figures, nu=nu, height=height, criterion=criterion, window=window,
+                    modulus=modulus, points=points, meta=meta, jobs=jobs, progress=not quiet, resume=resume,
+                    log=lambda line: typer.echo(line, err=True))  # fmt: skip
     if not quiet:
-        sel = df[df["selected"]]
-        bad = int((df.groupby(["file", "curve"])["status"].first() != "ok").sum())
-        typer.echo(f"{output}: {len(sel)} curves fitted, {bad} failed; arms chosen ({criterion}): "
-                   + ", ".join(f"{n}: {int((sel['arms'] == n).sum())}" for n in (1, 2, 3)))  # fmt: skip
+        typer.echo(res.summary(criterion))
 
 
 def main():  # pragma: no cover - console script entry

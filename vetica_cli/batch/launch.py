@@ -40,6 +40,20 @@ THREAD_VARS = ("NUMBA_NUM_THREADS", "OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "
 BACKENDS = ("loky", "dask")
 
 
+def cores() -> int:
+    """CPU cores this process may use."""
+    try:
+        return len(os.sched_getaffinity(0))
+    except (AttributeError, OSError):  # pragma: no cover - not Linux
+        return os.cpu_count() or 1
+
+
+def jobs_warning(jobs: int) -> str | None:
+    """The warning for ``--jobs`` above the cores here (the workers share them), else None."""
+    n = cores()
+    return f"warning: --jobs {jobs} is more than the {n} cores here; the workers will share them" if jobs > n else None
+
+
 def cap_threads() -> None:
     """One numba/BLAS thread per process unless the user chose otherwise."""
     for var in THREAD_VARS:
