@@ -603,6 +603,27 @@ def fit(
         typer.echo(res.summary(criterion))
 
 
+@app.command()
+@user_errors
+def export(
+    table: Path = typer.Argument(..., help="A map table: a scan (vetica scan) or a force-map fit (vetica fit)."),
+    output: Path = typer.Option(..., "-o", "--output", help="File to write: .nc (NetCDF), .gwy (Gwyddion) or .gsf "
+                                "(Gwyddion Simple Field; one file per channel when several)."),
+    quantity: Optional[List[str]] = typer.Option(None, "--quantity", help="Only this column (repeatable); default: "
+                                                 "every numeric column."),
+):  # fmt: skip
+    """Write a scan or a force map out of Parquet for the tools AFM users open
+    (pip install -e ".[export]"): NetCDF through xarray (every column a variable with its
+    units and description), Gwyddion .gwy (one channel per quantity and pass, method, force
+    source or file) or .gsf.  The variant dimensions are pass, extraction_method,
+    force_source (scans) and file (fits); the image axes y, x.
+    """
+    from .export import export as _export
+
+    for p in _export(table, output, quantity):
+        typer.echo(f"wrote {p}")
+
+
 def main():  # pragma: no cover - console script entry
     """Run the app.  Ctrl-C outside a command's body (typer's parsing, option callbacks: typer
     turns it into a silent exit 130) is reported in one line like any other interrupt."""

@@ -153,10 +153,6 @@ def fit_job(job: dict) -> list[dict]:
             rows = fit_curve(curve, job["tip_radius"], job["nu"], criterion=job["criterion"], window=job["window"])
             for r in rows:
                 r["modulus"] = "maxwell"
-        elif not curve.time_axis:
-            return [{**base, **kind, "arms": 0, "status": "unsuited", "selected": False,
-                     "error": "no time axis in the file (no time column, no sampling rate): Ting's fit needs one; "
-                              "give --meta rate=HZ"}]  # fmt: skip
         else:
             rows = fit_fd_curve(curve, job["tip_radius"], job["nu"], job["modulus"], points=job["points"])
     except NoContact as exc:

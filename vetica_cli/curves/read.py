@@ -63,8 +63,7 @@ class Curve:
     """One force curve: its segments' samples in time order, SI units, baseline not removed.
 
     ``height`` increases away from the sample; ``segment`` is 0 on the approach, 1 on a dwell,
-    2 on the retract.  ``time_axis`` is False when the file has neither times nor sampling
-    rates (``t`` is then the sample index)."""
+    2 on the retract."""
 
     source: str
     index: int
@@ -78,7 +77,6 @@ class Curve:
     meta: dict = field(default_factory=dict)  # position x/y [m], grid index x/y
     prep_force: np.ndarray | None = None  # [N] force of a pause segment before the approach, if recorded
     label: str = ""  # the shortest tail of the path that tells the file apart from the others read with it
-    time_axis: bool = True
 
     @property
     def name(self) -> str:
@@ -292,9 +290,9 @@ def to_curve(data, path: Path, index: int, height: str = "measured", label: str 
         t = np.concatenate([appr["time"], second["time"]]).astype(float)
     else:
         t = _time_axis(data, [n_a, n_2 if code == 1 else 0, n_2 if code == 2 else 0])
-    time_axis = t is not None
     if t is None:
-        t = np.arange(n_a + n_2, dtype=float)
+        raise Unsuited(f"curve {index} has no time axis (no time column, no sampling rate): a viscoelastic fit needs "
+                       "one; give --meta rate=HZ")  # fmt: skip
     f = np.concatenate([appr["force"], second["force"]]).astype(float)
     h = np.concatenate([appr[col], second[col]]).astype(float)
     seg = np.concatenate([np.zeros(n_a, np.int8), np.full(n_2, code, np.int8)])
@@ -309,7 +307,7 @@ def to_curve(data, path: Path, index: int, height: str = "measured", label: str 
             prep = pf if pf.size >= 10 and np.all(np.isfinite(pf)) else None
         except (KeyError, IndexError, ValueError, AttributeError):
             prep = None
-    return Curve(str(path), index, modality, height, float(k), t, f, h, seg, meta, prep, label, time_axis)
+    return Curve(str(path), index, modality, height, float(k), t, f, h, seg, meta, prep, label)
 
 
 def _length(segment) -> int:
