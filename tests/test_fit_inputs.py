@@ -205,3 +205,24 @@ def test_sigterm_stops_with_one_line_and_a_rerun_fits_only_the_missing_curves(tm
     assert not parts.exists() and os.path.isfile(out)
     df = pd.read_parquet(out)
     assert len(df) == 36 * 3 and (df.groupby(["path", "curve"])["selected"].sum() == 1).all()
+
+
+def test_plot_draws_a_fit_table(tmp_path):
+    """vetica plot on a fit table: each curve's fit (its file is where the table says), the
+    parameters' histograms and the force map's parameter maps; with the file gone, the
+    histograms and maps and a note saying why the fits are not drawn."""
+    folder = tmp_path / "in"
+    folder.mkdir()
+    shutil.copy(MAP, folder / MAP.name)
+    out = tmp_path / "fit.parquet"
+    assert run(folder, "--tip-radius", "5e-6", "-o", out, "-q", "-j", "1").exit_code == 0
+    res = runner.invoke(app, ["plot", str(out), "-o", str(tmp_path / "figs")])
+    assert res.exit_code == 0, res.output
+    names = {p.name for p in (tmp_path / "figs").glob("*.png")}
+    assert {f"fit_fit_{MAP.name}_{i}.png" for i in range(3)} <= names
+    assert "fit_parameters.png" in names and f"fit_map_{MAP.name}_e0.png" in names
+    (folder / MAP.name).unlink()
+    res = runner.invoke(app, ["plot", str(out), "-o", str(tmp_path / "figs2")])
+    assert res.exit_code == 0 and "not where it says" in res.output
+    names = {p.name for p in (tmp_path / "figs2").glob("*.png")}
+    assert "fit_parameters.png" in names and not any(n.startswith("fit_fit_") for n in names)

@@ -273,7 +273,8 @@ def scan(
 @app.command()
 @user_errors
 def plot(
-    table: Path = typer.Argument(..., help="A run (vetica simulate) or sweep table (vetica sweep), Parquet."),
+    table: Path = typer.Argument(..., help="A run (vetica simulate), sweep (vetica sweep), scan (vetica scan) or fit "
+                                 "table (vetica fit), Parquet."),
     output: Optional[Path] = typer.Option(
         None, "-o", "--output", help="Folder for the PNG figures (default: figures/ next to TABLE)."
     ),
@@ -294,7 +295,10 @@ def plot(
     acceptance regime against cd, f1, print step; E_diss maps; peak force,
     penetration, contact times, zero-reference depth).  A scan table (vetica scan)
     gives images of topography, phase, E_diss and each extracted property beside its
-    truth and error, and a line profile.  Files are named <table stem>_<figure>.png.
+    truth and error, and a line profile.  A fit table (vetica fit) gives each curve's data
+    against its fits (when its file is where the table says), histograms of the selected
+    parameters and a map of every parameter of each force map.  Files are named
+    <table stem>_<figure>.png.
     """
     from .plots import plot as _plot
 

@@ -31,6 +31,7 @@ import time
 import warnings
 from abc import ABC, abstractmethod
 from collections.abc import Callable
+from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
 
@@ -52,6 +53,29 @@ def jobs_warning(jobs: int) -> str | None:
     """The warning for ``--jobs`` above the cores here (the workers share them), else None."""
     n = cores()
     return f"warning: --jobs {jobs} is more than the {n} cores here; the workers will share them" if jobs > n else None
+
+
+@contextmanager
+def one_thread(threads: int = 1):
+    """While the block runs, the BLAS and OpenMP pools loaded in this process use ``threads``
+    threads (threadpoolctl), and numba's parallel pool too; restored afterwards.  A process's
+    BLAS starts as many threads as there are cores: a serial fit on them spent 10x the CPU
+    for the same table."""
+    from threadpoolctl import threadpool_limits
+
+    try:
+        import numba
+
+        old = numba.get_num_threads()
+        numba.set_num_threads(max(1, min(threads, numba.config.NUMBA_NUM_THREADS)))
+    except (ImportError, ValueError):  # pragma: no cover - numba is a dependency
+        numba = None
+    try:
+        with threadpool_limits(limits=threads):
+            yield
+    finally:
+        if numba is not None:
+            numba.set_num_threads(old)
 
 
 def cap_threads() -> None:
@@ -150,11 +174,14 @@ class Launcher(ABC):
 
 
 class SerialLauncher(Launcher):
-    """In this process, in order."""
+    """In this process, in order, with BLAS and OpenMP capped at one thread (:func:`one_thread`)
+    as in a worker (the environment variables of :func:`cap_threads` come too late for a
+    process whose BLAS is loaded)."""
 
     def launch(self, fn, args, on_result) -> None:
-        for i, a in enumerate(args):
-            on_result(i, fn(a))
+        with one_thread():
+            for i, a in enumerate(args):
+                on_result(i, fn(a))
 
 
 class _JoblibLauncher(Launcher):

@@ -26,6 +26,9 @@ def safe(name: str) -> str:
 
 
 def _save(fig, path: Path) -> Path:
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+
+    FigureCanvasAgg(fig)
     with atomic_path(path) as tmp:
         fig.savefig(tmp, format=path.suffix[1:], dpi=110)
     return path
@@ -71,14 +74,17 @@ def _dwell_axes(ax, curve, rows, tip_radius, nu, window):
 def write_figures(df, curves, folder, points: int = 400) -> list[Path]:
     """``fit_<file>_<curve>.png`` per fitted curve, ``parameters.png`` and, for each file that
     is a force map, ``map_<file>_<param>.png`` of every parameter; returns the paths written."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
     folder = Path(folder)
     folder.mkdir(parents=True, exist_ok=True)
-    written: list[Path] = []
+    return [_save(fig, folder / f"{name}.png") for name, fig in build_figures(df, curves, points)]
+
+
+def build_figures(df, curves, points: int = 400):
+    """``(name, figure)`` of :func:`write_figures`, one at a time (matplotlib Agg; the caller
+    saves and closes each); ``curves`` may be empty (a table drawn without its files:
+    histograms and maps only)."""
+    from matplotlib.figure import Figure
+
     tip_radius, nu = float(df["tip_radius"].iloc[0]), float(df["nu"].iloc[0])
     fitted = df[~df["status"].isin(("unreadable", "unsuited", "failed"))]
     by_curve = {key: g for key, g in fitted.groupby(["path", "curve"])}
@@ -87,7 +93,8 @@ def write_figures(df, curves, folder, points: int = 400) -> list[Path]:
         if g is None:
             continue
         rows = g.to_dict("records")
-        fig, ax = plt.subplots(figsize=(6.4, 3.8))
+        fig = Figure(figsize=(6.4, 3.8))
+        ax = fig.subplots()
         try:
             if rows[0]["model"] == "ting":
                 _fd_axes(ax, c, rows, tip_radius, nu, points)
@@ -99,28 +106,27 @@ def write_figures(df, curves, folder, points: int = 400) -> list[Path]:
         ax.set_ylabel("force [nN]")
         ax.legend(fontsize=6)
         fig.tight_layout()
-        written.append(_save(fig, folder / f"fit_{safe(c.label)}_{c.index}.png"))
-        plt.close(fig)
+        yield f"fit_{safe(c.label)}_{c.index}", fig
     sel = fitted[fitted["selected"] & (fitted["status"] == "ok")]
     params = [p for p in PARAMS if p in sel and sel[p].notna().any()]
     if params:
-        fig, axes = plt.subplots(1, len(params), figsize=(2.3 * len(params), 2.6))
+        fig = Figure(figsize=(2.3 * len(params), 2.6))
+        axes = fig.subplots(1, len(params))
         for ax, p in zip(np.atleast_1d(axes), params):
             v = sel[p].dropna()
             ax.hist(v, bins=max(5, int(np.sqrt(len(v)))), color="0.4")
             ax.set_xlabel(f"{p} [{unit(p)}]" if unit(p) else p)
         np.atleast_1d(axes)[0].set_ylabel("curves (selected, ok)")
         fig.tight_layout()
-        written.append(_save(fig, folder / "parameters.png"))
-        plt.close(fig)
-    written += write_maps(df, folder, plt)
-    return written
+        yield "parameters", fig
+    yield from map_figures(df)
 
 
-def write_maps(df, folder: Path, plt) -> list[Path]:
-    """A map per force-map file and parameter: the selected row of each grid point (grey: no
-    sound fit; hatched out: not measured)."""
-    written = []
+def map_figures(df):
+    """``(name, figure)`` per force-map file and parameter: the selected row of each grid point
+    (grey: flagged; blank: not measured)."""
+    from matplotlib.figure import Figure
+
     sel = df[df["selected"] & (df["grid_x"] >= 0) & (df["grid_y"] >= 0)]
     for label, g in sel.groupby("file"):
         if len(g) < 2:
@@ -133,7 +139,8 @@ def write_maps(df, folder: Path, plt) -> list[Path]:
             flagged = np.zeros((ny, nx), bool)
             bad = g[g["status"] != "ok"]
             flagged[bad["grid_y"].astype(int), bad["grid_x"].astype(int)] = True
-            fig, ax = plt.subplots(figsize=(4.2, 3.5))
+            fig = Figure(figsize=(4.2, 3.5))
+            ax = fig.subplots()
             ax.imshow(np.where(flagged, 1.0, np.nan), origin="lower", cmap="Greys", vmin=0, vmax=2)
             im = ax.imshow(img, origin="lower")
             fig.colorbar(im, ax=ax, label=f"{p} [{unit(p)}]" if unit(p) else p)
@@ -141,6 +148,4 @@ def write_maps(df, folder: Path, plt) -> list[Path]:
             ax.set_ylabel("grid y")
             ax.set_title(f"{label}: {p} (grey: flagged)", fontsize=8)
             fig.tight_layout()
-            written.append(_save(fig, folder / f"map_{safe(label)}_{p}.png"))
-            plt.close(fig)
-    return written
+            yield f"map_{safe(label)}_{p}", fig
