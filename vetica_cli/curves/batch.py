@@ -83,7 +83,7 @@ COLUMNS = {  # column -> (unit, description); units in the Parquet metadata ('' 
     "samples": ("", "recorded samples within the fitted window"),
     "converged": ("", "the optimizer reported convergence"),
     "converged_hertz": ("", "the elastic Hertz fit reported convergence"),
-    "at_bound": ("", "a fitted parameter ended at its bound"),
+    "at_bound": ("", "the fitted parameters that ended at a bound of their range ('' none)"),
     "window": ("", "dwell curves: the residuals' window, dwell or all (approach and dwell)"),
     "window_s": ("s", "duration of the fitted window"),
     "step_s": ("s", "time step of the binned grid the force-distance fit runs on"),
@@ -307,7 +307,9 @@ def assemble(frames: list, tip_radius: float, nu: float):
     for c in ("arms", "grid_x", "grid_y", "curve"):
         if c in df:
             df[c] = df[c].fillna(-1 if c != "arms" else 0).astype("int64")
-    for c in ("selected", "converged", "converged_hertz", "at_bound"):
+    if "at_bound" in df:
+        df["at_bound"] = df["at_bound"].fillna("").astype(str)
+    for c in ("selected", "converged", "converged_hertz"):
         if c in df:
             df[c] = df[c].astype("boolean").fillna(False).astype(bool)
     for c in FIRST:

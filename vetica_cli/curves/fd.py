@@ -195,7 +195,7 @@ def fit_powerlaw(prob: FDProblem, hertz: dict) -> dict:
     row = {"modulus": "power-law", "arms": 0, "e0": e0, "se_e0": e0 * st["se"][1], "beta": float(best.x[2]),
            "se_beta": float(st["se"][2])}  # fmt: skip
     row.update(_row(prob, st, prob.contact_of(best.x[0]), prob.depth * st["se"][0]))
-    row["at_bound"] = bool(best.x[2] >= BETA_MAX - 1e-6)
+    row["at_bound"] = "beta" if best.x[2] >= BETA_MAX - 1e-2 else ""
     return row
 
 
@@ -234,7 +234,10 @@ def fit_maxwell(prob: FDProblem, hertz: dict, n: int, previous=None) -> dict:
         row[f"tau_{k}"], row[f"se_tau_{k}"] = float(tau[i]), float(tau[i] * se[2 + n + i])
     row["e_0"] = e_inf + float(np.sum(e))
     row.update(_row(prob, st, contact, prob.depth * se[0]))
-    row["at_bound"] = bool(np.any(best.x[1:] <= lo[1:] + 1e-6) or np.any(best.x[1:] >= hi[1:] - 1e-6))
+    names = ["contact", "e_inf"] + [f"e_{k}" for k in np.argsort(np.argsort(tau)) + 1] + \
+        [f"tau_{k}" for k in np.argsort(np.argsort(tau)) + 1]
+    hit = [names[i] for i in range(1, len(names)) if best.x[i] <= lo[i] + 1e-2 or best.x[i] >= hi[i] - 1e-2]
+    row["at_bound"] = ", ".join(hit)  # log parameters within 1 % of a bound
     return row
 
 

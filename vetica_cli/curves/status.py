@@ -46,13 +46,14 @@ def _fitted_params(row: dict) -> list[str]:
 def judge(row: dict, window_s: float) -> tuple[str, str]:
     """``(status, reason)`` of a fitted row (module docstring); ``window_s`` [s] the time span
     the fit's residuals cover."""
-    if not row.get("converged", True) or row.get("at_bound", False):
-        why = "the iteration limit" if not row.get("converged", True) else "a parameter at its bound"
-        return "not_converged", f"the fit stopped at {why}"
+    if not row.get("converged", True):
+        return "not_converged", "the fit stopped at the iteration limit"
+    if row.get("at_bound"):
+        return "not_converged", f"{row['at_bound']} at the bound of its fit range: the data do not determine it"
     long = [k for k in row if k.startswith("tau_") and isinstance(row[k], float) and row[k] > window_s]
     if long:
         k = max(long, key=lambda q: row[q])
-        return "tau_beyond_window", f"{k} = {row[k]:.3g} s is {row[k] / window_s:.2g} x the fitted window ({window_s:.3g} s)"
+        return "tau_beyond_window", f"{k} = {row[k]:.3g} s is {row[k] / window_s:.3g} x the fitted window ({window_s:.3g} s)"
     loose = []
     for k in _fitted_params(row):
         se, v = row[f"se_{k}"], row[k]
