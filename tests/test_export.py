@@ -99,3 +99,18 @@ def test_errors_are_one_line_and_write_nothing(tmp_path, monkeypatch, case, expe
     lines = res.output.strip().splitlines()
     assert res.exit_code == 2 and len(lines) == 1 and expect in lines[0], res.output
     assert not (tmp_path / "out").exists()
+
+
+def test_every_committed_table_has_a_unit_for_every_column():
+    """Units live in the data: every tracked Parquet table's metadata names a unit ('' for
+    dimensionless and text columns: aic, bic, nu, status...) for each of its columns."""
+    import subprocess
+
+    import pyarrow.parquet as pq
+
+    files = subprocess.run(["git", "ls-files", "*.parquet"], cwd=ROOT, capture_output=True, text=True).stdout.split()
+    assert files
+    for f in files:
+        units = read_meta(ROOT / f).get("units", {})
+        missing = [c for c in pq.read_schema(ROOT / f).names if c not in units]
+        assert not missing, f"{f}: no unit for {missing[:5]}"
