@@ -195,7 +195,8 @@ def test_sigterm_stops_with_one_line_and_a_rerun_fits_only_the_missing_curves(tm
     proc.send_signal(signal.SIGTERM)
     _, err = proc.communicate(timeout=60)
     assert proc.returncode == 128 + signal.SIGTERM, err
-    lines = err.strip().splitlines()
+    # beside it only the note of /dev/shm entries that other killed batches of this machine left
+    lines = [ln for ln in err.strip().splitlines() if "left in /dev/shm by killed batches" not in ln]
     assert len(lines) == 1 and "interrupted (SIGTERM)" in lines[0] and "curves are persisted" in lines[0], err
     persisted = len(list(parts.glob("*.parquet")))
     assert 0 < persisted < 36 and not out.exists()
