@@ -2,7 +2,7 @@
 
 Each function is the one the command calls, with the same checks and errors (an
 :class:`~vetica_cli.errors.InputError` or :class:`~vetica_cli.errors.ConfigError` with a
-one-line message), and runs with BLAS, OpenMP and numba capped at ``threads`` threads (one by
+one-line message), and runs with BLAS and OpenMP capped at ``threads`` threads (one by
 default, as in the commands' workers: :func:`vetica_cli.batch.launch.one_thread`).  Without
 the cap a notebook's BLAS starts a thread per core for the small least-squares problems of
 the fits and spends several times the CPU for the same numbers.
