@@ -40,6 +40,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
+from table_units import stamp  # scripts/table_units.py
 from vetica_cli.io import read_table, write_table
 from vetica_cli.study.acceptance import ACCEPT_ERR_PCT
 
@@ -222,6 +223,7 @@ def main() -> None:
     if summaries:
         summ = pd.concat(summaries, ignore_index=True)
         write_table(summ, RESULTS / "method_comparison_summary.parquet", {"source": "scripts/method_comparison.py"})
+        stamp(RESULTS / "method_comparison_summary.parquet")  # units and descriptions in the metadata
     nr = RESULTS / "method_noise_reconstructed.parquet"
     if nr.is_file():
         df, _ = read_table(nr)
@@ -229,6 +231,7 @@ def main() -> None:
                 "cd_err_pct", "unidentified", "wall_s"]  # fmt: skip
         write_table(df[cols].reset_index(drop=True), RESULTS / "method_comparison_noisy_reconstructed.parquet",
                     {"source": "scripts/method_comparison.py"})  # fmt: skip
+        stamp(RESULTS / "method_comparison_noisy_reconstructed.parquet")
         parts.append("## Reconstructed force with detector noise (16:1, PS 0.125 ns)\n\n" + noisy_reconstructed(df))
     if args.measure_reconstruction:
         parts.append(

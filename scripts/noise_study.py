@@ -21,6 +21,7 @@ import time
 
 import pandas as pd
 
+from table_units import stamp  # scripts/table_units.py
 from vetica_cli.extraction import extract_many
 from vetica_cli.simulation.config import load
 from vetica_cli.simulation.simulate import simulate
@@ -116,6 +117,7 @@ def main(argv=None):
                 print(f"cd {cd:g} PS {ps * 1e9:g} ns T {temp:g} K: {time.perf_counter() - t0:.1f} s", flush=True)
     table = pd.DataFrame(rows)
     table.to_parquet(args.out)
+    stamp(args.out)  # units and descriptions in the metadata
     with pd.option_context("display.width", 200, "display.max_rows", 200):
         print(summary(table))
     print(readme_table(table))

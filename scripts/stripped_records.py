@@ -27,6 +27,7 @@ import time
 import numpy as np
 import pandas as pd
 
+from table_units import stamp  # scripts/table_units.py
 from vetica_cli.extraction import extract_many
 from vetica_cli.simulation.config import load
 from vetica_cli.simulation.simulate import simulate
@@ -129,6 +130,7 @@ def main(argv=None):
             print(f"{ratio:g}:1 cd {cd:g}: {time.perf_counter() - t0:.1f} s", flush=True)
     table = pd.DataFrame(rows)
     table.to_parquet(args.out)
+    stamp(args.out)  # units and descriptions in the metadata
     with pd.option_context("display.width", 200, "display.max_columns", 20):
         print(summary(table))
         wrong = table[silently_wrong(table)]

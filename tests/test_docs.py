@@ -48,8 +48,8 @@ def test_readme_keeps_the_two_setup_commands_ci_runs():
     """The README's test command is the one .ci/run executes, and the main-job command is there."""
     readme = (ROOT / "README.md").read_text()
     ci = (ROOT / ".ci" / "run").read_text()
-    assert 'pip install -e ".[test,dask,formats]" && python -m pytest' in readme
-    assert 'pip install -q -e ".[test,dask,formats]" && python -m pytest' in ci  # the same, quiet
+    assert 'pip install -e ".[test,dask,formats,export]" && python -m pytest' in readme
+    assert 'pip install -q -e ".[test,dask,formats,export]" && python -m pytest' in ci  # the same, quiet
     assert "pip install -e . && vetica sweep configs/dashpot.yaml" in readme
 
 

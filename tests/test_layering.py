@@ -21,9 +21,9 @@ PKG = ROOT / "vetica_cli"
 # top to bottom; a component may import its own modules, any component of a lower layer and the foundation
 LAYERS = (
     {"__main__"},
-    {"cli"},
+    {"cli", "api"},
     {"plots"},
-    {"scan", "study", "advise", "bench", "report", "curves"},
+    {"scan", "study", "advise", "bench", "report", "curves", "export"},
     {"rows", "batch"},
     {"extraction", "simulation"},
     {"surfaces", "signals"},

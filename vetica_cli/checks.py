@@ -15,7 +15,7 @@ from typing import Any
 import yaml
 
 from .errors import ConfigError, InputError
-from .ranges import range_rule
+from .ranges import range_of, range_rule
 
 Rule = tuple[Callable[[Any], bool], str]  # (predicate, description of what is allowed)
 
@@ -120,6 +120,10 @@ def within(lo: float, hi: float, what: str, unit: str = "", why: str = "") -> Ru
     return (lambda v: lo <= v <= hi, text)
 
 
+# key -> (lo, hi, unit, where the range comes from) of a force curve's stated constants, from the one table of
+# ranges (vetica_cli.ranges): what vetica fit checks its --tip-radius and --meta values against
+LIMITS = {key: (range_of(key).lo, range_of(key).hi, range_of(key).unit, range_of(key).source)
+          for key in ("probe.tip_radius", "fit.tip_radius", "probe.k1", "probe.sensitivity", "record.rate")}  # fmt: skip
 MAX_CYCLES = 10000  # drive periods recorded or settled: 10000 periods at 50 kHz are 0.2 s, far beyond a steady state
 MAX_ORBIT_PERIODS = 100000  # period evaluations of the orbit solver (default 150)
 MAX_SEED = 2**32 - 1  # numpy's legacy seed range, which every generator accepts

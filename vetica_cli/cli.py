@@ -293,7 +293,8 @@ def scan(
 @app.command()
 @user_errors
 def plot(
-    table: Path = typer.Argument(..., help="A run (vetica simulate) or sweep table (vetica sweep), Parquet."),
+    table: Path = typer.Argument(..., help="A run (vetica simulate), sweep (vetica sweep), scan (vetica scan) or fit "
+                                 "table (vetica fit), Parquet."),
     output: Optional[Path] = typer.Option(
         None, "-o", "--output", help="Folder for the PNG figures (default: figures/ next to TABLE)."
     ),
@@ -314,7 +315,10 @@ def plot(
     acceptance regime against cd, f1, print step; E_diss maps; peak force,
     penetration, contact times, zero-reference depth).  A scan table (vetica scan)
     gives images of topography, phase, E_diss and each extracted property beside its
-    truth and error, and a line profile.  Files are named <table stem>_<figure>.png.
+    truth and error, and a line profile.  A fit table (vetica fit) gives each curve's data
+    against its fits (when its file is where the table says), histograms of the selected
+    parameters and a map of every parameter of each force map.  Files are named
+    <table stem>_<figure>.png.
     """
     from .plots import plot as _plot
 
@@ -582,34 +586,68 @@ def advise(
 @app.command()
 @user_errors
 def fit(
-    curves: List[Path] = typer.Argument(..., help="Force-curve files (stress relaxation or creep) or folders of them."),
-    tip_radius: Optional[float] = typer.Option(None, "--tip-radius", help="Radius R [m] of the spherical tip (required)."),
+    curves: List[Path] = typer.Argument(..., help="Force-curve files (force-distance, stress relaxation, creep; any "
+                                        "format afmformats reads, and JPK text exports) or folders of them."),
+    tip_radius: Optional[float] = typer.Option(None, "--tip-radius", help="Radius R [m] of the spherical tip "
+                                               "(required; 0.5 nm to 100 um)."),
+    modulus: str = typer.Option("power-law", "--modulus", help="Force-distance curves: power-law (E = e0 (t/1 s)^-beta) "
+                                "or maxwell (e_inf + 1-3 arms e_i exp(-t/tau_i))."),
     nu: float = typer.Option(0.5, "--nu", help="Poisson ratio of the sample (default 0.5, incompressible)."),
+    meta: Optional[List[str]] = typer.Option(None, "--meta", help="Metadata a file lacks or gets wrong, KEY=VALUE "
+                                             "(repeatable): spring_constant (N/m), sensitivity (m/V), rate (Hz)."),
     height: str = typer.Option("measured", "--height", help="Height channel: measured (closed-loop sensor) or piezo."),
     criterion: str = typer.Option("bic", "--criterion", help="Arm-count selection: bic or aic."),
-    window: str = typer.Option("dwell", "--window",
-                               help="Residuals on the dwell (approach as loading history; contact from the approach) or all."),
+    window: str = typer.Option("dwell", "--window", help="Dwell curves: residuals on the dwell (approach as loading "
+                               "history; contact from the approach) or all."),
+    points: int = typer.Option(400, "--points", help="Force-distance curves: grid points the curve is binned to "
+                               "(50-5000; the fit's cost grows as their square)."),
     output: Path = typer.Option(Path("fit.parquet"), "-o", "--output", help="Parquet table to write (checked first)."),
-    figures: Optional[Path] = typer.Option(None, "--figures", help="Folder for the figures (fits, histograms, map)."),
-    jobs: int = typer.Option(2, "--jobs", "-j", help="Parallel worker processes.",
-                             callback=checked("an integer >= 1", lambda v: v >= 1)),
+    figures: Optional[Path] = typer.Option(None, "--figures", help="Folder for the figures (fits, histograms, maps)."),
+    jobs: int = typer.Option(2, "--jobs", "-j", help="Parallel worker processes; more than the cores warns; a small "
+                             "batch runs in this process.", callback=checked("an integer >= 1", lambda v: v >= 1)),
+    resume: bool = typer.Option(True, "--resume/--no-resume", help="Reuse curves persisted in <output>.parts/ by an "
+                                "earlier (killed) run."),
     quiet: bool = typer.Option(False, "--quiet", "-q", help="No progress bar or summary."),
-):
-    """Fit the viscoelastic Hertz model (Lee-Radok, E(t) = e_inf + sum e_i exp(-t/tau_i), 1-3 arms)
-    to force curves with a dwell read through afmformats (pip install -e ".[formats]").
+):  # fmt: skip
+    """Fit viscoelastic models to measured force curves (pip install -e ".[formats]").
 
-    One row per curve and arm count: e_inf, e_i [Pa], tau_i [s] (tau_1 < tau_2 < ...), their
-    standard errors, contact, AIC, BIC, selected, status, error; units in the Parquet metadata.
+    Force-distance curves (approach and retract; single curves, force maps, QI data): Ting's
+    viscoelastic Hertz contact through loading and unloading with a power-law modulus (e0, beta)
+    or Maxwell arms, and the approach's elastic Hertz modulus e_hertz beside it.  Dwell curves
+    (stress relaxation, creep): Lee-Radok with 1-3 Maxwell arms.  One row per curve (and arm
+    count) with standard errors, the contact, AIC, BIC, selected, status (ok, or why not) and
+    error; a file that cannot be read or fitted is a row with its reason and the rest go on.
+    Units in the Parquet metadata.  Ctrl-C, SIGTERM and SIGHUP stop it; a rerun fits only the
+    missing curves.
     """
     from .curves.batch import fit_files
 
-    df = fit_files(curves, tip_radius, output, figures, nu=nu, height=height, criterion=criterion, window=window,
-                   jobs=jobs, progress=not quiet)  # fmt: skip
+    res = fit_files(curves, tip_radius, output, figures, nu=nu, height=height, criterion=criterion, window=window,
+                    modulus=modulus, points=points, meta=meta, jobs=jobs, progress=not quiet, resume=resume,
+                    log=lambda line: typer.echo(line, err=True))  # fmt: skip
     if not quiet:
-        sel = df[df["selected"]]
-        bad = int((df.groupby(["file", "curve"])["status"].first() != "ok").sum())
-        typer.echo(f"{output}: {len(sel)} curves fitted, {bad} failed; arms chosen ({criterion}): "
-                   + ", ".join(f"{n}: {int((sel['arms'] == n).sum())}" for n in (1, 2, 3)))  # fmt: skip
+        typer.echo(res.summary(criterion))
+
+
+@app.command()
+@user_errors
+def export(
+    table: Path = typer.Argument(..., help="A map table: a scan (vetica scan) or a force-map fit (vetica fit)."),
+    output: Path = typer.Option(..., "-o", "--output", help="File to write: .nc (NetCDF), .gwy (Gwyddion) or .gsf "
+                                "(Gwyddion Simple Field; one file per channel when several)."),
+    quantity: Optional[List[str]] = typer.Option(None, "--quantity", help="Only this column (repeatable); default: "
+                                                 "every numeric column."),
+):  # fmt: skip
+    """Write a scan or a force map out of Parquet for the tools AFM users open
+    (pip install -e ".[export]"): NetCDF through xarray (every column a variable with its
+    units and description), Gwyddion .gwy (one channel per quantity and pass, method, force
+    source or file) or .gsf.  The variant dimensions are pass, extraction_method,
+    force_source (scans) and file (fits); the image axes y, x.
+    """
+    from .export import export as _export
+
+    for p in _export(table, output, quantity):
+        typer.echo(f"wrote {p}")
 
 
 def main():  # pragma: no cover - console script entry

@@ -79,6 +79,12 @@ QUANTITIES: dict[str, Range] = {
     "setpoint": Range(0.0, 1.0, "", "a fraction of the free amplitude", "tapping needs a set amplitude below the free "
                       "one; thesis table 1: 0.25-0.8", lo_open=True, hi_open=True),
     "temperature": Range(0.0, 2000.0, "K", "a temperature", "0 = no thermal noise; an instrument in air ~300 K"),
+    "probe_radius": Range(0.5e-9, 1e-4, "m", "a radius", "force curves: sharp tips of 1-20 nm up to colloidal probes "
+                          "of 100 um radius (beads of 2-200 um diameter glued to cantilevers for cells and tissue)"),
+    "sensitivity": Range(1e-10, 1e-5, "m/V", "a sensitivity", "optical-lever sensitivities are ~10-500 nm/V (the "
+                         "afmformats example files: 45-91 nm/V)"),
+    "sample_rate": Range(1.0, 1e9, "Hz", "a rate", "force curves are sampled at 10 Hz to 1 MHz (the afmformats example "
+                         "files: 205 Hz to 10.7 kHz); 1 GHz is a tapping record's 1 ns print step"),
     "noise_density": Range(0.0, 1e-11, "m/sqrt(Hz)", "a noise density", "0 = none; optical-beam-deflection detectors "
                            "reach 1e-14 .. 1e-13 m/sqrt(Hz) (Fukuma et al. 2005: 1.7e-14)"),
     "time_step": Range(1e-15, 1e-6, "s", "a time step", "the thesis's dt 0.025 ns (table 1); a step of 1 us cannot "
@@ -116,6 +122,7 @@ KEYS: dict[str, str] = {
     "numerics.print_step": "print_step", "--print-step": "print_step",
     "--depth": "depth",
     "scan.size": "scan_size",
+    "fit.tip_radius": "probe_radius", "probe.sensitivity": "sensitivity", "record.rate": "sample_rate",
     "scan.pixel_time": "pixel_time",
 }  # fmt: skip
 

@@ -44,7 +44,11 @@ MODEL = "leeradok"
 
 
 class CurveError(RuntimeError):
-    """A curve that cannot be fitted (no contact found, fit failed): a row with status error."""
+    """A curve that cannot be fitted (fit failed): a row with status failed."""
+
+
+class NoContact(CurveError):
+    """A curve whose approach shows no contact: it does not suit a contact fit (status unsuited)."""
 
 
 def baseline(curve):
@@ -72,7 +76,7 @@ def baseline(curve):
             i_c = _last_below(fa - base_a)
     corrected = f - np.polyval(line, h)
     if corrected[n_a - 1] < 10 * max(noise, 1e-300) or i_c >= n_a - 5:
-        raise CurveError("no contact in the approach (the force at its end is within 10 noise levels of the baseline)")
+        raise NoContact("no contact in the approach (the force at its end is within 10 noise levels of the baseline)")
     return corrected, i_c, noise
 
 
@@ -226,6 +230,7 @@ def summarize(prob: Problem, res, n: int) -> dict:
         aic=npts * math.log(rss / npts) + 2 * npar,
         bic=npts * math.log(rss / npts) + npar * math.log(npts),
         converged=bool(res.success),
+        window_s=float(prob.t[prob.mask][-1] - prob.t[prob.mask][0]),
     )
     row["e_0"] = e_inf + float(np.sum(e))
     return row

@@ -9,6 +9,9 @@ Two kinds of input, told apart by their columns and metadata:
   loop (fig. 28), reconstructed against true force (spectral inversion,
   thesis 2.3) and the "4-D" force curve, force against distance and tip
   velocity (fig. 62, thesis 5.3.1);
+* a **fit table** written by ``vetica fit`` gives each curve's data against its fits (when
+  the curve files are still where the table's ``path`` says), the selected parameters'
+  histograms and a map of every parameter of each force map;
 * a **sweep table** written by ``vetica sweep`` (one row per point and force
   source) gives the parametric-study figures of thesis chapter 4, chosen from
   the keys that were swept (see :func:`.study.select_sweep_figures`).
@@ -79,7 +82,9 @@ def plot(path: str | Path, outdir: str | Path | None = None, cutoff_hz: float | 
     outdir = check_output_dir(Path(outdir) if outdir is not None else path.parent / "figures")
     df, meta = read_table(path)
     kind = table_kind(df, meta, path)
-    if kind == "run":
+    if kind == "fit":
+        figures, notes = fit_figures(df, meta)
+    elif kind == "run":
         figures, notes = run_figures(df, meta, cutoff_hz)
     elif kind == "scan":
         figures, notes = scan_figures(df, meta)
@@ -96,6 +101,27 @@ def plot(path: str | Path, outdir: str | Path | None = None, cutoff_hz: float | 
     return result
 
 
+def fit_figures(df: pd.DataFrame, meta: dict) -> tuple[list, list]:
+    """A fit table (``vetica fit``): each curve's data against its fits when its file is still
+    where the table says (``path``), the selected parameters' histograms and the force maps."""
+    from ..curves.figures import build_figures
+    from ..curves.read import read_inputs
+
+    params = meta.get("params", {})
+    paths = sorted({p for p in df.get("path", pd.Series(dtype=str)) if p and Path(p).is_file()})
+    notes = []
+    curves = []
+    if paths:
+        curves, _, _ = read_inputs(paths, params.get("height", "measured"), params.get("meta") or None)
+        labels = dict(zip(df["path"], df["file"]))
+        for c in curves:
+            c.label = labels.get(c.source, c.label)
+    missing = df["path"].nunique() - len(paths) if "path" in df else 0
+    if missing:
+        notes.append(f"{missing} file(s) of the table are not where it says: their fits are not drawn")
+    return build_figures(df, curves, int(params.get("points", 400))), notes
+
+
 def table_kind(df: pd.DataFrame, meta: dict, path: Path | str = "table") -> str:
     """'run', 'sweep' or 'scan' (a map from 'vetica scan'); InputError naming what is missing otherwise."""
     if not meta:
@@ -104,6 +130,8 @@ def table_kind(df: pd.DataFrame, meta: dict, path: Path | str = "table") -> str:
         )
     if meta.get("table") == "scan":
         return "scan"
+    if meta.get("table") == "fit" or meta.get("kind") == "force-curve fit":
+        return "fit"
     if all(c in df.columns for c in SWEEP_COLUMNS):
         return "sweep"
     if all(c in df.columns for c in RUN_COLUMNS):

@@ -35,7 +35,6 @@ killed sweep run again computes only the missing points.
 
 from __future__ import annotations
 
-import os
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -44,7 +43,7 @@ import pandas as pd
 import yaml
 
 from .. import __version__
-from ..batch.launch import Launcher, check_launcher_options
+from ..batch.launch import Launcher, check_launcher_options, cores, jobs_warning  # noqa: F401 - cores: the tests'
 from ..batch.parts import CORRUPT, STALE, code_fingerprint, parts_dir
 from ..batch.run import (
     DEFAULT_FOLDER,
@@ -246,14 +245,6 @@ def study_modules(study: Study) -> set[str]:
     return mods
 
 
-def cores() -> int:
-    """CPU cores this process may use."""
-    try:
-        return len(os.sched_getaffinity(0))
-    except (AttributeError, OSError):  # pragma: no cover - not Linux
-        return os.cpu_count() or 1
-
-
 def sweep_command(
     config: str | Path,
     output: str | Path | None = None,
@@ -277,8 +268,8 @@ def sweep_command(
     check_launcher_options(run_kw.get("backend", "loky"), jobs, run_kw.get("scheduler"))
     checked = g.check_values()
     log = log or (lambda line: None)
-    if run_kw.get("backend", "loky") == "loky" and jobs > cores():
-        log(f"warning: --jobs {jobs} is more than the {cores()} cores here; the workers will share them")
+    if run_kw.get("backend", "loky") == "loky" and jobs_warning(jobs):
+        log(jobs_warning(jobs))
     if dry_run:
         return dry_run_text(g, out, jobs, checked)
     cost = grid_cost(g)
