@@ -209,6 +209,7 @@ def advise_task(item: dict) -> list[dict]:
                 row[f"{m}.{q}_sigma_pct"] = math.nan
             row[f"{m}.margin"] = math.nan
             row[f"{m}.flagged"] = ""
+            row[f"{m}.why"] = ""
         if run is not None:
             _extract_row(row, run, methods, force)
         margins = [row[f"{m}.margin"] for m in methods]
@@ -244,8 +245,32 @@ def _extract_row(row: dict, run, methods, force: str) -> None:
             row[f"{m}.{q}_sigma_pct"] = math.nan if sigs[q] is None else float(sigs[q])
         row[f"{m}.margin"] = margin(errs, sigs)
         row[f"{m}.flagged"] = ",".join(q for q in LIMITS if res.estimates[q].identifiable is False)
+        row[f"{m}.why"] = defeat(res, errs, sigs)
     row["extract_wall_s"] = time.perf_counter() - t0
     row["error"] = "; ".join(" ".join(e.split())[:300] for e in errors)
+
+
+def defeat(res, errs: dict, sigs: dict) -> str:
+    """What keeps a method from recovering the material on one setting, in a few words ('' when
+    nothing does): the first flag's reason (the checks name the cause: the surface pull the
+    thesis's stages ignore, taps read in noise, a force band that does not resolve the contact,
+    a quantity the record does not determine), else the quantity whose error or error bar
+    leaves the limits -- ``noise`` when its 2-sigma alone does, its ``error`` otherwise."""
+    for q in LIMITS:
+        e = res.estimates[q]
+        if e.identifiable is False and e.reason:
+            return f"{q}: {e.reason}"[:120]
+    worst, why = math.inf, ""
+    for (q, v), lim in zip(errs.items(), LIMITS.values()):
+        s = sigs.get(q)
+        if v is None:
+            return f"{q}: no estimate"
+        m = 1.0 - (abs(v) + 2.0 * (s or 0.0)) / lim
+        if m < worst:
+            worst = m
+            why = (f"{q}: noise (2 sigma {2 * s:.2g} % of a {lim:g} % limit)" if s and 2.0 * s > lim
+                   else f"{q}: error {v:+.2g} % (limit {lim:g} %, 2 sigma {2 * (s or 0.0):.2g} %)")  # fmt: skip
+    return why if worst <= 0 else ""
 
 
 @dataclass
@@ -426,9 +451,9 @@ def _setting_line(rank: int, r, methods) -> str:
         "/".join("-" if not math.isfinite(r[f"{m}.{q}_err_pct"]) else f"{r[f'{m}.{q}_err_pct']:+.2g}" for q in LIMITS)
         for m in methods
     )
-    flags = "; ".join(f"{m} flags {r[f'{m}.flagged']}" for m in methods if r[f"{m}.flagged"])
-    if flags:
-        errs += f"   ({flags})"
+    why = "; ".join(f"{m} -- {r[f'{m}.why']}" for m in methods if r.get(f"{m}.why"))
+    if why:
+        errs += f"   ({why})"
     score = "-" if not math.isfinite(r["score"]) else f"{r['score']:.3f}"
     return (f"{rank:>4} {score:>6} {r['probe.f1'] / 1e3:>9g} {r['operation.setpoint']:>9g} "
             f"{r['numerics.print_step'] * 1e9:>8g} {r['probe.k2']:>9g}   {errs}")  # fmt: skip

@@ -125,7 +125,7 @@ class Numerics:
     adc_resolution: float = 0.0  # quantisation step of the recorded deflections [m]; 0 = none
     temperature: float = 0.0  # thermal (Brownian) noise of the probe modes in the recorded periods [K]; 0 = none
     detector_noise_density: float = 0.0  # white displacement noise of the detector, before its bandwidth [m/sqrt(Hz)]
-    instrument: str = "thesis"  # preset of the keys above (INSTRUMENTS): thesis = noise-free; lab = a room-temperature set-up
+    instrument: str = "thesis"  # preset of the keys above (INSTRUMENTS): thesis (noise-free) | thermal | lab
 
 
 @dataclass(frozen=True)
@@ -197,7 +197,7 @@ RULES = {
     "numerics.record_cycles": (lambda v: 1 <= v <= MAX_CYCLES, f"an integer in 1..{MAX_CYCLES}"),
     "numerics.steady": one_of("orbit", "transient"),
     "numerics.integrator": one_of("hybrid", "verlet"),
-    "numerics.instrument": one_of("thesis", "lab"),
+    "numerics.instrument": one_of("thesis", "thermal", "lab"),
     "numerics.switch_gap": (_positive, "a distance > 0 m"),
     "numerics.tol_orbit": (_positive, "a distance > 0 m"),
     "numerics.orbit_max_periods": (lambda v: 10 <= v <= MAX_ORBIT_PERIODS, f"an integer in 10..{MAX_ORBIT_PERIODS}"),
@@ -226,6 +226,9 @@ INSTRUMENTS = {
     # the thesis's own records: noise-free, sampled every 0.125 ns (thesis table 1, sections 4.3-4.5)
     "thesis": {"temperature": 0.0, "detector_noise_density": 0.0, "detector_bandwidth": 0.0,
                "adc_resolution": 0.0, "print_step": 0.125e-9, "position_noise": 0.0, "force_noise": 0.0},
+    # the thermal limit: the probe at room temperature read by a perfect detector (no noise, no band limit, no ADC)
+    "thermal": {"temperature": 300.0, "detector_noise_density": 0.0, "detector_bandwidth": 0.0,
+                "adc_resolution": 0.0, "print_step": 0.5e-9, "position_noise": 0.0, "force_noise": 0.0},
     # a room-temperature THC set-up (sources in INSTRUMENT_SOURCES and docs/noise.md)
     "lab": {"temperature": 300.0, "detector_noise_density": 50e-15, "detector_bandwidth": 5e6,
             "adc_resolution": 0.3e-12, "print_step": 2e-9, "position_noise": 0.0, "force_noise": 0.0},
@@ -245,6 +248,9 @@ INSTRUMENT_SOURCES = {
                           "cantilever's and paddle's thermal motion (20 and 2.4 pm RMS) dither it",
     },
     "thesis": {"print_step": "0.125 ns, noise-free: the thesis's records (thesis table 1)"},
+    "thermal": {"temperature": "room temperature, 300 K, as lab; every detector term off: what thermal noise alone "
+                               "leaves (the limit no detector improves on)",
+                "print_step": "0.5 ns: the thesis's parametric studies (thesis ch. 4)"},
 }  # fmt: skip
 
 
