@@ -99,6 +99,28 @@ def approach_jitter(z, f, i, sf: float | None = None) -> float:
     return float(np.ptp(rivals)) / math.sqrt(12.0) if len(rivals) > 1 else 0.0
 
 
+def sampling_term(record, taps) -> float:
+    """Relative 1-sigma of stage 1a's tau_c from locating the contact and separation minima on
+    the sample grid (:func:`tap_sigmas`): the median over creep intervals of ``|d ln tau_c / d Z|``
+    at ``Z'i`` and ``Z(i+1)`` (thesis eq. 73: ``tau_c = -dt / ln r``, ``r = (Z(i+1) - Z1)/(Z'i -
+    Z1)``) times ``|dz/dt| h / sqrt(12)`` there, in quadrature.  0 without Z1."""
+    if record.z1 is None or len(taps.contact) < 2:
+        return 0.0
+    z, z1 = record.z, record.z1
+    h = (record.t[-1] - record.t[0]) / (len(record.t) - 1)
+    out = []
+    for i in range(len(taps.contact) - 1):
+        js, jc = int(taps.separation[i]), int(taps.contact[i + 1])
+        zs, zc = z[js] - z1, z[jc] - z1
+        if not (zs != 0 and 0.0 < zc / zs < 1.0) or not (0 < js < len(z) - 1 and 0 < jc < len(z) - 1):
+            continue
+        lr = math.log(zc / zs)
+        vs, vc = abs(z[js + 1] - z[js - 1]) / 2.0, abs(z[jc + 1] - z[jc - 1]) / 2.0  # [m per sample]
+        # d ln tau_c = -d ln(-ln r) = -(d ln r)/ln r,  d ln r = dZc/zc - dZs/zs
+        out.append(math.hypot(vc / zc, vs / zs) / math.sqrt(12.0) / abs(lr))
+    return float(np.median(out)) if out else 0.0
+
+
 def log_gradients(values: dict, rel: float = 1e-6) -> dict:
     """``d ln q / d ln s`` of every quantity ``q`` of ``sls_elements`` against each stage
     ``s`` of :data:`STAGES` (central differences)."""
@@ -141,6 +163,11 @@ def tap_sigmas(res: ExtractionResult, record, method, options) -> tuple[dict, di
         rel[s] = (sp.std / math.sqrt(n) * t_factor(n) / abs(values[s])) if n >= 2 and sp.std is not None else math.inf
     taps = find_taps(record.f)
     s_z1 = z1_sigma(record, taps, values["k_r"]) if record.z1 is not None else 0.0
+    # the print step: every force minimum is located on the sample grid, to within half a step in
+    # time, so each position of stage 1a (Z'i, Z(i+1), and Z1 when read on the approach) is off by
+    # up to half the tip's travel in a step -- the same for every tap when the period is a whole
+    # number of samples, so it does not average over taps: uniform, v h / sqrt(12), through eq. 73
+    rel["tau_c"] = math.hypot(rel["tau_c"], sampling_term(record, taps))
     # the method twice more with Z1 moved by +-2 sigma: how every quantity follows Z1 (a secant
     # over the 95 % range, so a quantity that depends on Z1 non-linearly, e.g. cd when tau_c and
     # Kr move in opposite directions, gets the larger of the two changes), and through it tau_c
