@@ -116,16 +116,22 @@ def extract_many(df, meta: dict | None, force: str, methods: dict, *, contact=No
                 + (f"; use --method {' or '.join(able)}" if able else "")
             )
     out = {}
-    for key, m in ms.items():
+    # a method other methods' checks consult (the whole-cycle fit referees the tap methods) runs first, and its
+    # result on its default options is kept on the record for them (.sanity), so it is computed once
+    order = sorted(ms, key=lambda k: not getattr(ms[k], "referee", False))
+    for key in order:
+        m = ms[key]
         try:
             res = m.run(record, opts[key])
         except InputError as exc:
             raise InputError(_with_noise(str(exc), record)) from None
         calibrate(res, record, m, opts[key])  # a standard error for every estimate (.uncertainty)
         check(res, record, opts[key])  # identifiability and sanity checks: no silent wrong answer (.sanity)
+        if getattr(m, "referee", False) and opts[key] == m.options({}):
+            record.memo[("referee", id(record.f), record.z1)] = res.estimates
         add_material(res, record, cm, radius_source)
         out[key] = res
-    return out
+    return {key: out[key] for key in ms}
 
 
 def _with_noise(text: str, record: Record) -> str:

@@ -232,11 +232,11 @@ def _referee(res: ExtractionResult, record) -> tuple[dict, set]:
     record for the other tap method."""
     from .base import METHODS
 
-    full = METHODS.get("full")
+    full = next((m for m in METHODS.values() if getattr(m, "referee", False)), None)
     model = getattr(record, "model", None)
     if full is None or model is None or model.key not in full.surface_models or not hasattr(record, "memo"):
         return {}, set()
-    key = ("full", id(record.f), record.z1)
+    key = ("referee", id(record.f), record.z1)
     if key not in record.memo:
         try:
             fit = full.run(record, full.options({}))

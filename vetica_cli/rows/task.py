@@ -140,8 +140,19 @@ class PointTask:
         most in the method and the instrument keys).  Returns ``[(point key, rows), ...]``.  Never raises for a point: errors become rows with
         status 'failed'."""
         cfgs = [from_dict(d) for _, d, _, _ in items]
-        if len(items) == 1 or self.replicas > 1:  # replicated points draw their own noise: nothing shared
-            return [(key, self.simulate_point(cfg, method, force)) for (key, _, method, force), cfg in zip(items, cfgs)]
+        if self.replicas > 1:  # points of one config (other methods) share its replicas: the same seeds, the same records
+            out, sets = [], {}
+            for (key, d, method, force), cfg in zip(items, cfgs):
+                ident = repr(sorted(cfg.to_dict().items()))
+                if ident not in sets:
+                    t0 = time.perf_counter()
+                    try:
+                        sets[ident] = (self.replica_set(cfg, self.replicas), None, time.perf_counter() - t0)
+                    except Exception as exc:  # noqa: BLE001
+                        sets[ident] = (None, exc, time.perf_counter() - t0)
+                made, exc, wall = sets[ident]
+                out.append((key, self.replicated_rows(cfg, method, force, made, exc, wall)))
+            return out
         if len(items) == 1:
             (key, _, method, force), cfg = items[0], cfgs[0]
             return [(key, self.simulate_point(cfg, method, force))]
@@ -163,7 +174,12 @@ class PointTask:
     def simulate_point(self, cfg: Config, method: str, force: str) -> Rows:
         """One point on its own: simulate, then extract (``replicas`` > 1: :meth:`replicated_rows`)."""
         if self.replicas > 1:
-            return self.replicated_rows(cfg, method, force)
+            t0 = time.perf_counter()
+            try:
+                made, exc = self.replica_set(cfg, self.replicas), None
+            except Exception as e:  # noqa: BLE001
+                made, exc = None, e
+            return self.replicated_rows(cfg, method, force, made, exc, time.perf_counter() - t0)
         t0 = time.perf_counter()
         try:
             run = self.simulate(cfg)
@@ -171,17 +187,16 @@ class PointTask:
             return failed_rows(cfg, exc, "simulate", time.perf_counter() - t0, method, force)
         return self.rows_for_run(cfg, run, time.perf_counter() - t0, method, force)
 
-    def replicated_rows(self, cfg: Config, method: str, force: str) -> Rows:
+    def replicated_rows(self, cfg: Config, method: str, force: str, made, exc, wall: float) -> Rows:
         """The point recorded :attr:`replicas` times with independent noise and once without
-        (:func:`vetica_cli.simulation.simulate.replica_set`), every record extracted, one row per
-        force source summarising the replicas (:func:`vetica_cli.rows.replicas.summarise`)."""
-        t0 = time.perf_counter()
-        try:
-            reference, runs = self.replica_set(cfg, self.replicas)
-        except Exception as exc:  # noqa: BLE001
-            rows = failed_rows(cfg, exc, "simulate", time.perf_counter() - t0, method, force)
+        (``made`` = :func:`vetica_cli.simulation.simulate.replica_set`'s ``(reference, runs)``, or
+        the exception ``exc`` it raised, in ``wall`` seconds), every record extracted, one row
+        per force source summarising the replicas (:func:`vetica_cli.rows.replicas.summarise`)."""
+        if made is None:
+            rows = failed_rows(cfg, exc, "simulate", wall, method, force)
             return [{**r, **_empty_replica_columns(cfg), "replicas": self.replicas} for r in rows]
-        sim_wall = (time.perf_counter() - t0) / (len(runs) + 1)
+        reference, runs = made
+        sim_wall = wall / (len(runs) + 1)
         fitted = sigma_names(cfg.surface.surface_model)
         out = []
         for source in point_sources(force):

@@ -160,7 +160,9 @@ def thermal_seconds(g: Grid) -> float:
     settling ones at the fine step), 0 for a point without temperature."""
     from ..simulation.config import INSTRUMENTS
 
-    preset = INSTRUMENTS.get(_base_value(g, "numerics.instrument", "thesis"), {})
+    names = {_base_value(g, "numerics.instrument", "thesis")}
+    names |= {a["numerics.instrument"] for f in g.factors for a in f if "numerics.instrument" in a}  # swept presets
+    preset = max((INSTRUMENTS.get(n, {}) for n in names), key=lambda p: p.get("temperature", 0.0))
     try:
         t = float(number(_base_value(g, "numerics.temperature", preset.get("temperature", 0.0))))
         if not t:

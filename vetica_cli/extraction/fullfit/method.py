@@ -289,6 +289,8 @@ class FullFit(ExtractionMethod):
             raise InputError(f"nu {nu!r} not allowed; expected a Poisson ratio > -1 and <= 0.5")
         return opts
 
+    referee = True  # an independent formulation of the tap methods' quantities: their checks consult it (sanity)
+
     def sigmas(self, res: ExtractionResult, record: Record, options: dict) -> tuple[dict, dict]:
         """The fit's own sigma, computed in :meth:`run` (nothing to add)."""
         return {}, {"source": "the larger of the fit's Jacobian-and-residual error and the tap-robust sandwich"}
