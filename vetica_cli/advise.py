@@ -62,6 +62,7 @@ from .rows.plan import group
 from .rows.schema import ACCEPT_ERR_PCT
 
 F2_RATIO = 15.0  # f2 = 15 f1 (thesis 4.5.1)
+MAX_REPLICAS = 50  # --replicas: noisy records per setting
 RECORD_CYCLES = 4  # drive periods recorded per setting (VETICA needs two complete taps in a row)
 PARAM_LIMIT_PCT = 5.0  # [%] each of k0, k_inf, cd within this
 LIMITS = {"tau_c": ACCEPT_ERR_PCT, "k0": PARAM_LIMIT_PCT, "k_inf": PARAM_LIMIT_PCT, "cd": PARAM_LIMIT_PCT}
@@ -192,6 +193,8 @@ def advise_task(item: dict) -> list[dict]:
     with every method: one row per setting (module level: joblib pickles it).  Never
     raises: errors become rows with status 'failed'."""
     cfgs, methods, force = item["configs"], item["methods"], item["force"]
+    if item.get("replicas", 1) > 1:
+        return [replicated_row(cfg_d, methods, force, item["replicas"]) for cfg_d in cfgs]
     t0 = time.perf_counter()
     try:
         run = simulate(from_dict(cfgs[0]))
@@ -218,6 +221,66 @@ def advise_task(item: dict) -> list[dict]:
         row["recovered"] = bool(row["score"] > 0 and not flagged) if math.isfinite(row["score"]) else False
         rows.append(row)
     return rows
+
+
+def _empty_row(cfg_d: dict, methods, err: str, sim_wall: float) -> dict:
+    row = {**{k: cfg_d[k.split(".")[0]][k.split(".")[1]] for k in SETTING_KEYS}, "status": "failed",
+           "stop_reason": "", "error": err, "sim_wall_s": sim_wall, "extract_wall_s": 0.0}  # fmt: skip
+    for m in methods:
+        for q in LIMITS:
+            row[f"{m}.{q}_err_pct"] = math.nan
+            row[f"{m}.{q}_sigma_pct"] = math.nan
+        row[f"{m}.margin"] = math.nan
+        row[f"{m}.flagged"] = ""
+        row[f"{m}.why"] = ""
+    return row
+
+
+def replicated_row(cfg_d: dict, methods, force: str, n: int) -> dict:
+    """One setting recorded ``n`` times with independent noise (``--replicas``;
+    :func:`vetica_cli.simulation.simulate.replica_set`): each record extracted as a single one is,
+    then the row holds, per method, the replicas' median error and median sigma of each quantity,
+    the quantities flagged in more than half of them, the most frequent reason, and the margin of
+    the medians; ``status`` ok when every replica's is."""
+    from .simulation.simulate import replica_set
+
+    t0 = time.perf_counter()
+    try:
+        _, runs = replica_set(from_dict(cfg_d), n)
+    except Exception as exc:  # noqa: BLE001 - a failed setting becomes a row
+        row = _empty_row(cfg_d, methods, f"simulate: {type(exc).__name__}: {exc}", time.perf_counter() - t0)
+        row["replicas"] = n
+        return row
+    sim_wall = time.perf_counter() - t0
+    rows = []
+    for run in runs:
+        r = _empty_row(cfg_d, methods, "", sim_wall / n)
+        _extract_row(r, run, methods, force)
+        rows.append(r)
+    out = dict(rows[0])
+    out["status"] = "ok" if all(r["status"] == "ok" for r in rows) else next(r["status"] for r in rows if r["status"] != "ok")
+    out["error"] = next((r["error"] for r in rows if r["error"]), "")
+    out["extract_wall_s"] = sum(r["extract_wall_s"] for r in rows)
+    out["replicas"] = n
+    for m in methods:
+        errs, sigs = {}, {}
+        for q in LIMITS:
+            e = np.array([r[f"{m}.{q}_err_pct"] for r in rows], float)
+            sg = np.array([r[f"{m}.{q}_sigma_pct"] for r in rows], float)
+            errs[q] = float(np.nanmedian(e)) if np.isfinite(e).any() else None
+            sigs[q] = float(np.nanmedian(sg)) if np.isfinite(sg).any() else None
+            out[f"{m}.{q}_err_pct"] = math.nan if errs[q] is None else errs[q]
+            out[f"{m}.{q}_sigma_pct"] = math.nan if sigs[q] is None else sigs[q]
+        out[f"{m}.margin"] = margin(errs, sigs)
+        out[f"{m}.flagged"] = ",".join(q for q in LIMITS
+                                       if sum(q in r[f"{m}.flagged"].split(",") for r in rows) > n / 2)  # fmt: skip
+        whys = [r[f"{m}.why"] for r in rows if r[f"{m}.why"]]
+        out[f"{m}.why"] = max(set(whys), key=whys.count) if len(whys) > n / 2 else ""
+    margins = [out[f"{m}.margin"] for m in methods]
+    out["score"] = min(margins) if out["status"] == "ok" and all(math.isfinite(v) for v in margins) else math.nan
+    flagged = any(out[f"{m}.flagged"] for m in methods)
+    out["recovered"] = bool(out["score"] > 0 and not flagged) if math.isfinite(out["score"]) else False
+    return out
 
 
 def _extract_row(row: dict, run, methods, force: str) -> None:
@@ -315,15 +378,18 @@ def base_config(material: Material, overrides: dict | None = None) -> dict:
 
 def advise(material: Material, overrides: dict | None = None, knobs: dict | None = None,
            methods=DEFAULT_METHODS, force: str = "reconstructed", jobs: int = 2, progress: bool = False,
-           yes: bool = False) -> Advice:  # fmt: skip
+           yes: bool = False, replicas: int = 1) -> Advice:  # fmt: skip
     """Run the advice study (module docstring) and rank its settings.
 
     ``overrides``: ``--set`` keys of the probe, operation, numerics or surface attraction
     (``numerics.temperature`` [K]: the thermal noise of the records, 0 = none);
     ``knobs``: ``{knob key: values}`` replacing :data:`KNOBS` defaults; ``methods``:
     registered extraction methods that must all recover the material; ``force``: the
-    force source extracted ('reconstructed' is what an instrument has).  Every setting is
+    force source extracted ('reconstructed' is what an instrument has); ``replicas``: noisy
+    records per setting (:func:`replicated_row`; 1 = one record).  Every setting is
     checked as a config before any work starts (ConfigError/InputError, one line)."""
+    if isinstance(replicas, bool) or not isinstance(replicas, int) or not 1 <= replicas <= MAX_REPLICAS:
+        raise InputError(f"--replicas {replicas!r} is not allowed; expected an integer in 1..{MAX_REPLICAS}")
     methods = tuple(methods)
     if not methods:
         raise InputError("--methods: expected at least one method")
@@ -361,11 +427,14 @@ def advise(material: Material, overrides: dict | None = None, knobs: dict | None
                                           f"{exc}") from None  # fmt: skip
     tasks = group(settings)
     seconds = sum(kernel_seconds(t.points[0].config) + len(t.points) * sum(METHODS[m].seconds_per_point for m in methods)
-                  for t in tasks)  # fmt: skip
+                  for t in tasks) * replicas  # fmt: skip
+    if replicas > 1 and not (base.get("numerics") or {}).get("temperature"):
+        raise InputError(f"--replicas {replicas}: the records are noise-free (--temperature 0); every replica would "
+                         "be the same")  # fmt: skip
     confirm_cost(f"this advice ({len(settings)} settings, {len(tasks)} simulations on {jobs} worker(s))",
                  seconds / max(1, min(jobs, len(tasks))), yes, len(tasks), "simulations")  # fmt: skip
-    items = [{"configs": [p.config.to_dict() for p in task.points], "methods": methods, "force": force}
-             for task in tasks]  # fmt: skip
+    items = [{"configs": [p.config.to_dict() for p in task.points], "methods": methods, "force": force,
+              "replicas": replicas} for task in tasks]  # fmt: skip
     t0 = time.perf_counter()
     rows: list = [None] * len(items)
     bar = Progress(len(items), 0, 0, enabled=progress, name="advise", unit="simulations",
@@ -407,7 +476,7 @@ def format_advice(adv: Advice, figure=None, top: int = 10) -> str:
             f"{' and '.join(adv.methods)} ({adv.force} force), error bar (2 sigma) included and no estimate "
             "flagged; score = smallest margin min(1 - (|error| + 2 sigma)/limit) over the methods"
         ),
-        (f"records: thermal noise at {temperature_of(adv):g} K (one noisy record per setting)" if temperature_of(adv)
+        (f"records: thermal noise at {temperature_of(adv):g} K ({replicas_text(adv)})" if temperature_of(adv)
          else "records: noise-free (temperature 0 K; an instrument's are not: --temperature 300)"),
         f"{len(t)} settings ({adv.simulations} simulations, {RECORD_CYCLES} periods each) in {adv.wall_s:.1f} s on "
         f"{adv.jobs} worker(s): "
@@ -439,6 +508,12 @@ def format_advice(adv: Advice, figure=None, top: int = 10) -> str:
 def recovered_by(t: pd.DataFrame, m: str) -> int:
     """Settings where method ``m`` alone recovers the material (margin > 0, nothing flagged)."""
     return int(((t[f"{m}.margin"] > 0) & (t[f"{m}.flagged"] == "")).sum())
+
+
+def replicas_text(adv: Advice) -> str:
+    n = int(adv.table["replicas"].iloc[0]) if "replicas" in adv.table and len(adv.table) else 1
+    return "one noisy record per setting" if n == 1 else (f"{n} noisy records per setting: medians, and a quantity "
+                                                          "flagged when more than half flag it")  # fmt: skip
 
 
 def temperature_of(adv: Advice) -> float:

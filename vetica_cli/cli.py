@@ -531,6 +531,8 @@ def advise(
     set_: Optional[List[str]] = typer.Option(None, "--set", help="Probe/operation/numerics key of the base, e.g. "
                                              "--set probe.k1=5 (not a knob, not the material)."),  # fmt: skip
     jobs: int = typer.Option(2, "--jobs", "-j", help="Parallel workers (processes), one core each."),
+    replicas: int = typer.Option(1, "--replicas", help="Noisy records per setting (1..50): medians of their errors "
+                                 "and sigmas, a quantity flagged when more than half flag it."),
     output: Path = typer.Option(Path("advise.png"), "-o", "--output", help="PNG of the map to write."),
     table: Optional[Path] = typer.Option(None, "--table", help="Also write every setting's row as Parquet."),
     json_out: bool = typer.Option(False, "--json", help="Print one JSON object: {\"settings\": [...], ...}."),
@@ -572,7 +574,7 @@ def advise(
     if table is not None:
         check_output_file(table, "--table", ".parquet")
     adv = run_advice(material, overrides, knobs, [m.strip() for m in methods.split(",") if m.strip()], force, jobs,
-                     progress=not (quiet or json_out), yes=yes)  # fmt: skip
+                     progress=not (quiet or json_out), yes=yes, replicas=replicas)  # fmt: skip
     figure = write_advice_figure(adv, output)
     if table is not None:
         try:
