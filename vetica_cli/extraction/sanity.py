@@ -217,15 +217,16 @@ def _pull_time(record) -> float:
     return float(np.median(out)) if out else 0.0
 
 
-REFEREED = ("vetica", "vetica-prestress")  # methods the whole-cycle fit referees (their band bias is in its verdict)
-REFEREE_SIGMA = 0.25  # the whole-cycle fit referees a quantity it determines to this relative 1-sigma
+REFEREE_SIGMA = 0.5  # the whole-cycle fit referees a quantity it determines to this relative 1-sigma
 
 
 def _referee(res: ExtractionResult, record) -> tuple[dict, set]:
     """``({quantity: (relative difference, the fit's value)}, the quantities it judged)`` where the whole-cycle fit on the same
     record (an independent formulation: the surface driven by the measured tip, the tip's pull
     modelled, every sample used) determines the quantity to :data:`REFEREE_SIGMA`, passes its own
-    checks, and the tap method differs from it by more than :data:`TOLERANCE` and 3 combined sigma.  The thesis's stages assume the surface
+    checks, and the tap method differs from it by more than :data:`TOLERANCE` and 2 combined sigma
+    (the two answers apart beyond their 95 % intervals: on stripped records the fit's free surface
+    height widens its sigma of tau_c to 15-80 % while VETICA's tau_c was +75 ... +110 % off).  The thesis's stages assume the surface
     does not feel the pull; on a surface that does, stage 1a's creep starts where the adhesion
     held the surface, not at the tip (seen: a 7:1 surface with k_inf 1.44 N/m, tau_c +38 %
     noise-free, which no check of the tap method itself showed).  The fit's result is kept on the
@@ -255,7 +256,7 @@ def _referee(res: ExtractionResult, record) -> tuple[dict, set]:
             continue
         judged.add(q)
         rel = (e.value - a.value) / abs(a.value)
-        if abs(rel) > TOLERANCE and abs(rel) > 3.0 * math.hypot(e.sigma or 0.0, sf):
+        if abs(rel) > TOLERANCE and abs(rel) > 2.0 * math.hypot(e.sigma or 0.0, sf):  # apart beyond their 95 %
             out[q] = (rel, float(a.value))
     return out, judged
 
@@ -348,6 +349,7 @@ def check(res: ExtractionResult, record, options: dict | None = None) -> Extract
                   f"ill-conditioned (x{1 / max(creep, 1e-300):.2g})")  # fmt: skip
         info["tau_c_per_z1_offset"] = _tau_c_z1_sensitivity(record)  # diagnosis only: Z1's noise is in sigma
         ref, judged = _referee(res, record)  # an independent formulation of the same quantities
+        info["refereed"] = sorted(judged)
         info["whole_cycle_fit_difference"] = ref
         for q, (rel, value) in ref.items():
             _flag(res, [q], f"the whole-cycle fit gives {value:.4g} ({100 * rel:+.3g} %): the thesis's stages "
@@ -411,7 +413,8 @@ def check(res: ExtractionResult, record, options: dict | None = None) -> Extract
                                       f"bracket {(lo + Z1_TOL) * 1e9:.3g} .. {(hi - Z1_TOL) * 1e9:.3g} nm")  # fmt: skip
     band = ((res.info.get("uncertainty") or {}).get("band") or {})
     info["band_bias"] = band.get("bias")
-    for q, b in (band.get("bias") or {}).items() if res.method not in REFEREED else ():  # refereed: the fit judges
+    judged = set(info.get("refereed") or ())
+    for q, b in ((q, b) for q, b in (band.get("bias") or {}).items() if q not in judged):  # refereed: the fit judges
         if b > TOLERANCE:
             _flag(res, [q], f"the force's band ({band['cutoff_hz'] / 1e6:.3g} MHz, set by its noise) biases it by "
                             f"~{100 * b:.2g} %: the contact is not resolved")  # fmt: skip
