@@ -330,6 +330,12 @@ def build(raw: dict, name: str = "scan") -> ScanConfig:
     spec = parse_scan(raw.get("scan"), extract)
     sample = parse_sample(raw.get("sample"))
     point = from_dict({**{s: raw[s] for s in POINT_SECTIONS if s in raw}, "surface": sample.background})
+    if point.numerics.temperature:  # a label is a claim: the pixels would be recorded without it
+        raise ConfigError(
+            f"numerics.temperature: {point.numerics.temperature:g} K is not allowed in a scan; expected 0 (the scan's "
+            "pixels are recorded without thermal noise; the detector keys act: with numerics.instrument thermal or lab "
+            "set numerics.temperature: 0)"
+        )
     _check_cross(point, spec, sample)
     name = str(raw.get("name") or name)
     description = str(raw.get("description") or "")
