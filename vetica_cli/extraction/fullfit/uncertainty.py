@@ -28,10 +28,10 @@ def covariance(res, jac):
     norm = np.sqrt(np.sum(jac**2, axis=0))
     norm[norm == 0] = 1.0
     _, sv, vt = np.linalg.svd(jac / norm, full_matrices=False)
-    with np.errstate(divide="ignore", invalid="ignore"):
+    with np.errstate(over="ignore", divide="ignore", invalid="ignore"):
         inv_sv2 = np.where(sv > 0, 1.0 / sv**2, np.inf)
         cov = (vt.T * inv_sv2) @ vt
-    cov = cov / np.outer(norm, norm) * s2
+        cov = cov / np.outer(norm, norm) * s2  # a parameter the fit cannot scale overflows to inf: said, not warned
     return np.where(np.isfinite(cov), cov, np.inf)
 
 
@@ -98,7 +98,8 @@ def tap_covariance(res, jac, groups):
         keep = lam < 1.0 - LOO_RCOND  # a direction the tap alone fits leaves it no residual
         r = r + u[:, keep] @ ((1.0 / np.sqrt(1.0 - lam[keep]) - 1.0) * (u[:, keep].T @ r))
         d[i] = half @ (jh.T @ r)
-    cov = (d.T @ d) / np.outer(norm, norm) * (g - 1) / g
+    with np.errstate(over="ignore", divide="ignore", invalid="ignore"):  # overflow to inf: an unbounded sigma
+        cov = (d.T @ d) / np.outer(norm, norm) * (g - 1) / g
     return np.where(np.isfinite(cov), cov, np.inf), g
 
 
