@@ -214,3 +214,24 @@ def test_advise_refuses_a_method_that_does_not_estimate_the_material(tmp_path):
     res = CliRunner().invoke(app, ["advise", "--k-inf", "4", "--k0", "64", "--cd", "1e-4", "--methods", "dmt-fit",
                                    "-o", str(out)])  # fmt: skip
     assert res.exit_code == 2 and "does not estimate tau_c, k0, k_inf, cd" in res.output and not out.exists()
+
+
+def test_observables_sigma_needs_a_record_longer_than_the_ring_down(worked):
+    """The per-period values share the cantilever's memory (ring-down Q1 f_d / (pi f1) periods,
+    31.8 for Q1 = 100): a 3-period record reports no sigma and says why; with Q1 = 0.6 (0.19
+    periods, 3 periods >= 10 ring-downs) sigma is the spread's standard error over
+    n_eff = n / (1 + 2 tau) independent periods (the exponential series' integrated
+    autocorrelation time), t-scaled."""
+    from vetica_cli.extraction.result import t_factor
+
+    path, _ = worked
+    df, meta = read_table(path)
+    short = extract(df, meta, "true", "observables")
+    assert all(e.sigma is None for e in short.estimates.values())
+    assert short.info["uncertainty"]["source"].startswith("none: the record spans 3 drive periods")
+    low_q = extract(df, meta, "true", "observables", q1=0.6)
+    tau = 0.6 / math.pi
+    sp = low_q.estimates["amplitude_obs"].spread
+    n_eff = sp.n / (1 + 2 * tau)
+    expect = sp.std / math.sqrt(n_eff) * t_factor(int(n_eff)) / low_q.estimates["amplitude_obs"].value
+    assert low_q.estimates["amplitude_obs"].sigma == pytest.approx(expect, rel=1e-12)

@@ -56,6 +56,9 @@ def format_table(res: ExtractionResult, source=None) -> str:
     lines += _reference_lines(res)
     lines += _material_lines(res)
     lines += method.detail_lines(res)
+    src = (info.get("uncertainty") or {}).get("source")
+    if not with_sigma and isinstance(src, str) and src.startswith("none"):
+        lines.append(f"standard error: {src}")
     lines += _reconstruction_lines(info)
     for k in res.fitted or [q for q, e in res.estimates.items() if e.identifiable is False]:
         e = res.estimates[k]
