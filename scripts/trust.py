@@ -30,7 +30,8 @@ what the error bar is a claim about.  Per condition, method and quantity:
     PYTHONPATH=. python scripts/trust.py --materials 6 --replicas 30 --draw-seed 2 --out trust.parquet
 
 The materials and seeds of a draw are not used by any test or other script; development used
-``--draw-seed 1``; the committed table (results/noise/trust.md) is ``--draw-seed 2``.
+draw seeds 1-3; the committed table (results/noise/trust.md, trust.parquet) is ``--draw-seed 4
+--materials 6 --replicas 20``, run once on the final code.
 """
 
 from __future__ import annotations
