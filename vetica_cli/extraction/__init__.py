@@ -2,13 +2,15 @@
 (:mod:`.base`), the shared input handling (:mod:`.record`), the typed result
 (:mod:`.result`) and its one formatter (:mod:`.format`).
 
-Methods register themselves on import: ``vetica`` (:mod:`.vetica`, thesis 3.3),
-``vetica-prestress`` (:mod:`.vetica_prestress`, VETICA with the Maxwell arm's
-pre-stress at contact), ``full`` (:mod:`.fullfit`, the whole-cycle inversion), and the
-instrument's own numbers for comparison: ``observables`` (:mod:`.observables`: amplitude,
-phase, E_diss, virial, loss tangent) and ``dmt-fit`` (:mod:`.dmt_fit`: per-tap DMT analysis).
-Every result carries its material units (:mod:`.material`, thesis 4.6.2).  Adding a method is adding
-its module and one import line below.
+Methods register themselves on import (:mod:`.methods`): ``vetica`` (:mod:`.methods.vetica`,
+thesis 3.3), ``vetica-prestress`` (:mod:`.methods.vetica_prestress`, VETICA with the Maxwell
+arm's pre-stress at contact), ``full`` (:mod:`.fullfit`, the whole-cycle inversion), and the
+instrument's own numbers for comparison: ``observables`` (:mod:`.methods.observables`:
+amplitude, phase, E_diss, virial, loss tangent) and ``dmt-fit`` (:mod:`.methods.dmt_fit`:
+per-tap DMT analysis).  ``vetica_cli.extraction.vetica`` and the other method modules stay
+importable under their old names.  Every result carries its material units
+(:mod:`.material`, thesis 4.6.2).  Adding a method is adding its module to :mod:`.methods`
+and one import line there.
 """
 
 from __future__ import annotations
@@ -19,17 +21,22 @@ import numpy as np
 
 from ..errors import InputError
 from ..io import read_table
-from .base import DEFAULT_METHOD, METHODS, ExtractionMethod, get, register
+from .base import DEFAULT_METHOD, METHODS, ExtractionMethod, Option, get, register
+from . import methods  # noqa: F401  (registers every method, in the order of the --method choices)
 
-# isort: off
-# the methods register themselves; this order is the order of the --method choices
-from . import vetica as _vetica  # noqa: F401  (registers 'vetica')
-from . import vetica_prestress as _vetica_prestress  # noqa: F401  (registers 'vetica-prestress')
-from . import fullfit as _fullfit  # noqa: F401  (registers 'full')
-from . import observables as _observables  # noqa: F401  (registers 'observables')
-from . import dmt_fit as _dmt_fit  # noqa: F401  (registers 'dmt-fit')
 
-# isort: on
+def _alias_method_modules() -> None:
+    """``vetica_cli.extraction.<name>`` for each module of :mod:`.methods` (where they lived
+    before): scripts and notebooks that import them keep working."""
+    import sys
+
+    for name in ("vetica", "vetica_prestress", "observables", "dmt_fit"):
+        mod = getattr(methods, name)
+        sys.modules.setdefault(f"{__name__}.{name}", mod)
+        globals().setdefault(name, mod)
+
+
+_alias_method_modules()
 from .material import ContactModel, contact_metadata, contact_model, material_entries, tap_contact
 from .record import FORCES, RECORD_KEYS, SOURCES, Record, RecordInputs, build_record
 
@@ -122,7 +129,7 @@ def extract_many(df, meta: dict | None, force: str, methods: dict, *, contact=No
         except InputError as exc:
             raise InputError(_with_noise(str(exc), record)) from None
         calibrate(res, record, m, opts[key])  # a standard error for every estimate (.uncertainty)
-        check(res, record, opts[key])  # identifiability and sanity checks: no silent wrong answer (.sanity)
+        check(res, record, opts[key], m)  # identifiability and sanity checks: no silent wrong answer (.sanity)
         add_material(res, record, cm, radius_source)
         out[key] = res
     return out
@@ -172,6 +179,7 @@ __all__ = [
     "Estimate",
     "ExtractionMethod",
     "ExtractionResult",
+    "Option",
     "RECORD_KEYS",
     "Record",
     "RecordInputs",

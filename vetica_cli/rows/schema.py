@@ -66,7 +66,7 @@ def method_quantities(models, methods) -> tuple[list[str], list[str]]:
     for key in methods or ():
         for m in models:
             est.update(dict.fromkeys(q for q in METHODS[key].quantities(m) if q not in own))
-            refs.update(dict.fromkeys(METHODS[key].references(m)))
+            refs.update(dict.fromkeys(METHODS[key].reference_quantities(m)))
     return list(est), [r for r in refs if r not in est and r not in own]
 
 
@@ -132,7 +132,7 @@ def column_meta(models, methods=None, replicas: int = 1) -> dict:
                 "or unbounded")  # fmt: skip
         for key in methods or ():
             meth = METHODS[key]
-            for name, q in {**meth.quantities(model), **meth.references(model)}.items():
+            for name, q in {**meth.quantities(model), **meth.reference_quantities(model)}.items():
                 if name in model.quantities:
                     continue
                 unit = _UNIT_WORDS.get(q.unit, q.unit)
