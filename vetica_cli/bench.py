@@ -37,12 +37,7 @@ def _period_ms(run, cfg) -> tuple[float, float]:
     from .simulation.simulate import derive, kernel_setup
 
     d = derive(cfg)
-    if cfg.surface.model == "hertz":  # the MDR kernel on the run's element grid
-        from .simulation.hertz import kernel_of_run
-
-        kern = kernel_of_run(cfg, kernel_setup(cfg, d), run)
-    else:
-        kern = engine.Kernel(kernel_setup(cfg, d))
+    kern = cfg.surface.surface_model.kernel_of_run(cfg, kernel_setup(cfg, d), run)  # the model's (hertz: its grid)
     s = engine.new_state(0, 0, 0, 0, 0, kern.n_state)
     last = run.steady[-1]
     # the orbit's state at the end of the window: positions from the record, velocities by one

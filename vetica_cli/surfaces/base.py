@@ -127,6 +127,50 @@ class SurfaceModel(ABC):
     item_help: ClassVar[str] = ""  # the dotted item keys (item_key), for messages, e.g. "surface.arms.<i>.cd"
     common_defaults: ClassVar[dict[str, Any]] = {}  # COMMON_KEYS defaults the model changes (hertz: no pull on the surface)
     kernel_modules: ClassVar[tuple[str, ...]] = ("tapping", "expm")  # cached core modules its simulation compiles
+    supports: ClassVar[frozenset[str]] = frozenset({"thermal", "scan", "fit"})  # what its simulation offers
+    # (SUPPORTS: thermal noise in the recorded window, pixels of a raster scan, the whole-cycle fit of its records)
+    extra_columns: ClassVar[tuple[str, ...]] = ()  # recorded columns after the dashpots (hertz: contact_radius)
+    kernel_info_key: ClassVar[str] = "kernel_grid"  # the run's metadata key of its kernel's info (run_kernel)
+    references: ClassVar[tuple[str, ...]] = ()  # where the model and its equations come from (thesis section, paper)
+    acceptance: ClassVar[tuple[str, str] | None] = None  # (quantity, swept parameter) of the acceptance regime
+    # the thesis's material columns (4.6.2, from Kg, Kr, tau_r) a study table of this model carries
+    # besides E_dmt (none by default; the SLS family declares E_glassy, E_rubbery, viscosity)
+    material_columns: ClassVar[tuple[str, ...]] = ()
+
+    # ---- the model's own kernel (PyBaMM's BaseModel carries its default solver): the simulation,
+    # the scan and the bench ask the model, never which model it is
+
+    def run_kernel(self, cfg, st, spec):
+        """Run the kernel of a resolved config ``cfg`` to its steady state (``st``: the kernel
+        setup, ``spec``: the run's :class:`~vetica_cli.core.engine.RunSpec`): ``(RunResult, info
+        for the run's metadata or None, kernel or None)``; the kernel (for the thermal recording
+        of the window) is None when the model does not support ``thermal``.  Default: the
+        flat-punch kernel of :meth:`kernel_arms` (:mod:`vetica_cli.core.tapping`)."""
+        from ..core import engine
+
+        kern = engine.Kernel(st)
+        return engine.run(kern, spec), None, kern
+
+    def line_kernel(self, cfg, st, spec):
+        """The kernel of a scan's pixels of this model, ``(kernel, grid info or None)``."""
+        from ..core import engine
+
+        return engine.Kernel(st), None
+
+    def pixel_kernel_info(self, cfg, grid: dict, rr, kern) -> dict:
+        """A scan pixel's kernel info (its :meth:`line_kernel` grid info judged on the pixel's
+        run ``rr``); default: the grid info as it is."""
+        return dict(grid)
+
+    def kernel_of_run(self, cfg, st, run):
+        """The kernel a finished run used (``vetica bench`` times one period on it)."""
+        from ..core import engine
+
+        return engine.Kernel(st)
+
+    def supports_key(self, what: str) -> bool:
+        """Whether the model's simulation offers ``what`` (:attr:`supports`)."""
+        return what in self.supports
 
     @property
     def config_keys(self) -> tuple[str, ...]:
