@@ -37,10 +37,11 @@ def _alias_method_modules() -> None:
 
 
 _alias_method_modules()
-from .material import ContactModel, contact_metadata, contact_model, material_entries, tap_contact
+from .material import MATERIAL_UNITS, ContactModel, contact_metadata, contact_model, material_entries, tap_contact
 from .record import FORCES, RECORD_KEYS, SOURCES, Record, RecordInputs, build_record
 
 RECORD_COLUMNS = ("t", "z_tip", "f_ts", "z_paddle", "segment")  # what any method reads of a run table
+MATERIAL_NAMES = tuple(MATERIAL_UNITS)  # the thesis's material units (E_dmt, E_glassy, E_rubbery, viscosity)
 
 
 def extraction_modules(methods, forces=SOURCES) -> set[str]:
@@ -160,7 +161,9 @@ def add_material(res: ExtractionResult, record: Record, cm: ContactModel, radius
         z1 = fit["surface_height_m"] + record.a0  # a fit that found the surface without Z1: where the tip meets it
     peak, depth = tap_contact(record.z, record.f, z1, kg, record.taps) if z1 is not None else (float("nan"), float("nan"))
     values = {k: (v if v is not None else float("nan")) for k, v in values.items()}
-    res.material = material_entries(peak, depth, values, record.truth, cm)
+    entries = material_entries(peak, depth, values, record.truth, cm)
+    declared = set(record.model.material_columns) | {"E_dmt"}  # the surface model's (Kelvin-Voigt: E_dmt only)
+    res.material = {k: v for k, v in entries.items() if k not in MATERIAL_NAMES or k in declared}
     res.contact = contact_metadata(cm, radius_source)
 
 

@@ -1,14 +1,17 @@
 """The convention every extraction method follows, and the registry that collects them.
 
-A method is one module (or package) under :mod:`vetica_cli.extraction` defining a
-subclass of :class:`ExtractionMethod` decorated with :func:`register`: it
-declares its ``key`` (the ``--method`` / ``extract.method`` value), a one-line
-description, the surface models it can extract, its options with their
-defaults, the options a user may set (:class:`Option`: name, type, unit, help; the
-CLI's ``extract --option key=value`` reads them), and ``run(record, options) ->
-ExtractionResult``.  The CLI's
-``--method`` choices, the sweep's ``extract.method`` values and the table's
-``method`` column all come from :data:`METHODS`.
+A method is one module (or package) under :mod:`vetica_cli.extraction.methods` defining a
+subclass of :class:`ExtractionMethod` decorated with :func:`register`: it declares its
+``key`` (the ``--method`` / ``extract.method`` value), a one-line description, the surface
+models it can extract, its ``references`` (where it comes from, as data), each option once
+(:class:`Option`: name, type, default, unit, rule, help, and optionally a flag of its own;
+``options_default``, the checks, ``vetica extract --option key=value`` and the generated
+flags derive from it), and ``run(record, options) -> ExtractionResult``; its error bars and
+sanity checks are hooks (:meth:`ExtractionMethod.sigmas`, :meth:`ExtractionMethod.checks`)
+whose defaults are the generic ones.  The CLI's ``--method`` choices, the sweep's
+``extract.method`` values and the table's ``method`` column all come from :data:`METHODS`.
+:func:`register` checks the declarations (:func:`convention_errors`);
+:func:`vetica_cli.testing.check_method` runs the method on a record of a model it declares.
 """
 
 from __future__ import annotations
@@ -250,11 +253,48 @@ class ModelFreeMethod(ExtractionMethod):
         return dict(DYNAMIC_QUANTITIES)
 
 
+def convention_errors(method: ExtractionMethod) -> list[str]:
+    """What ``method`` misses of the convention (module docstring), checked on its declarations
+    alone (:func:`vetica_cli.testing.check_method` runs it on a record); empty when it follows
+    it.  :func:`register` refuses a method with any."""
+    out = []
+
+    def need(ok, text):
+        if not ok:
+            out.append(text)
+
+    need(isinstance(getattr(method, "key", None), str) and method.key, "a key (the --method value)")
+    need(isinstance(getattr(method, "title", None), str) and method.title, "a title")
+    d = getattr(method, "description", "")
+    need(isinstance(d, str) and d and "\n" not in d, "a one-line description")
+    models = tuple(method.surface_models) if hasattr(method, "surface_models") else ()
+    need(models and set(models) <= set(MODELS), "surface_models among the registered models")
+    need(getattr(method, "seconds_per_point", 0) > 0, "seconds_per_point > 0 (the dry-run estimate)")
+    refs = getattr(method, "references", ())
+    need(isinstance(refs, tuple) and refs and all(isinstance(r, str) and r for r in refs),
+         "references: a tuple of where the method comes from (e.g. 'thesis 3.3')")  # fmt: skip
+    names = [o.name for o in method.option_specs]
+    need(len(names) == len(set(names)), "one declaration per option")
+    for o in method.option_specs:
+        need(isinstance(o, Option) and o.help, f"option {o.name}: an Option with help")
+        need(o.type in TYPE_TEXT or (o.type == "any" and not o.settable), f"option {o.name}: a type of {tuple(TYPE_TEXT)}")
+        try:
+            o.check(o.default)
+        except InputError as exc:
+            out.append(f"option {o.name}: a default its own rule allows ({exc})")
+    return out
+
+
 def register(cls: type[ExtractionMethod]) -> type[ExtractionMethod]:
-    """Class decorator: add one instance of the method to :data:`METHODS` under its ``key``."""
+    """Class decorator: add one instance of the method to :data:`METHODS` under its ``key``,
+    after checking its declarations against the convention (:func:`convention_errors`)."""
     if cls.key in METHODS:
         raise ValueError(f"extraction method {cls.key!r} is registered twice")
-    METHODS[cls.key] = cls()
+    method = cls()
+    errors = convention_errors(method)
+    if errors:
+        raise TypeError(f"extraction method {cls.__name__} does not follow the convention: it needs " + "; ".join(errors))
+    METHODS[cls.key] = method
     return cls
 
 

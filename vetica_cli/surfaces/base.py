@@ -7,10 +7,13 @@ model modules: it declares its ``key``, ``parameter_keys`` and
 docstring, validates its keys of the config's ``surface:`` section, gives the
 theory values of the quantities an extraction reports, the fit bounds of its
 parameters, the derived sweep keys it offers, and the coefficient arrays the
-numba kernel needs (:meth:`SurfaceModel.kernel_arms`).  Adding a model is adding
-a module and one import line in :mod:`vetica_cli.surfaces`;
-``tests/test_registries.py`` checks every registered model against this
-convention.
+numba kernel needs (:meth:`SurfaceModel.kernel_arms`) or its own kernel
+(:meth:`SurfaceModel.run_kernel`), what its simulation supports (thermal noise, scans,
+fits), its ``references`` (where it comes from, as data) and, where it has them, its
+acceptance regime and material columns.  Adding a model is adding a module and one import
+line in :mod:`vetica_cli.surfaces`; :func:`register` checks its declarations
+(:func:`convention_errors`) and :func:`vetica_cli.testing.check_surface_model` runs the
+whole convention on it (``tests/test_registries.py`` runs it on every registered model).
 
 The van der Waals attraction is common to every model (thesis eq. 3):
 its keys (:data:`COMMON_KEYS`) live in the same ``surface:`` section.
@@ -342,11 +345,54 @@ def parse_arm_field(i: int, field: str, value: Any, fields: dict[str, tuple[str,
     return check(key, value, coerce(key, value, "float"), fields[field][1])
 
 
+SUPPORTS = ("thermal", "scan", "fit")  # what a model's simulation may offer (SurfaceModel.supports)
+
+
+def convention_errors(model: SurfaceModel) -> list[str]:
+    """What ``model`` misses of the convention (module docstring), checked on its declarations
+    alone (no simulation: :func:`vetica_cli.testing.check_surface_model` runs the rest); empty
+    when it follows it.  :func:`register` refuses a model with any."""
+    out = []
+
+    def need(ok, text):
+        if not ok:
+            out.append(text)
+
+    need(isinstance(getattr(model, "key", None), str) and model.key, "a key (the surface.model value)")
+    need(isinstance(getattr(model, "name", None), str) and model.name, "a name")
+    keys = tuple(getattr(model, "parameter_keys", ()) or ())
+    need(keys and all(isinstance(k, str) for k in keys), "parameter_keys")
+    units = getattr(model, "parameter_units", {}) or {}
+    need(set(units) == set(keys) and all(units.values()), "a unit for every parameter (parameter_units)")
+    need(set(getattr(model, "parameter_labels", {}) or {}) >= set(keys), "a label for every parameter (parameter_labels)")
+    qs = getattr(model, "quantities", {}) or {}
+    need(qs and all(isinstance(q, Quantity) and q.unit is not None and q.label and q.tex for q in qs.values()),
+         "quantities, each a Quantity with unit, label and tex")  # fmt: skip
+    need(set(getattr(model, "fit_bounds", {}) or {}) == set(keys), "fit_bounds for every parameter")
+    need(bool(getattr(model, "theory_source", "")), "a theory_source")
+    refs = getattr(model, "references", ())
+    need(isinstance(refs, tuple) and refs and all(isinstance(r, str) and r for r in refs),
+         "references: a tuple of where the model comes from (e.g. 'thesis 3.2')")  # fmt: skip
+    need("=" in doc(model), "its equation in the class docstring")
+    need(set(getattr(model, "supports", ())) <= set(SUPPORTS), f"supports within {SUPPORTS}")
+    need(isinstance(getattr(model, "defaults", None), dict), "defaults of its config keys")
+    for name, dk in (getattr(model, "derived_keys", {}) or {}).items():
+        need(dk.target in model.defaults and dk.source in model.defaults, f"derived key {name}: target and source keys")
+    acc = getattr(model, "acceptance", None)
+    need(acc is None or (acc[0] in qs and acc[1] in keys), "acceptance: (one of its quantities, one of its parameters)")
+    return out
+
+
 def register(cls: type[SurfaceModel]) -> type[SurfaceModel]:
-    """Class decorator: add one instance of the model to :data:`MODELS` under its ``key``."""
+    """Class decorator: add one instance of the model to :data:`MODELS` under its ``key``,
+    after checking its declarations against the convention (:func:`convention_errors`)."""
     if cls.key in MODELS:
         raise ValueError(f"surface model {cls.key!r} is registered twice")
-    MODELS[cls.key] = cls()
+    model = cls()
+    errors = convention_errors(model)
+    if errors:
+        raise TypeError(f"surface model {cls.__name__} does not follow the convention: it needs " + "; ".join(errors))
+    MODELS[cls.key] = model
     return cls
 
 

@@ -14,4 +14,5 @@ from . import vetica_prestress  # noqa: F401  (registers 'vetica-prestress')
 from .. import fullfit  # noqa: F401  (registers 'full')
 from . import observables  # noqa: F401  (registers 'observables')
 from . import dmt_fit  # noqa: F401  (registers 'dmt-fit')
+from . import peak_force  # noqa: F401  (registers 'peak-force')
 # isort: on
