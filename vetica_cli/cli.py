@@ -65,8 +65,7 @@ app = typer.Typer(
     name="vetica",
     add_completion=False,
     no_args_is_help=True,
-    help="Simulate tapping-mode AFM (torsional harmonic cantilever) on a viscoelastic SLS surface "
-    "and extract the surface's k0, k_inf, cd back with VETICA.  All values SI.",
+    help=None,  # ROOT_HELP, on the callback
     pretty_exceptions_enable=False,
     rich_markup_mode=None,  # help text is printed as written: '[vetica, full]' is text, not markup
 )
@@ -78,14 +77,23 @@ def show_version(value: bool) -> None:
         raise typer.Exit()
 
 
-@app.callback()
+def root_help() -> str:
+    """The app's help, from the registries: the surface models it simulates and the methods it
+    extracts with."""
+    from .surfaces import MODELS
+
+    return ("Simulate tapping-mode AFM (torsional harmonic cantilever) on a viscoelastic surface ("
+            + ", ".join(m.name for m in MODELS.values()) + ") and extract the surface's parameters back from "
+            "the record (" + ", ".join(METHODS) + "); fit measured force curves.  All values SI.")  # fmt: skip
+
+
+@app.callback(help=root_help())
 def root(
     version: bool = typer.Option(
         False, "--version", help="Print the version and exit.", is_eager=True, callback=show_version
     ),
 ):
-    """Simulate tapping-mode AFM (torsional harmonic cantilever) on a viscoelastic SLS surface
-    and extract the surface's k0, k_inf, cd back with VETICA.  All values SI."""
+    """The command group (its help: :func:`root_help`)."""
 
 
 _REPORTED: list[bool] = []  # an interrupt already reported by a command (typer must not end silently)
@@ -142,7 +150,7 @@ SET_HELP = "Override one config key, e.g. --set surface.cd=1e-4 (repeatable)."
 YES_HELP = "Start work estimated over 2 h (or 5000 items), the threshold every command asks past."
 
 
-@app.command()
+@app.command(short_help='One point to its proven steady state; the recorded signals and their metadata.')
 @user_errors
 def simulate(
     config: Optional[Path] = typer.Argument(None, help="YAML config of one point; defaults = thesis worked example."),
@@ -168,7 +176,7 @@ def simulate(
         typer.echo(run_summary(run, output))
 
 
-@app.command()
+@app.command(short_help='What the simulation costs (all-fine Verlet against the hybrid integrator) and what extraction costs per pixel record.')
 @user_errors
 def bench(
     repeat: int = typer.Option(
@@ -196,7 +204,7 @@ def bench(
         typer.echo(run_extraction_bench(repeat=max(5, 5 * repeat), overrides=overrides))
 
 
-@app.command()
+@app.command(short_help='A parametric study: every grid point simulated and extracted, one tidy Parquet table.')
 @user_errors
 def sweep(
     config: Path = typer.Argument(..., help="Study YAML: single-point sections plus a 'sweep:' block (see configs/)."),
@@ -226,7 +234,7 @@ def sweep(
 ):
     """Run a parametric study: simulate every point of the grid, extract it
     with the true and the reconstructed force (extract.force), by a registered
-    extraction method (extract.method: [vetica, full]; see vetica extract --help), and write one tidy
+    extraction method (extract.method; vetica extract --help lists them), and write one tidy
     table (one row per point, method and force source) plus <name>.config.yaml.
     Points differing only in method or instrument noise share one simulation.
 
@@ -248,7 +256,7 @@ def sweep(
     typer.echo(text)
 
 
-@app.command()
+@app.command(short_help='Virtual imaging: a sample map scanned pixel by pixel, every pixel extracted.')
 @user_errors
 def scan(
     config: Path = typer.Argument(..., help="Scan YAML: probe/operation/numerics/extract plus 'scan:' and 'sample:'."),
@@ -290,7 +298,7 @@ def scan(
     typer.echo(text)
 
 
-@app.command()
+@app.command(short_help="The thesis's figures from a sweep table or a run; images and profiles of a scan; a fit table's figures.")
 @user_errors
 def plot(
     table: Path = typer.Argument(..., help="A run (vetica simulate), sweep (vetica sweep), scan (vetica scan) or fit "
@@ -463,7 +471,8 @@ def _register_extract() -> None:
     fixed = [p.replace(annotation=_HINTS[p.name]) for p in fixed]
     extract.__signature__ = sig.replace(parameters=fixed + [_flag_parameter(n, o, ms) for n, (o, ms) in METHOD_FLAGS.items()])
     extract.__annotations__ = {}
-    app.command(name="extract")(user_errors(extract))
+    app.command(name="extract", short_help="A surface's parameters from a run or a measured record, by a registered "
+                "method.")(user_errors(extract))  # fmt: skip
 
 
 _HINTS = {"run": Path, "force": str, "method": str, "json_out": bool, "k2": Optional[float], "f2": Optional[float],
@@ -497,7 +506,7 @@ def _numbers(option: str, raw: Optional[str]) -> Optional[list]:
     return values
 
 
-@app.command()
+@app.command(short_help='Which f1, set point, print step and paddle stiffness recover a material.')
 @user_errors
 def advise(
     k_inf: Optional[str] = typer.Option(None, "--k-inf", help="Equilibrium spring k_inf of the SLS, N/m."),
@@ -574,7 +583,7 @@ def advise(
     typer.echo(json.dumps(advice_json(adv, figure), allow_nan=False) if json_out else format_advice(adv, figure))
 
 
-@app.command()
+@app.command(short_help='Viscoelastic fits of measured force curves and maps.')
 @user_errors
 def fit(
     curves: List[Path] = typer.Argument(..., help="Force-curve files (force-distance, stress relaxation, creep; any "
@@ -620,7 +629,7 @@ def fit(
         typer.echo(res.summary(criterion))
 
 
-@app.command()
+@app.command(short_help='Maps to NetCDF and Gwyddion.')
 @user_errors
 def export(
     table: Path = typer.Argument(..., help="A map table: a scan (vetica scan) or a force-map fit (vetica fit)."),

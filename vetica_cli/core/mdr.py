@@ -3,7 +3,7 @@ reduction (MDR; Popov & Hess 2015): the ``hertz`` surface's kernel.
 
 The 3-D half-space becomes a row of ``M`` independent elements at lateral positions
 ``x_i``.  Every element is the massless node of the ``sls``/``wiechert``
-surface (the SLS surface model; the Wiechert model) with stiffnesses per unit length (the plane-strain moduli
+surface with stiffnesses per unit length (the plane-strain moduli
 ``E* = E/(1 - nu^2)``) times its weight ``w_i`` (``2 dx``: both sides of ``x = 0``)::
 
     f_i = w_i [E_inf* u_i + sum_a E_a* (u_i - ud_ia)]      (force the element exerts) [N]

@@ -278,7 +278,7 @@ class SurfaceModel(ABC):
     def complex_stiffness(self, params: dict, omega: float) -> tuple[float, float] | None:
         """Storage and loss stiffness ``k'(omega), k''(omega)`` [N/m] at angular frequency
         ``omega`` [rad/s] of a surface that is a spring ``k_inf`` in parallel with Maxwell arms
-        ``(k_i, cd_i)`` (the AM-AFM energy balance; the Wiechert model)::
+        ``(k_i, cd_i)`` (the AM-AFM energy balance)::
 
             k*(omega) = k_inf + sum_i k_i (i x_i)/(1 + i x_i),   x_i = omega tau_i,  tau_i = cd_i/k_i
             k'  = k_inf + sum_i k_i x_i^2/(1 + x_i^2)            k'' = sum_i k_i x_i/(1 + x_i^2)
