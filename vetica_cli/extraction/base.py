@@ -206,6 +206,7 @@ class ExtractionMethod(ABC):
             out[q] = scale * sp.std / math.sqrt(sp.n) * t_factor(sp.n) / abs(e.value) if sp.n >= 2 else math.inf
         return out, {"source": f"spread over taps (standard error of the {self.per_tap_statistic}, t-scaled)"}
 
+    scan_maps: ClassVar[tuple[str, ...]] = ()  # its quantities drawn in a scan's instrument figure (plots.scanmaps)
     band_flagged: ClassVar[bool] = True  # a band-limited force's bias (uncertainty's band term) flags its quantities
     referee: ClassVar[str | None] = None  # a method whose fit on the same record judges this one's (tap family: 'full')
     compared_with: ClassVar[str | None] = None  # a variant whose difference flags this one's quantities

@@ -163,6 +163,7 @@ class DmtFit(ModelFreeMethod):
                (lambda v: v > 0, "a number > 0 m"), flag="--tip-radius"),
     )  # fmt: skip
     references = ("Derjaguin, Muller & Toporov 1975", "PeakForce QNM / HarmoniX per-tap analysis")
+    scan_maps = ("e_dmt", "k_dmt")  # drawn in a scan's instrument figure
     needs_z1 = False
     seconds_per_point = 0.4  # both forces, 10 periods at 0.125 ns: 0.41 CPU s measured
     theory_sources = THEORY_SOURCES

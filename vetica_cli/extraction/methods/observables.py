@@ -187,6 +187,7 @@ class Observables(ModelFreeMethod):
         for k, (flag, unit, what) in INPUTS.items()
     )  # fmt: skip
     references = ("Cleveland et al. 1998", "San Paulo & Garcia 2001", "Proksch et al. 2016")
+    scan_maps = ("tan_delta_am",)  # drawn in a scan's instrument figure
     needs_z1 = False
     uniform_sampling = True
     seconds_per_point = 0.5  # both forces, 10 periods at 0.125 ns: 0.49 CPU s measured

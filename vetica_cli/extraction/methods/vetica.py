@@ -579,6 +579,7 @@ class Vetica(ExtractionMethod):
                     Option("stage2", "str", "closed", "", "closed (compiled superposition of the samples) or sines (the "
                            "thesis's sum-of-sines fit)", one_of(*STAGE2), flag="--stage2"), KG_WINDOW, KG_SCALE)  # fmt: skip
     references = ("thesis 3.3 (stages 1a, 1b, 2; eqs. 73-84)",)
+    scan_maps = ("tau_c",)  # drawn in a scan's instrument figure
     seconds_per_point = 0.45  # both forces, 10 periods at 0.125 ns: 0.44 CPU s measured with standard errors and checks
 
     referee = "full"  # the whole-cycle fit on the same record judges the stages (tapchecks.referee)
