@@ -204,8 +204,6 @@ def bench(
         typer.echo(run_extraction_bench(repeat=max(5, 5 * repeat), overrides=overrides))
 
 
-@app.command(short_help='A parametric study: every grid point simulated and extracted, one tidy Parquet table.')
-@user_errors
 def sweep(
     config: Path = typer.Argument(..., help="Study YAML: single-point sections plus a 'sweep:' block (see configs/)."),
     output: Optional[Path] = typer.Option(
@@ -234,7 +232,7 @@ def sweep(
 ):
     """Run a parametric study: simulate every point of the grid, extract it
     with the true and the reconstructed force (extract.force), by a registered
-    extraction method (extract.method; vetica extract --help lists them), and write one tidy
+    extraction method (extract.method: [METHODS]; see vetica extract --help), and write one tidy
     table (one row per point, method and force source) plus <name>.config.yaml.
     Points differing only in method or instrument noise share one simulation.
 
@@ -254,6 +252,11 @@ def sweep(
                          scheduler=scheduler, resume=resume, progress=not quiet, keep_parts=keep_parts,
                          log=lambda line: typer.echo(line, err=True))  # fmt: skip
     typer.echo(text)
+
+
+sweep.__doc__ = sweep.__doc__.replace("[METHODS]", "[" + ", ".join(METHODS) + "]")  # the registry's methods
+app.command(short_help="A parametric study: every grid point simulated and extracted, one tidy Parquet table.")(
+    user_errors(sweep))
 
 
 @app.command(short_help='Virtual imaging: a sample map scanned pixel by pixel, every pixel extracted.')
