@@ -203,7 +203,9 @@ def test_stiffness_ratio_works_in_simulate_as_in_a_sweep():
 def test_help_prints_brackets_as_written_and_version_prints():
     """Help is plain text: '[vetica, full]' is not eaten as markup (it was, in sweep --help)."""
     r = runner.invoke(app, ["sweep", "--help"])
-    assert r.exit_code == 0 and "extract.method: [vetica, full]" in " ".join(r.output.split())
+    from vetica_cli.extraction import METHODS
+
+    assert r.exit_code == 0 and f"extract.method: [{', '.join(METHODS)}]" in " ".join(r.output.split())
     assert "--keep-parts" in r.output and "--yes" in r.output
     r = runner.invoke(app, ["--version"])
     assert r.exit_code == 0 and r.stdout.strip().startswith("vetica 0.")

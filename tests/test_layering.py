@@ -23,7 +23,7 @@ LAYERS = (
     {"__main__"},
     {"cli", "api"},
     {"plots"},
-    {"scan", "study", "advise", "bench", "report", "curves", "export"},
+    {"scan", "study", "advise", "bench", "report", "curves", "export", "testing"},
     {"rows", "batch"},
     {"extraction", "simulation"},
     {"surfaces", "signals"},

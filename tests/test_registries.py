@@ -26,45 +26,24 @@ from vetica_cli.simulation.config import Config, from_dict, load
 from vetica_cli.simulation.simulate import simulate
 from vetica_cli.study.grid import EXTRACT_KEYS, expand
 from vetica_cli.rows.schema import result_columns
+from vetica_cli.testing import check_method, check_surface_model
 
 MODELS = list(surfaces.MODELS.values())
 
 
 @pytest.mark.parametrize("model", MODELS, ids=lambda m: m.key)
 def test_surface_model_declares_keys_units_and_a_documented_equation(model):
-    assert type(surfaces.MODELS[model.key]) is type(model) and model.name  # registered (or specialised)
-    assert model.parameter_keys and all(isinstance(k, str) for k in model.parameter_keys)
-    assert set(model.parameter_units) == set(model.parameter_keys) and all(model.parameter_units.values())
-    assert set(model.parameter_labels) >= set(model.parameter_keys)
-    doc = surfaces.base.doc(model)
-    assert "thesis" in doc and "=" in doc, "docstring: the equation and its thesis reference"
-    assert model.quantities and all(q.unit and q.label and q.tex for q in model.quantities.values())
-    assert set(model.fit_bounds) == set(model.parameter_keys)
-    assert model.theory_source
-    for name, dk in model.derived_keys.items():
-        assert dk.target in model.config_keys and dk.source in model.config_keys, name
+    """The public convention check (vetica_cli.testing) on the model's declarations: keys,
+    units, labels, quantities, fit bounds, its equation in the docstring and its references
+    as data (``references = (...)``, not a word looked for in the docstring)."""
+    assert type(surfaces.MODELS[model.key]) is type(model)  # registered (or specialised)
+    check_surface_model(model, declarations_only=True)
 
 
 @pytest.mark.parametrize("model", MODELS, ids=lambda m: m.key)
-def test_theory_kernel_arms_and_gradients_are_consistent(model):
-    params = model.parse({})
-    assert set(params) == set(model.config_keys)
-    th = model.theory(params)
-    assert list(th) == list(model.quantities)  # every declared quantity, in table order
-    assert all(isinstance(v, float) and math.isfinite(v) for v in th.values())
-    k_inf, k, cd = model.kernel_arms(params)
-    assert isinstance(k_inf, float) and k_inf > 0
-    assert k.ndim == cd.ndim == 1 and len(k) == len(cd) >= 1 and k.dtype == cd.dtype == np.float64
-    assert np.all(k > 0) and np.all(cd > 0)
-    grads = model.log_gradients(params)
-    assert set(grads) == set(model.quantities)
-    assert all(len(g) == len(model.parameter_keys) for g in grads.values())
-    for p in model.parameter_keys:  # a parameter's own log-gradient is the unit vector
-        if p in grads:
-            assert grads[p] == tuple(1.0 if q == p else 0.0 for q in model.parameter_keys)
-    for p, (lo, hi) in model.fit_bounds.items():
-        if isinstance(params.get(p), float):
-            assert lo < params[p] < hi, p
+def test_surface_model_runs_the_whole_convention(model):
+    """Theory, kernel arms, gradients, config round trip and a short run of its own kernel."""
+    check_surface_model(model)
 
 
 @pytest.mark.parametrize("model", MODELS, ids=lambda m: m.key)
@@ -170,38 +149,11 @@ def test_wiechert_study_grid_schema_and_simulation():
 # --------------------------------------------------------------------- extraction methods
 
 
-@pytest.fixture(scope="module")
-def cheap_run():
-    """A cheap SLS run (dt 0.05 ns, PS 1 ns, 3 recorded periods, cd 1e-4 kg/s, 16:1)."""
-    run = simulate(load(None, {"surface.k0": 64.0, "surface.cd": 1e-4, "numerics.dt": 0.05e-9,
-                               "numerics.print_step": 1e-9, "numerics.record_cycles": 3,
-                               "numerics.max_time": 0.002, "numerics.kp": 0.05, "numerics.ki": 0.03}))  # fmt: skip
-    return run.frame(), run.metadata()
-
-
 @pytest.mark.parametrize("key", list(METHODS))
-def test_extraction_method_follows_the_convention(key, cheap_run):
-    m = METHODS[key]
-    assert m.key == key and m.title and m.description and "\n" not in m.description
-    assert set(m.surface_models) <= set(surfaces.MODELS) and m.seconds_per_point > 0
-    assert m.options({}) == m.options_default
-    with pytest.raises(InputError, match=f"method {key!r} takes no option 'nope'"):
-        m.options({"nope": 1})
-    df, meta = cheap_run
-    res = extract(df, meta, force="true", method=key)
-    assert isinstance(res, ExtractionResult) and res.method == key and res.force == "true"
-    qs = m.quantities(surfaces.get(res.model))  # the model's quantities, or the method's own (observables)
-    assert list(res.estimates)[: len(qs)] == list(qs)
-    for name, e in res.estimates.items():
-        if name in qs:
-            assert e.unit == qs[name].unit
-        if e.value is not None and e.theory:
-            assert e.error_pct == pytest.approx(100 * (e.value - e.theory) / e.theory)  # signed
-    out = to_json(res)
-    json.dumps(out, allow_nan=False)
-    assert {"force", "taps", "method", "info"} <= set(out)
-    assert all({"value", "theory", "error_pct", "spread"} <= set(out[n]) for n in res.estimates)
-    assert format_table(res).startswith(m.title)
+def test_extraction_method_follows_the_convention(key):
+    """The public convention check (vetica_cli.testing.check_method) on a record of a surface
+    model the method declares."""
+    check_method(METHODS[key])
 
 
 def test_method_choices_come_from_the_registry():
@@ -214,11 +166,12 @@ def test_method_choices_come_from_the_registry():
 
 def test_every_method_declares_its_settable_options_with_type_unit_and_help():
     """The registry, not the CLI, holds each method's options: every declared
-    option is one the method takes, typed, with help, and parses its default's kind."""
+    option is one the method takes (its default from the declaration), a settable one typed,
+    each with help."""
     from vetica_cli.extraction import METHODS
 
     for key, m in METHODS.items():
-        assert m.option_specs, key
         for o in m.option_specs:
-            assert o.name in m.options_default and o.type in ("int", "float", "bool", "str") and o.help, (key, o)
+            assert m.options_default[o.name] == o.default and o.help, (key, o)
+            assert o.type in (("int", "float", "bool", "str") if o.settable else ("int", "float", "bool", "str", "any"))
             assert isinstance(o.unit, str)

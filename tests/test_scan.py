@@ -25,6 +25,7 @@ from typer.testing import CliRunner
 
 from vetica_cli import surfaces
 from vetica_cli.cli import app
+from vetica_cli.extraction import METHODS
 from vetica_cli.errors import ConfigError
 from vetica_cli.extraction import Estimate, ExtractionResult
 from vetica_cli.io import read_table
@@ -144,7 +145,8 @@ BAD = [
     ("scan.size", {"scan": {"size": [-1e-6, 1e-6]}}, "scan.size: -1e-06 is not allowed; expected a scan length in [1e-10, 0.0002] m"),
     ("scan.pixel_time short", {"scan": {"pixel_time": 1e-4}}, "expected >= (numerics.record_cycles + 2) drive periods"),
     ("scan.steady", {"scan": {"steady": "fast"}}, "scan.steady: 'fast' is not allowed; expected one of: transient, orbit"),
-    ("scan.methods", {"scan": {"methods": ["magic"]}}, "scan.methods: 'magic' is not allowed; expected a list of: vetica, vetica-prestress, full, observables, dmt-fit"),
+    ("scan.methods", {"scan": {"methods": ["magic"]}}, "scan.methods: 'magic' is not allowed; expected a list of: vetica, vetica-prestress, full, observables, dmt-fit"
+     + "".join(f", {k}" for k in list(METHODS)[5:])),  # methods registered after these five
     ("scan.methods empty", {"scan": {"methods": []}}, "scan.methods: an empty list is not allowed"),
     ("scan unknown key", {"scan": {"speed": 1}}, "unknown key 'scan.speed'; allowed in scan: pixels, size"),
     ("background missing", {"sample": {"background": None}}, "sample.background: missing"),

@@ -292,7 +292,7 @@ def test_parts_made_by_other_code_or_config_are_recomputed(tmp_path):
 def test_code_fingerprint_covers_simulation_and_extraction_only():
     names = {f.relative_to(ROOT / "vetica_cli").as_posix() for f in fingerprint_files(SWEEP_ROOTS)}
     assert {"simulation/simulate.py", "core/tapping.py", "core/engine.py", "core/coefficients.py", "core/sls.py", "core/prescribed.py", "simulation/observables.py",
-            "simulation/config.py", "simulation/instrument.py", "extraction/__init__.py", "extraction/vetica.py",
+            "simulation/config.py", "simulation/instrument.py", "extraction/__init__.py", "extraction/methods/vetica.py",
             "extraction/record.py", "extraction/result.py", "extraction/fullfit/model.py",
             "extraction/fullfit/method.py", "signals/spectral.py", "signals/taps.py", "surfaces/sls.py",
             "surfaces/base.py", "rows/task.py", "rows/plan.py", "study/grid.py", "rows/schema.py",

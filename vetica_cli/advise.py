@@ -106,7 +106,7 @@ class Material:
         return {"surface.k_inf": self.k_inf, "surface.k0": self.k0, "surface.cd": self.cd}
 
     def theory(self) -> dict:
-        return surfaces.get("sls").theory({"k_inf": self.k_inf, "k0": self.k0, "cd": self.cd})
+        return surfaces.get(surfaces.DEFAULT_MODEL).theory({"k_inf": self.k_inf, "k0": self.k0, "cd": self.cd})
 
 
 def material_from(k_inf=None, k0=None, cd=None, e_glassy=None, e_rubbery=None, tau_r=None,
@@ -396,9 +396,9 @@ def advise(material: Material, overrides: dict | None = None, knobs: dict | None
     for m in methods:
         if m not in METHODS:
             raise InputError(f"--methods: {m!r} is not a method; choose from: {', '.join(METHODS)}")
-        own = METHODS[m].quantities(surfaces.get("sls"))
+        own = METHODS[m].quantities(surfaces.get(surfaces.DEFAULT_MODEL))
         if not set(LIMITS) <= set(own):  # the instrument's numbers (observables, dmt-fit) do not estimate them
-            able = [k for k, me in METHODS.items() if set(LIMITS) <= set(me.quantities(surfaces.get("sls")))]
+            able = [k for k, me in METHODS.items() if set(LIMITS) <= set(me.quantities(surfaces.get(surfaces.DEFAULT_MODEL)))]
             raise InputError(f"--methods: {m!r} does not estimate {', '.join(LIMITS)} (the material advise checks); "
                              f"choose from: {', '.join(able)}")  # fmt: skip
     twice = sorted({m for m in methods if methods.count(m) > 1})

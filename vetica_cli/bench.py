@@ -37,12 +37,7 @@ def _period_ms(run, cfg) -> tuple[float, float]:
     from .simulation.simulate import derive, kernel_setup
 
     d = derive(cfg)
-    if cfg.surface.model == "hertz":  # the MDR kernel on the run's element grid
-        from .simulation.hertz import kernel_of_run
-
-        kern = kernel_of_run(cfg, kernel_setup(cfg, d), run)
-    else:
-        kern = engine.Kernel(kernel_setup(cfg, d))
+    kern = cfg.surface.surface_model.kernel_of_run(cfg, kernel_setup(cfg, d), run)  # the model's (hertz: its grid)
     s = engine.new_state(0, 0, 0, 0, 0, kern.n_state)
     last = run.steady[-1]
     # the orbit's state at the end of the window: positions from the record, velocities by one
@@ -60,17 +55,24 @@ def _period_ms(run, cfg) -> tuple[float, float]:
 
 PIXEL = {"numerics.print_step": 1e-9, "numerics.record_cycles": 4}  # a scan pixel's record (configs/scan_blend.yaml)
 SURFACES = {"stiff": {}, "soft": {"surface.k_inf": 2.0, "surface.k0": 32.0, "surface.cd": 3e-4}}
-METHODS = ("vetica", "vetica-prestress", "full")  # the extraction bench's methods (those a surface model supports)
+def bench_methods() -> tuple[str, ...]:
+    """The extraction bench's methods: the registered ones that model the surface (not the
+    instrument's model-free numbers), in registry order."""
+    from .extraction import METHODS as REGISTERED
+    from .extraction.base import ModelFreeMethod
+
+    return tuple(k for k, m in REGISTERED.items() if not isinstance(m, ModelFreeMethod))
 PARTS = ("all", "simulation", "extraction")
 
 
-def extraction_plan(overrides: dict | None = None, methods: tuple = METHODS) -> list[tuple[str, object, tuple]]:
+def extraction_plan(overrides: dict | None = None, methods: tuple | None = None) -> list[tuple[str, object, tuple]]:
     """``(surface name, config, methods)`` of the extraction bench: the stiff and soft SLS
     pixels, or, when ``overrides`` choose another surface model (``--set surface.model=hertz``),
     that one surface ('given'); each with the methods of ``methods`` that extract its model.
     Every config is checked here (ConfigError before any work)."""
     from .extraction import get
 
+    methods = bench_methods() if methods is None else methods
     surfaces_ = SURFACES if "surface.model" not in (overrides or {}) else {"given": {}}
     out = []
     for name, surf in surfaces_.items():
@@ -105,7 +107,10 @@ def _cpu_ms(fn, repeat: int) -> float:
     return 1e3 * statistics.median(out)
 
 
-def run_extraction_bench(methods: tuple = METHODS, repeat: int = 20, overrides: dict | None = None) -> str:
+SLOW_METHOD_S = 1.0  # a method estimated at this many seconds a point or more is timed fewer times (the whole-cycle fit)
+
+
+def run_extraction_bench(methods: tuple | None = None, repeat: int = 20, overrides: dict | None = None) -> str:
     """CPU ms per pixel record of each extraction method (module docstring); ``repeat`` timed
     calls after two warm-up calls (compilation, caches), fewer for the whole-cycle fit."""
     from .extraction import extract, get
@@ -120,7 +125,7 @@ def run_extraction_bench(methods: tuple = METHODS, repeat: int = 20, overrides: 
         df, meta = run.frame(), run.metadata()
         for key in supported:
             m = get(key)
-            n = max(3, repeat // 5) if key == "full" else repeat
+            n = max(3, repeat // 5) if m.seconds_per_point >= SLOW_METHOD_S else repeat
             opts = m.options({})
             for _ in range(2):
                 extract(df, meta, force="reconstructed", method=key)

@@ -21,7 +21,7 @@ import typer
 from typer.core import TyperGroup
 
 from . import __version__
-from .checks import MAX_ARMS, limit
+from .checks import limit
 from .errors import USER_ERRORS
 from .extraction import DEFAULT_METHOD, METHODS
 from .interrupt import INTERRUPTED_EARLY, interrupt_handled
@@ -65,8 +65,7 @@ app = typer.Typer(
     name="vetica",
     add_completion=False,
     no_args_is_help=True,
-    help="Simulate tapping-mode AFM (torsional harmonic cantilever) on a viscoelastic SLS surface "
-    "and extract the surface's k0, k_inf, cd back with VETICA.  All values SI.",
+    help=None,  # ROOT_HELP, on the callback
     pretty_exceptions_enable=False,
     rich_markup_mode=None,  # help text is printed as written: '[vetica, full]' is text, not markup
 )
@@ -78,14 +77,23 @@ def show_version(value: bool) -> None:
         raise typer.Exit()
 
 
-@app.callback()
+def root_help() -> str:
+    """The app's help, from the registries: the surface models it simulates and the methods it
+    extracts with."""
+    from .surfaces import MODELS
+
+    return ("Simulate tapping-mode AFM (torsional harmonic cantilever) on a viscoelastic surface ("
+            + ", ".join(m.name for m in MODELS.values()) + ") and extract the surface's parameters back from "
+            "the record (" + ", ".join(METHODS) + "); fit measured force curves.  All values SI.")  # fmt: skip
+
+
+@app.callback(help=root_help())
 def root(
     version: bool = typer.Option(
         False, "--version", help="Print the version and exit.", is_eager=True, callback=show_version
     ),
 ):
-    """Simulate tapping-mode AFM (torsional harmonic cantilever) on a viscoelastic SLS surface
-    and extract the surface's k0, k_inf, cd back with VETICA.  All values SI."""
+    """The command group (its help: :func:`root_help`)."""
 
 
 _REPORTED: list[bool] = []  # an interrupt already reported by a command (typer must not end silently)
@@ -142,7 +150,7 @@ SET_HELP = "Override one config key, e.g. --set surface.cd=1e-4 (repeatable)."
 YES_HELP = "Start work estimated over 2 h (or 5000 items), the threshold every command asks past."
 
 
-@app.command()
+@app.command(short_help='One point to its proven steady state; the recorded signals and their metadata.')
 @user_errors
 def simulate(
     config: Optional[Path] = typer.Argument(None, help="YAML config of one point; defaults = thesis worked example."),
@@ -168,7 +176,7 @@ def simulate(
         typer.echo(run_summary(run, output))
 
 
-@app.command()
+@app.command(short_help='What the simulation costs (all-fine Verlet against the hybrid integrator) and what extraction costs per pixel record.')
 @user_errors
 def bench(
     repeat: int = typer.Option(
@@ -196,8 +204,6 @@ def bench(
         typer.echo(run_extraction_bench(repeat=max(5, 5 * repeat), overrides=overrides))
 
 
-@app.command()
-@user_errors
 def sweep(
     config: Path = typer.Argument(..., help="Study YAML: single-point sections plus a 'sweep:' block (see configs/)."),
     output: Optional[Path] = typer.Option(
@@ -226,7 +232,7 @@ def sweep(
 ):
     """Run a parametric study: simulate every point of the grid, extract it
     with the true and the reconstructed force (extract.force), by a registered
-    extraction method (extract.method: [vetica, full]; see vetica extract --help), and write one tidy
+    extraction method (extract.method: [METHODS]; see vetica extract --help), and write one tidy
     table (one row per point, method and force source) plus <name>.config.yaml.
     Points differing only in method or instrument noise share one simulation.
 
@@ -248,7 +254,12 @@ def sweep(
     typer.echo(text)
 
 
-@app.command()
+sweep.__doc__ = sweep.__doc__.replace("[METHODS]", "[" + ", ".join(METHODS) + "]")  # the registry's methods
+app.command(short_help="A parametric study: every grid point simulated and extracted, one tidy Parquet table.")(
+    user_errors(sweep))
+
+
+@app.command(short_help='Virtual imaging: a sample map scanned pixel by pixel, every pixel extracted.')
 @user_errors
 def scan(
     config: Path = typer.Argument(..., help="Scan YAML: probe/operation/numerics/extract plus 'scan:' and 'sample:'."),
@@ -290,7 +301,7 @@ def scan(
     typer.echo(text)
 
 
-@app.command()
+@app.command(short_help="The thesis's figures from a sweep table or a run; images and profiles of a scan; a fit table's figures.")
 @user_errors
 def plot(
     table: Path = typer.Argument(..., help="A run (vetica simulate), sweep (vetica sweep), scan (vetica scan) or fit "
@@ -329,8 +340,22 @@ def plot(
         typer.echo(f"wrote {p}")
 
 
-@app.command()
-@user_errors
+def _method_flags() -> dict:
+    """``{option name: (Option, methods)}`` of every method option that declares a flag of its
+    own (:attr:`~vetica_cli.extraction.base.Option.flag`), in registry order: the flags of
+    ``vetica extract`` beside ``--option key=value`` are generated from these declarations."""
+    out: dict = {}
+    for key, m in METHODS.items():
+        for o in m.option_specs:
+            if o.flag:
+                out.setdefault(o.name, (o, []))[1].append(key)
+    return out
+
+
+METHOD_FLAGS = _method_flags()
+FLAG_TYPES = {"int": int, "float": float, "str": str, "bool": bool}
+
+
 def extract(
     run: Path = typer.Argument(
         ..., help="Parquet written by 'vetica simulate', or any Parquet/CSV with t, z_tip and f_ts or z_paddle."
@@ -341,10 +366,6 @@ def extract(
         help="Force to analyse: reconstructed (spectral inversion of z_paddle), true (the f_ts column) or "
         "auto (reconstructed when the table has z_paddle, else true).",
     ),
-    kg_points: int = typer.Option(
-        10, "--kg-points", help="Samples after the contact minimum in the Kg fit (thesis: 10); at least 2 and "
-        "fewer than the longest contact of the record.", callback=checked("an integer >= 2", lambda v: v >= 2),
-    ),  # fmt: skip
     method: str = typer.Option(
         DEFAULT_METHOD,
         "--method",
@@ -362,25 +383,13 @@ def extract(
         "default: from the approach segment.", callback=checked("a finite tip position in m", lambda v: True),
     ),
     f1: Optional[float] = typer.Option(
-        None, "--f1", help="Drive frequency, Hz; only labels the cut-off in harmonics.",
+        None, "--f1", help="Drive frequency, Hz; labels the cut-off in harmonics (and is observables' f1).",
         callback=checked("a frequency > 0 Hz", lambda v: v > 0),
     ),
     cutoff: Optional[str] = typer.Option(
         None, "--cutoff", help="Low-pass cut-off of the force reconstruction: auto (default: where the inverted noise "
         "meets the force's drive harmonics, measured on the record), nyquist (the whole sampled band), or a frequency "
         "in Hz.", callback=_cutoff_option,
-    ),
-    arms: Optional[int] = typer.Option(
-        None, "--arms", help="--method full: Maxwell arms to fit (1 = SLS, 2+ = Wiechert); default: the file's surface, "
-        "else 1.", callback=checked(f"an integer in 1..{MAX_ARMS}", lambda v: 1 <= v <= MAX_ARMS),
-    ),
-    hamaker: Optional[float] = typer.Option(
-        None, "--hamaker", help="--method full: Hamaker constant H, J (fixes H R; default: metadata, else H R fitted).",
-        callback=checked(limit("surface.hamaker", "a Hamaker constant")[1], limit("surface.hamaker", "")[0]),
-    ),
-    tip_radius: Optional[float] = typer.Option(
-        None, "--tip-radius", help="--method full: tip radius R, m (default: metadata, else 10 nm assumed).",
-        callback=checked(limit("probe.tip_radius", "a radius")[1], limit("probe.tip_radius", "")[0]),
     ),
     a0: Optional[float] = typer.Option(
         None, "--a0", help="Intermolecular distance a0, m (default: the metadata's): Z1 = a0 (thesis eq. 84) for a "
@@ -396,52 +405,17 @@ def extract(
         None, "--contact", help="Contact constant of the material units, key=value (repeatable): tip_radius (m), nu_tip, "
         "nu_sample, e_tip (Pa); default thesis table 6 (R = the metadata's tip radius, else 10 nm).",
     ),
-    prestress: Optional[str] = typer.Option(
-        None, "--prestress", help="vetica-prestress: auto (adhesion if the surface feels the pull, else creep), "
-        "adhesion, creep or fit.",
-    ),
-    free_amplitude: Optional[float] = typer.Option(
-        None, "--free-amplitude", help="--method observables: free amplitude A0 for the same drive, m (default: the "
-        "metadata's).", callback=checked("an amplitude > 0 m", lambda v: v > 0),
-    ),
-    k1: Optional[float] = typer.Option(None, "--k1", help="--method observables: flexural stiffness, N/m (default: "
-                                       "the metadata's).", callback=checked("a stiffness > 0 N/m", lambda v: v > 0)),
-    q1: Optional[float] = typer.Option(None, "--q1", help="--method observables: flexural quality factor (default: "
-                                       "the metadata's).", callback=checked("a quality factor > 0.5", lambda v: v > 0.5)),
-    drive_frequency: Optional[float] = typer.Option(
-        None, "--drive-frequency", help="--method observables: drive frequency, Hz (default: --f1, else the metadata's "
-        "f1).", callback=checked("a frequency > 0 Hz", lambda v: v > 0),
-    ),
-    drive_t0: Optional[float] = typer.Option(
-        None, "--drive-t0", help="--method observables: time at which the drive cos(2 pi f (t - t0)) peaks, s (the "
-        "phase reference; default 0 for a simulated run).", callback=checked("a finite time in s", lambda v: True),
-    ),
-    fit_range: Optional[str] = typer.Option(
-        None, "--fit-range", help="--method dmt-fit: LOW,HIGH fractions of the peak-to-adhesion force fitted on the "
-        "unloading branch (default 0.3,0.9).",
-    ),
     option: Optional[List[str]] = typer.Option(
         None, "--option", help="A method option, key=value (repeatable), as the method declares it (name, type, unit): "
         "e.g. --option arms=2 --option state=free for --method full; an unknown one lists the method's options.",
     ),
-    stage2: Optional[str] = typer.Option(
-        None, "--stage2", help="vetica, vetica-prestress: closed (compiled superposition of the samples, default) or "
-        "sines (the thesis's sum-of-sines fit).",
-    ),
-    fit_model: Optional[str] = typer.Option(
-        None, "--fit-model", help="--method full: the surface model fitted (sls, wiechert, hertz); default: the "
-        "file's surface, else sls.",
-    ),
-    nu: Optional[float] = typer.Option(
-        None, "--nu", help="--method full with hertz: the sample's Poisson ratio (default: metadata, else 0.5 assumed).",
-        callback=checked("a Poisson ratio > -1 and <= 0.5", lambda v: -1 < v <= 0.5),
-    ),
+    **flags,
 ):  # fmt: skip
-    """Extract k0, k_inf, cd (and tau_c, Kg, Kr, tau_r) from a run with VETICA
-    or another registered method (--method; full fits the SLS or Wiechert surface
-    model to every sample: k_inf, k_1, cd_1, k_2, cd_2, ... for a Wiechert record),
-    and the material units: DMT, glassy and rubbery moduli [Pa] and viscosity [Pa s]
-    (thesis 4.6.2, eqs. 90-92).
+    """Extract a surface's parameters from a run with a registered method (--method):
+    VETICA's tau_c, Kg, Kr, tau_r, k0, k_inf, cd by default; the whole-cycle fit's parameters
+    of the SLS, Wiechert or Hertzian surface (full); the instrument's observables; per-tap
+    force-curve numbers -- and the material units where the method gives stiffnesses: DMT,
+    glassy and rubbery moduli [Pa] and viscosity [Pa s] (thesis 4.6.2, eqs. 90-92).
 
     Prints value, theory and error % (theory known only when the file's
     metadata holds the surface parameters), the spread over taps (or the fit's
@@ -449,7 +423,8 @@ def extract(
     against f_ts when both are present, and the extraction time.  A CSV or Parquet
     with only t, z_tip and f_ts (or z_paddle with --k2 --f2 --q2) is read as
     measured: Z1 from --z1, else from --a0 (thesis eq. 84) with
-    --vdw-on-surface/--no-vdw-on-surface.
+    --vdw-on-surface/--no-vdw-on-surface.  A method's options are set with --option
+    key=value; the flags after --option are shortcuts the methods declare.
     """
     import json
 
@@ -458,28 +433,56 @@ def extract(
     from .extraction.format import format_table, to_json
     from .extraction.material import parse_contact
 
-    from .extraction import METHODS, RecordInputs
+    from .extraction import RecordInputs
     from .simulation.config import parse_set
 
-    inputs = RecordInputs.of(locals(), {"cutoff_hz": "cutoff"})
+    inputs = RecordInputs.of({"k2": k2, "f2": f2, "q2": q2, "z1": z1, "f1": f1, "cutoff": cutoff, "a0": a0,
+                              "vdw_on_surface": vdw_on_surface}, {"cutoff_hz": "cutoff"})  # fmt: skip
     if method not in METHODS:
         raise InputError(f"--method {method!r} is not allowed; choose one of: {', '.join(METHODS)}")
-    flags = {"arms": arms, "hamaker": hamaker, "tip_radius": tip_radius, "prestress": prestress,  # the options' own flags
-             "free_amplitude": free_amplitude, "k1": k1, "q1": q1, "drive_frequency": drive_frequency,
-             "drive_t0": drive_t0, "stage2": stage2, "fit_model": fit_model, "nu": nu}  # fmt: skip  (--f1 reaches observables as the record's f1)
-    opts = {"kg_points": kg_points, **{k: v for k, v in flags.items() if v is not None}}
-    if fit_range is not None:
-        lo_hi = _numbers("--fit-range", fit_range)
-        if len(lo_hi) != 2:
-            raise InputError(f"--fit-range {fit_range!r} is not allowed; expected LOW,HIGH (two fractions)")
-        opts["fit_low"], opts["fit_high"] = lo_hi
-    given = METHODS[method].parse_options(parse_set(option, "--option"))
-    both = sorted(set(given) & {k for k, v in opts.items() if k != "kg_points"})
+    m = METHODS[method]
+    opts = {}
+    for name, value in flags.items():  # a flag's number is checked against the method's declaration of it here
+        o = m.option(name)
+        if value is not None:
+            opts[name] = o.parse(value, METHOD_FLAGS[name][0].flag) if o is not None and o.type != "str" else value
+    given = m.parse_options(parse_set(option, "--option"))
+    both = sorted(set(given) & set(opts))
     if both:
-        raise InputError(f"--option {both[0]} and --{both[0].replace('_', '-')} both given; give one of them")
+        raise InputError(f"--option {both[0]} and {METHOD_FLAGS[both[0]][0].flag} both given; give one of them")
     res = extract_file(run, force=force, method=method, inputs=inputs, contact=parse_contact(contact),
                        **{**opts, **given})  # fmt: skip
     typer.echo(json.dumps(to_json(res), allow_nan=False) if json_out else format_table(res, run))
+
+
+def _flag_parameter(name: str, o, methods: list) -> "inspect.Parameter":
+    """The ``vetica extract`` parameter of a method option's own flag (its help from the declaration)."""
+    import inspect
+
+    unit = f" [{o.unit}]" if o.unit else ""
+    help_ = f"{', '.join(methods)}: {o.help}{unit}; as --option {name}=VALUE."
+    return inspect.Parameter(name, inspect.Parameter.KEYWORD_ONLY, annotation=Optional[FLAG_TYPES[o.type]],
+                             default=typer.Option(None, o.flag, help=help_, show_default=False))  # fmt: skip
+
+
+def _register_extract() -> None:
+    """``vetica extract``: its fixed parameters, then one flag per declared method option."""
+    import inspect
+
+    sig = inspect.signature(extract)
+    fixed = [p for p in sig.parameters.values() if p.kind != inspect.Parameter.VAR_KEYWORD]
+    fixed = [p.replace(annotation=_HINTS[p.name]) for p in fixed]
+    extract.__signature__ = sig.replace(parameters=fixed + [_flag_parameter(n, o, ms) for n, (o, ms) in METHOD_FLAGS.items()])
+    extract.__annotations__ = {}
+    app.command(name="extract", short_help="A surface's parameters from a run or a measured record, by a registered "
+                "method.")(user_errors(extract))  # fmt: skip
+
+
+_HINTS = {"run": Path, "force": str, "method": str, "json_out": bool, "k2": Optional[float], "f2": Optional[float],
+          "q2": Optional[float], "z1": Optional[float], "f1": Optional[float], "cutoff": Optional[str],
+          "a0": Optional[float], "vdw_on_surface": Optional[bool], "contact": Optional[List[str]],
+          "option": Optional[List[str]]}  # fmt: skip
+_register_extract()
 
 
 def _number(option: str, raw: Optional[str]) -> Optional[float]:
@@ -506,7 +509,7 @@ def _numbers(option: str, raw: Optional[str]) -> Optional[list]:
     return values
 
 
-@app.command()
+@app.command(short_help='Which f1, set point, print step and paddle stiffness recover a material.')
 @user_errors
 def advise(
     k_inf: Optional[str] = typer.Option(None, "--k-inf", help="Equilibrium spring k_inf of the SLS, N/m."),
@@ -585,7 +588,7 @@ def advise(
     typer.echo(json.dumps(advice_json(adv, figure), allow_nan=False) if json_out else format_advice(adv, figure))
 
 
-@app.command()
+@app.command(short_help='Viscoelastic fits of measured force curves and maps.')
 @user_errors
 def fit(
     curves: List[Path] = typer.Argument(..., help="Force-curve files (force-distance, stress relaxation, creep; any "
@@ -631,7 +634,7 @@ def fit(
         typer.echo(res.summary(criterion))
 
 
-@app.command()
+@app.command(short_help='Maps to NetCDF and Gwyddion.')
 @user_errors
 def export(
     table: Path = typer.Argument(..., help="A map table: a scan (vetica scan) or a force-map fit (vetica fit)."),

@@ -1,9 +1,9 @@
 """A rigid sphere on a generalized-Maxwell half-space by the method of dimensionality
-reduction (MDR, Popov & Hess 2015; MDR, Popov & Hess 2015): the ``hertz`` surface's kernel.
+reduction (MDR; Popov & Hess 2015): the ``hertz`` surface's kernel.
 
 The 3-D half-space becomes a row of ``M`` independent elements at lateral positions
-``x_i`` (MDR, Popov & Hess 2015).  Every element is the massless node of the ``sls``/``wiechert``
-surface (the SLS surface model; the Wiechert model) with stiffnesses per unit length (the plane-strain moduli
+``x_i``.  Every element is the massless node of the ``sls``/``wiechert``
+surface with stiffnesses per unit length (the plane-strain moduli
 ``E* = E/(1 - nu^2)``) times its weight ``w_i`` (``2 dx``: both sides of ``x = 0``)::
 
     f_i = w_i [E_inf* u_i + sum_a E_a* (u_i - ud_ia)]      (force the element exerts) [N]
@@ -44,6 +44,7 @@ import numpy as np
 import scipy.linalg
 from numba import njit
 
+from . import probe as PR
 from . import tapping as T
 from .coefficients import (
     L_C00, L_C01, L_C10, L_C11, L_COS, L_H, L_N, L_P00, L_P01, L_P10, L_P11, L_SIN,
@@ -272,22 +273,12 @@ def fine_steps(s, n_end, zb_step, p, g, w, xpos, q, arm, vec, vi, lam, sm, urow,
     n_arms = arm.shape[1]
     m_el = len(g)
     ud = s[S_XD:].reshape((m_el, n_arms))  # a view: the state is updated in place
-    hdt = 0.5 * p[P_DT]
     dt = p[P_DT]
-    czz, czv, czf, czd = p[P_CZZ], p[P_CZV], p[P_CZF], p[P_CZD]
-    cvz, cvv, cvf, cvd0, cvd1 = p[P_CVZ], p[P_CVV], p[P_CVF], p[P_CVD0], p[P_CVD1]
-    pzz, pzv, pzf = p[P_PZZ], p[P_PZV], p[P_PZF]
-    pvz, pvv, pvf = p[P_PVZ], p[P_PVV], p[P_PVF]
-    ef, rcz, rcv, rc0, rc1 = p[P_EF], p[P_RCZ], p[P_RCV], p[P_RC0], p[P_RC1]
-    rpz, rpv, rho = p[P_RPZ], p[P_RPV], p[P_RHO]
-    bv1, bv2 = p[P_BV1], p[P_BV2]
-    cr, sr = p[P_COSDT], p[P_SINDT]
+    c = PR.fine_map(p)
+    ef = p[P_EF]
     hr6, ihr6, a0 = p[P_HR6], p[P_IHR6], p[P_A0]
     fa0 = p[P_FA0]
-    f0, c1, c2 = p[P_F0], p[P_C1], p[P_C2]
     d_exit = p[P_DSW_EXIT]
-    nt = int(p[P_NT])
-    omega = p[P_OMEGA]
     kg = q[Q_KG]
     rec = np.empty(n_arms + 1)
     tmp = np.empty(n_arms)
@@ -298,13 +289,11 @@ def fine_steps(s, n_end, zb_step, p, g, w, xpos, q, arm, vec, vi, lam, sm, urow,
     cx = np.zeros(n_arms)
     cx_ok = False
 
-    n = int(s[S_IDX])
+    n, zc, vc, zp, vp, zb, _, th = PR.load(s, p)
+    cw, sw = math.cos(th), math.sin(th)
     inc, ulast, hi = _contacts_at(s, ud, g, arm, kg, a0)
     tlast = np.full(m_el, n, np.int64)
-    zc, vc, zp, vp, zb = s[S_ZC], s[S_VC], s[S_ZP], s[S_VP], s[S_ZB]
     contact = hi > 0
-    th = omega * (n % nt) * dt
-    cw, sw = math.cos(th), math.sin(th)
     z_tip = zb + zc + zp
     if contact:
         fsum = 0.0
@@ -322,34 +311,12 @@ def fine_steps(s, n_end, zb_step, p, g, w, xpos, q, arm, vec, vi, lam, sm, urow,
         x = _u_free(ud, 0, arm, kg)
         fa = hr6 / ((z_tip + g[0] - x) * (z_tip + g[0] - x))
         fts = -fa
-    vcp = vc - bv1 * fts
-    vpp = vp - bv2 * fts
-    u1 = (czz * zc + czv * vcp + czd * cw) + (pzz * zp + pzv * vpp)
-    ztip_old = z_tip
-    q_old = z_tip - zb
-    hc, hs = o[O_HC], o[O_HS]
-    stride = r[R_STRIDE]
-    origin = r[R_ORIGIN]
-    to_grid = stride - (n - origin) % stride
-    qmax, qmin = o[O_QMAX], o[O_QMIN]
-    fmax, fmin = o[O_FMAX], o[O_FMIN]
+    vcp, vpp, u1 = PR.fine_start(c, zc, vc, zp, vp, cw, fts)
+    ztip_old, q_old, hc, hs, stride, to_grid, qmax, qmin, fmax, fmin = PR.fine_begin(o, r, n, z_tip, zb)
     steps = 0
     while n < n_end:
-        fts_old = fts
-        vcp_old = vcp
-        vpp_old = vpp
-        cw_old = cw
-        sw_old = sw
-        cw, sw = cw * cr - sw * sr, sw * cr + cw * sr
-        zb += zb_step
-        u2 = ((rcz * zc + rcv * vcp) + (rpz * zp + rpv * vpp)) + (rc0 * cw_old + rc1 * cw) + rho * fts
-        zc, vcp = (
-            (czz * zc + czv * vcp) + (czd * cw_old + czf * fts),
-            (cvz * zc + cvv * vcp) + ((cvd0 * cw_old + cvd1 * cw) + cvf * fts),
-        )
-        zp, vpp = (pzz * zp + pzv * vpp) + pzf * fts, (pvz * zp + pvv * vpp) + pvf * fts
-        base = zb + u1
-        u1 = u2
+        fts_old, vcp_old, vpp_old, cw_old, sw_old = fts, vcp, vpp, cw, sw
+        zc, vcp, zp, vpp, u1, base, zb, cw, sw = PR.fine_step(c, zc, vcp, zp, vpp, u1, cw, sw, zb, zb_step, fts)
         n += 1
         steps += 1
         z_tip = base + ef * fts_old
@@ -368,20 +335,10 @@ def fine_steps(s, n_end, zb_step, p, g, w, xpos, q, arm, vec, vi, lam, sm, urow,
             cx_ok = False
             o[O_CSTEPS] += 1.0
             if not was:
-                o[O_NCONT] += 1.0
-                o[O_ZCONT_LAST] = z_tip
-                o[O_TCONT_LAST] = n * dt
-                if math.isnan(o[O_ZCONT]):
-                    o[O_ZCONT] = z_tip
-                if r[R_FC] == 0:
-                    r[R_FC] = 1
-                    o[O_T_FC] = n * dt
-                    o[O_Z_FC] = z_tip
+                PR.first_contact(o, r, z_tip, n * dt)
         else:
             if was:
-                o[O_NSEP] += 1.0
-                o[O_ZSEP_LAST] = z_tip
-                o[O_TSEP_LAST] = n * dt
+                PR.separation(o, z_tip, n * dt)
             # the gap between the tip's surface over the centre element and that element after the
             # previous step (as the sls kernel's gap; the contact test's own measure, so the
             # attraction is Fa(a0) exactly at contact and release), then the surface now
@@ -402,31 +359,13 @@ def fine_steps(s, n_end, zb_step, p, g, w, xpos, q, arm, vec, vi, lam, sm, urow,
             for j in range(n_arms):
                 x += urow[j] * cx[j]
         q_now = z_tip - zb
-        hc += hdt * (q_old * cw_old + q_now * cw)
-        hs -= hdt * (q_old * sw_old + q_now * sw)
+        hc, hs = PR.lock_in(c, hc, hs, q_old, q_now, cw_old, cw, sw_old, sw)
         q_old = q_now
-        if q_now > qmax:
-            qmax = q_now
-        if q_now < qmin:
-            qmin = q_now
-        if fts > fmax:
-            fmax = fts
-        if fts < fmin:
-            fmin = fts
+        qmax, qmin, fmax, fmin = PR.extrema(q_now, fts, qmax, qmin, fmax, fmin)
         if energy:
-            vc_old = vcp_old + bv1 * fts_old
-            vp_old = vpp_old + bv2 * fts_old
-            vc_new = vcp + bv1 * fts
-            vp_new = vpp + bv2 * fts
-            o[O_WDRIVE] += hdt * f0 * (cw_old * vc_old + cw * vc_new)
-            o[O_D1] += hdt * c1 * (vc_old * vc_old + vc_new * vc_new)
-            o[O_D2] += hdt * c2 * (vp_old * vp_old + vp_new * vp_new)
-            o[O_WTS] -= 0.5 * (fts_old + fts) * (z_tip - ztip_old)
+            PR.fine_work(o, c, vcp_old, vpp_old, fts_old, vcp, vpp, fts, cw_old, cw, z_tip, ztip_old)
             ztip_old = z_tip
-        to_grid -= 1
-        on_grid = to_grid <= 0
-        if on_grid:
-            to_grid = stride
+        to_grid, on_grid = PR.grid_tick(to_grid, stride)
         if r[R_ACTIVE] and on_grid:
             for a in range(n_arms):
                 if contact or not cx_ok:
@@ -442,16 +381,7 @@ def fine_steps(s, n_end, zb_step, p, g, w, xpos, q, arm, vec, vi, lam, sm, urow,
             if z_tip + g[0] - x > d_exit:
                 break
     _catch_up(ud, inc, tlast, n, dt, w, arm, vec, vi, lam, sm, o, energy, el_off, tmp)
-    o[O_QMAX], o[O_QMIN], o[O_FMAX], o[O_FMIN] = qmax, qmin, fmax, fmin
-    o[O_HC], o[O_HS] = hc, hs
-    o[O_FINE] += steps
-    s[S_ZC] = zc
-    s[S_VC] = vcp + bv1 * fts
-    s[S_ZP] = zp
-    s[S_VP] = vpp + bv2 * fts
-    s[S_ZB] = zb
-    s[S_IDX] = n
-    s[S_CONTACT] = 1.0 if contact else 0.0
+    PR.fine_save(s, o, c, zc, vcp, zp, vpp, zb, n, contact, fts, hc, hs, qmax, qmin, fmax, fmin, steps)
     _ = m_el
 
 
@@ -483,77 +413,39 @@ def _far(s, n_end, zb_step, p, g, w, xpos, q, arm, vec, vi, lam, sm, urow, lad, 
     n_arms = arm.shape[1]
     m_el = len(g)
     ud = s[S_XD:].reshape((m_el, n_arms))
-    nlev = lad.shape[0]
-    m1, m2, c1, c2, f0 = p[P_M1], p[P_M2], p[P_C1], p[P_C2], p[P_F0]
-    zr, zi, omega = p[P_ZR], p[P_ZI], p[P_OMEGA]
+    f = PR.far_constants(p)
     hr6, dsw, dt = p[P_HR6], p[P_DSW], p[P_DT]
     ihr6 = p[P_IHR6]
-    w2 = math.sqrt(p[P_K2] / m2)
-    curv = p[P_K1] / m1
-    lam1 = -0.5 * c1 / m1
-    wd1 = math.sqrt(p[P_K1] / m1 - lam1 * lam1)
-    lam2 = -0.5 * c2 / m2
-    wd2 = math.sqrt(p[P_K2] / m2 - lam2 * lam2)
-    zdrive = complex(zr, zi)
-    nt = int(p[P_NT])
     rec = np.empty(n_arms + 1)
     tmp = np.empty(n_arms)
-    n0 = int(s[S_IDX])
+    n0, zc, vc, zp, vp, zb, _, th = PR.load(s, p)
     c0 = _centre_modes(ud, vi)
     n = n0
-    zc, vc, zp, vp, zb = s[S_ZC], s[S_VC], s[S_ZP], s[S_VP], s[S_ZB]
     z_tip = zb + zc + zp
     g0 = g[0]
     x = _centre_u(c0, urow, lam, 0.0) - g0  # the centre element's surface less g0: the gap is z_tip - x
     fa = hr6 / ((z_tip - x) * (z_tip - x))
-    th = omega * (n % nt) * dt
     cw, sw = math.cos(th), math.sin(th)
     stride = r[R_STRIDE]
     origin = r[R_ORIGIN]
     moved = True
     while n < n_end:
-        speed = abs(vc) + abs(vp) + 1e-30
-        hmax = EPS_STEP * (z_tip - x) / speed
-        lev = nlev - 1
-        while lev > 0 and (lad[lev, L_H] > hmax or n + int(lad[lev, L_N]) > n_end):
-            lev -= 1
-        if n + int(lad[lev, L_N]) > n_end:
+        lev = PR.far_level(lad, EPS_STEP, vc, vp, z_tip - x, n, n_end)
+        if lev < 0:
             break
         accepted = False
         while lev >= 0:
             h = lad[lev, L_H]
             hh = 0.5 * h
-            vc1 = vc - hh * fa / m1
-            vp1 = vp - hh * fa / m2
-            zpart0 = zr * cw - zi * sw
-            vpart0 = -omega * (zr * sw + zi * cw)
-            cw1 = cw * lad[lev, L_COS] - sw * lad[lev, L_SIN]
-            sw1 = sw * lad[lev, L_COS] + cw * lad[lev, L_SIN]
-            zpart1 = zr * cw1 - zi * sw1
-            vpart1 = -omega * (zr * sw1 + zi * cw1)
-            dz, dv = zc - zpart0, vc1 - vpart0
-            zc1 = lad[lev, L_C00] * dz + lad[lev, L_C01] * dv + zpart1
-            vc2 = lad[lev, L_C10] * dz + lad[lev, L_C11] * dv + vpart1
-            zp1 = lad[lev, L_P00] * zp + lad[lev, L_P01] * vp1
-            vp2 = lad[lev, L_P10] * zp + lad[lev, L_P11] * vp1
-            zb1 = zb + zb_step * lad[lev, L_N]
-            z1 = zb1 + zc1 + zp1
+            vc1, vp1, zpart0, vpart0, cw1, sw1, zc1, vc2, zp1, vp2, zb1, z1 = PR.far_flow(
+                f, lad, lev, hh, fa, zc, vc, zp, vp, zb, zb_step, cw, sw)
             x1 = _centre_u(c0, urow, lam, (n + int(lad[lev, L_N]) - n0) * dt) - g0
             d1 = z1 - x1
             fa1 = vdw_force(d1, fa, hr6, ihr6) if d1 > 0.0 else fa
-            vc3 = vc2 - hh * fa1 / m1
-            vp3 = vp2 - hh * fa1 / m2
-            q0 = z_tip - zb
-            q1 = z1 - zb1
-            qmn, qmx = min(q0, q1), max(q0, q1)
-            floor = dsw + max(x, x1) - min(zb, zb1)
-            ring = 0.0 if rec_mode else 2.0 * math.sqrt(zp * zp + (vp1 / w2) ** 2) + curv * (abs(zc) + abs(zc1)) * h * h / 8.0
-            if not rec_mode and (qmx + ring >= o[O_QMAX] or qmn - ring <= o[O_QMIN] or qmn - ring <= floor):
-                if h * w2 < 0.1:
-                    qmn, qmx = hermite_extrema(q0, vc1 + vp1, q1, vc2 + vp2, h)
-                else:
-                    qmn, qmx = far_extrema(h, zc, vc1, zp, vp1, cw, sw, p, q0, q1)
-            if d1 > dsw and qmn > floor:
+            vc3, vp3 = PR.far_close(f, hh, fa1, vc2, vp2)
+            ok, qmn, qmx = PR.far_accept(o, f, p, rec_mode, h, dsw, zc, zc1, zp, vc1, vp1, vc2, vp2, cw, sw, z_tip, zb,
+                                         z1, zb1, x, x1, d1)  # fmt: skip
+            if ok:
                 accepted = True
                 break
             o[O_REJECT] += 1.0
@@ -561,24 +453,11 @@ def _far(s, n_end, zb_step, p, g, w, xpos, q, arm, vec, vi, lam, sm, urow, lad, 
         if not accepted:
             moved = False
             break
-        if rec_mode:
-            o[O_HC] += hh * ((z_tip - zb) * cw + (z1 - zb1) * cw1)
-            o[O_HS] -= hh * ((z_tip - zb) * sw + (z1 - zb1) * sw1)
-        else:
-            project_harmonic(o, lad[lev], zc, zc - zpart0, vc1 - vpart0, zp, vp1, cw, sw, h, zdrive, lam1, wd1, lam2, wd2)
-        if qmx > o[O_QMAX]:
-            o[O_QMAX] = qmx
-        if qmn < o[O_QMIN]:
-            o[O_QMIN] = qmn
-        if -fa1 > o[O_FMAX]:
-            o[O_FMAX] = -fa1
-        if -fa1 < o[O_FMIN]:
-            o[O_FMIN] = -fa1
+        PR.far_harmonic(o, f, rec_mode, lad, lev, hh, h, z_tip, zb, z1, zb1, zc, zpart0, vc1, vpart0, zp, vp1, cw, sw,
+                        cw1, sw1)  # fmt: skip
+        PR.far_bounds(o, qmn, qmx, fa1)
         if energy:
-            o[O_WDRIVE] += hh * f0 * (cw * vc + cw1 * vc3)
-            o[O_D1] += hh * c1 * (vc * vc + vc3 * vc3)
-            o[O_D2] += hh * c2 * (vp * vp + vp3 * vp3)
-            o[O_WTS] -= hr6 * (1.0 / (z1 - x1) - 1.0 / (z_tip - x)) + 0.5 * (-fa - fa1) * (x1 - x)
+            PR.far_work(o, f, hh, fa, fa1, hr6, z_tip, x, z1, x1, cw, cw1, vc, vp, vc3, vp3)
         zc, vc, zp, vp, zb = zc1, vc3, zp1, vp3, zb1
         z_tip, x, fa = z1, x1, fa1
         cw, sw = cw1, sw1
@@ -598,9 +477,7 @@ def _far(s, n_end, zb_step, p, g, w, xpos, q, arm, vec, vi, lam, sm, urow, lad, 
     # the elements (all free) catch up exactly
     for i in range(m_el):
         free_advance(ud, i, (n - n0) * dt, w[i], arm, vec, vi, lam, sm, o, energy, el_off, tmp)
-    s[S_ZC], s[S_VC], s[S_ZP], s[S_VP], s[S_ZB] = zc, vc, zp, vp, zb
-    s[S_IDX] = n
-    s[S_CONTACT] = 0.0
+    PR.far_save(s, zc, vc, zp, vp, zb, n)
     return moved
 
 

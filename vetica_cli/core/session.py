@@ -42,6 +42,15 @@ def probe_energy(s: np.ndarray, m1: float, k1: float, m2: float, k2: float) -> f
     return 0.5 * (m1 * s[T.S_VC] ** 2 + k1 * s[T.S_ZC] ** 2 + m2 * s[T.S_VP] ** 2 + k2 * s[T.S_ZP] ** 2)
 
 
+def kick_probe(s: np.ndarray, dzc: float, dvc: float, dzp: float, dvp: float) -> None:
+    """Add offsets to the cantilever's and the paddle's positions [m] and velocities [m/s] of
+    ``s`` (the thermal recording's equipartition draw at the window's start)."""
+    s[T.S_ZC] += dzc
+    s[T.S_VC] += dvc
+    s[T.S_ZP] += dzp
+    s[T.S_VP] += dvp
+
+
 def place_probe(s: np.ndarray, zc: float, vc: float, zp: float, zb: float) -> None:
     """Set the cantilever position and velocity, the paddle position and the base height of ``s``."""
     s[T.S_ZC], s[T.S_VC], s[T.S_ZP], s[T.S_ZB] = zc, vc, zp, zb

@@ -32,7 +32,9 @@ from .coefficients import (
     A_G, A_K, A_LIN, A_OMER, P_A0, P_C1, P_C2, P_COSDT, P_DT, P_F0, P_FA0, P_FAC, P_FASEP, P_INVKG, P_K1,
     P_K2, P_KINF, P_M1, P_M2, P_NT, P_OMEGA, P_SEPTHR, P_SINDT,
 )  # fmt: skip
-from .tapping import S_CONTACT, S_IDX, S_VC, S_VP, S_XD, S_ZB, S_ZC, S_ZP, contact_force, surface_position
+from . import probe as PR
+from .probe import S_CONTACT, S_IDX, S_VC, S_VP, S_XD, S_ZB, S_ZC, S_ZP
+from .tapping import contact_force, surface_position
 
 
 @njit(cache=True)
@@ -46,7 +48,7 @@ def brownian_steps(s, fb1, fb2, p, a, emi, buf, stride, origin, pos):
     dt = p[P_DT]
     hdt = 0.5 * dt
     m1, m2, k1, k2, c1, c2 = p[P_M1], p[P_M2], p[P_K1], p[P_K2], p[P_C1], p[P_C2]
-    f0, omega, nt = p[P_F0], p[P_OMEGA], int(p[P_NT])
+    f0 = p[P_F0]
     a0, fa0, fa_c, sep_thr, fa_sep, invkg = p[P_A0], p[P_FA0], p[P_FAC], p[P_SEPTHR], p[P_FASEP], p[P_INVKG]
     kinf = p[P_KINF]
     cr, sr = p[P_COSDT], p[P_SINDT]
@@ -58,10 +60,7 @@ def brownian_steps(s, fb1, fb2, p, a, emi, buf, stride, origin, pos):
     g = a[A_G]
     xd = s[S_XD:].copy()
     tmp = np.empty(n_arms)
-    n = int(s[S_IDX])
-    zc, vc, zp, vp, zb = s[S_ZC], s[S_VC], s[S_ZP], s[S_VP], s[S_ZB]
-    contact = s[S_CONTACT] > 0.5
-    th = omega * (n % nt) * dt
+    n, zc, vc, zp, vp, zb, contact, th = PR.load(s, p)
     cw, sw = math.cos(th), math.sin(th)
     z_tip = zb + zc + zp
     if contact:

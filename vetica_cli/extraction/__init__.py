@@ -2,13 +2,15 @@
 (:mod:`.base`), the shared input handling (:mod:`.record`), the typed result
 (:mod:`.result`) and its one formatter (:mod:`.format`).
 
-Methods register themselves on import: ``vetica`` (:mod:`.vetica`, thesis 3.3),
-``vetica-prestress`` (:mod:`.vetica_prestress`, VETICA with the Maxwell arm's
-pre-stress at contact), ``full`` (:mod:`.fullfit`, the whole-cycle inversion), and the
-instrument's own numbers for comparison: ``observables`` (:mod:`.observables`: amplitude,
-phase, E_diss, virial, loss tangent) and ``dmt-fit`` (:mod:`.dmt_fit`: per-tap DMT analysis).
-Every result carries its material units (:mod:`.material`, thesis 4.6.2).  Adding a method is adding
-its module and one import line below.
+Methods register themselves on import (:mod:`.methods`): ``vetica`` (:mod:`.methods.vetica`,
+thesis 3.3), ``vetica-prestress`` (:mod:`.methods.vetica_prestress`, VETICA with the Maxwell
+arm's pre-stress at contact), ``full`` (:mod:`.fullfit`, the whole-cycle inversion), and the
+instrument's own numbers for comparison: ``observables`` (:mod:`.methods.observables`:
+amplitude, phase, E_diss, virial, loss tangent) and ``dmt-fit`` (:mod:`.methods.dmt_fit`:
+per-tap DMT analysis).  ``vetica_cli.extraction.vetica`` and the other method modules stay
+importable under their old names.  Every result carries its material units
+(:mod:`.material`, thesis 4.6.2).  Adding a method is adding its module to :mod:`.methods`
+and one import line there.
 """
 
 from __future__ import annotations
@@ -19,21 +21,27 @@ import numpy as np
 
 from ..errors import InputError
 from ..io import read_table
-from .base import DEFAULT_METHOD, METHODS, ExtractionMethod, get, register
+from .base import DEFAULT_METHOD, METHODS, ExtractionMethod, Option, get, register
+from . import methods  # noqa: F401  (registers every method, in the order of the --method choices)
 
-# isort: off
-# the methods register themselves; this order is the order of the --method choices
-from . import vetica as _vetica  # noqa: F401  (registers 'vetica')
-from . import vetica_prestress as _vetica_prestress  # noqa: F401  (registers 'vetica-prestress')
-from . import fullfit as _fullfit  # noqa: F401  (registers 'full')
-from . import observables as _observables  # noqa: F401  (registers 'observables')
-from . import dmt_fit as _dmt_fit  # noqa: F401  (registers 'dmt-fit')
 
-# isort: on
-from .material import ContactModel, contact_metadata, contact_model, material_entries, tap_contact
+def _alias_method_modules() -> None:
+    """``vetica_cli.extraction.<name>`` for each module of :mod:`.methods` (where they lived
+    before): scripts and notebooks that import them keep working."""
+    import sys
+
+    for name in ("vetica", "vetica_prestress", "observables", "dmt_fit"):
+        mod = getattr(methods, name)
+        sys.modules.setdefault(f"{__name__}.{name}", mod)
+        globals().setdefault(name, mod)
+
+
+_alias_method_modules()
+from .material import MATERIAL_UNITS, ContactModel, contact_metadata, contact_model, material_entries, tap_contact
 from .record import FORCES, RECORD_KEYS, SOURCES, Record, RecordInputs, build_record
 
 RECORD_COLUMNS = ("t", "z_tip", "f_ts", "z_paddle", "segment")  # what any method reads of a run table
+MATERIAL_NAMES = tuple(MATERIAL_UNITS)  # the thesis's material units (E_dmt, E_glassy, E_rubbery, viscosity)
 
 
 def extraction_modules(methods, forces=SOURCES) -> set[str]:
@@ -118,7 +126,8 @@ def extract_many(df, meta: dict | None, force: str, methods: dict, *, contact=No
     out = {}
     # a method other methods' checks consult (the whole-cycle fit referees the tap methods) runs first, and its
     # result on its default options is kept on the record for them (.sanity), so it is computed once
-    order = sorted(ms, key=lambda k: not getattr(ms[k], "referee", False))
+    referees = {m.referee for m in ms.values() if m.referee}
+    order = sorted(ms, key=lambda k: k not in referees)
     for key in order:
         m = ms[key]
         try:
@@ -126,9 +135,9 @@ def extract_many(df, meta: dict | None, force: str, methods: dict, *, contact=No
         except InputError as exc:
             raise InputError(_with_noise(str(exc), record)) from None
         calibrate(res, record, m, opts[key])  # a standard error for every estimate (.uncertainty)
-        check(res, record, opts[key])  # identifiability and sanity checks: no silent wrong answer (.sanity)
-        if getattr(m, "referee", False) and opts[key] == m.options({}):
-            record.memo[("referee", id(record.f), record.z1)] = res.estimates
+        check(res, record, opts[key], m)  # identifiability and sanity checks: no silent wrong answer (.sanity)
+        if key in referees and opts[key] == m.options({}):  # the referee's verdict on its defaults, for the others
+            record.memo[("referee", key, id(record.f), record.z1)] = res.estimates
         add_material(res, record, cm, radius_source)
         out[key] = res
     return {key: out[key] for key in ms}
@@ -159,7 +168,9 @@ def add_material(res: ExtractionResult, record: Record, cm: ContactModel, radius
         z1 = fit["surface_height_m"] + record.a0  # a fit that found the surface without Z1: where the tip meets it
     peak, depth = tap_contact(record.z, record.f, z1, kg, record.taps) if z1 is not None else (float("nan"), float("nan"))
     values = {k: (v if v is not None else float("nan")) for k, v in values.items()}
-    res.material = material_entries(peak, depth, values, record.truth, cm)
+    entries = material_entries(peak, depth, values, record.truth, cm)
+    declared = set(record.model.material_columns) | {"E_dmt"}  # the surface model's (Kelvin-Voigt: E_dmt only)
+    res.material = {k: v for k, v in entries.items() if k not in MATERIAL_NAMES or k in declared}
     res.contact = contact_metadata(cm, radius_source)
 
 
@@ -178,6 +189,7 @@ __all__ = [
     "Estimate",
     "ExtractionMethod",
     "ExtractionResult",
+    "Option",
     "RECORD_KEYS",
     "Record",
     "RecordInputs",

@@ -1,14 +1,17 @@
 """The convention every extraction method follows, and the registry that collects them.
 
-A method is one module (or package) under :mod:`vetica_cli.extraction` defining a
-subclass of :class:`ExtractionMethod` decorated with :func:`register`: it
-declares its ``key`` (the ``--method`` / ``extract.method`` value), a one-line
-description, the surface models it can extract, its options with their
-defaults, the options a user may set (:class:`Option`: name, type, unit, help; the
-CLI's ``extract --option key=value`` reads them), and ``run(record, options) ->
-ExtractionResult``.  The CLI's
-``--method`` choices, the sweep's ``extract.method`` values and the table's
-``method`` column all come from :data:`METHODS`.
+A method is one module (or package) under :mod:`vetica_cli.extraction.methods` defining a
+subclass of :class:`ExtractionMethod` decorated with :func:`register`: it declares its
+``key`` (the ``--method`` / ``extract.method`` value), a one-line description, the surface
+models it can extract, its ``references`` (where it comes from, as data), each option once
+(:class:`Option`: name, type, default, unit, rule, help, and optionally a flag of its own;
+``options_default``, the checks, ``vetica extract --option key=value`` and the generated
+flags derive from it), and ``run(record, options) -> ExtractionResult``; its error bars and
+sanity checks are hooks (:meth:`ExtractionMethod.sigmas`, :meth:`ExtractionMethod.checks`)
+whose defaults are the generic ones.  The CLI's ``--method`` choices, the sweep's
+``extract.method`` values and the table's ``method`` column all come from :data:`METHODS`.
+:func:`register` checks the declarations (:func:`convention_errors`);
+:func:`vetica_cli.testing.check_method` runs the method on a record of a model it declares.
 """
 
 from __future__ import annotations
@@ -30,34 +33,81 @@ from .record import Record
 from .result import ExtractionResult, t_factor
 
 
+TYPE_TEXT = {"int": "an integer", "float": "a finite number", "bool": "true or false", "str": "a name"}
+
+
+def _typed(value: Any, tp: str) -> bool:
+    """Whether a typed value (the API's, a config's) has the declared type."""
+    if tp == "any":
+        return True
+    if tp == "bool":
+        return isinstance(value, (bool, np.bool_))
+    if tp == "str":
+        return isinstance(value, str)
+    if isinstance(value, (bool, np.bool_)) or not isinstance(value, (int, float, np.integer, np.floating)):
+        return False
+    if tp == "int":
+        return isinstance(value, (int, np.integer))
+    return math.isfinite(value)
+
+
 @dataclass(frozen=True)
 class Option:
-    """An option of a method a user may set: its name (a key of ``options_default``), type
-    ('int', 'float', 'bool', 'str'), unit ('' for none), one line of help and its rule."""
+    """One option of a method, declared once: its name, type ('int', 'float', 'bool', 'str';
+    'any' for a value only the API passes, e.g. a start dict), default (None: the method
+    decides, e.g. from the record's metadata), unit ('' for none), one line of help, the
+    rule its value must satisfy (``(predicate, what is allowed)``) and, for a few, a flag of
+    its own on ``vetica extract`` besides ``--option name=value`` (``flag``).  The method's
+    ``options_default``, the checks of :meth:`ExtractionMethod.options` and
+    :meth:`~ExtractionMethod.parse_options`, the ``extract`` command's flags and help and
+    the docs' options table all derive from it."""
 
     name: str
     type: str
-    unit: str
-    help: str
+    default: Any = None
+    unit: str = ""
+    help: str = ""
     rule: Rule | None = None
+    flag: str | None = None  # e.g. "--arms": generated on `vetica extract` (cli.py)
+    settable: bool = True  # a user may set it with --option (False: the API's only)
 
-    def parse(self, raw: Any) -> Any:
-        """A value (YAML scalar text, or already typed) coerced and checked; ConfigError (one line)."""
-        value = load_yaml(raw, f"--option {self.name}") if isinstance(raw, str) and self.type != "str" else raw
-        return check(f"--option {self.name}", raw, coerce(f"--option {self.name}", value, self.type), self.rule)
+    def parse(self, raw: Any, label: str | None = None) -> Any:
+        """A value (YAML scalar text, or already typed) coerced and checked; ConfigError (one
+        line) naming ``label`` (default ``--option <name>``)."""
+        label = label or f"--option {self.name}"
+        value = load_yaml(raw, label) if isinstance(raw, str) and self.type != "str" else raw
+        return check(label, raw, coerce(label, value, self.type), self.rule)
+
+    def check(self, value: Any) -> None:
+        """InputError (one line) unless ``value`` (typed: the API's) has the declared type and
+        satisfies the rule; None always passes (the method's default or 'auto')."""
+        if value is None:
+            return
+        if not _typed(value, self.type):
+            raise InputError(f"{self.name} {value!r} not allowed; expected {TYPE_TEXT.get(self.type, self.type)}")
+        if self.rule is not None and not self.rule[0](value):
+            allowed = self.rule[1]
+            raise InputError(f"{self.name} {value!r} not allowed; "
+                             + (f"choose {allowed}" if allowed.startswith("one of:") else f"expected {allowed}"))
+
+    @property
+    def allowed(self) -> str:
+        """What the option takes, in words (its rule, else its type)."""
+        return self.rule[1] if self.rule is not None else TYPE_TEXT.get(self.type, self.type)
 
 
-KG_POINTS = Option("kg_points", "int", "", "samples of the contact's initial slope fitted for Kg (thesis 3.3.2)",
-                   (lambda v: 2 <= v <= 10_000, "an integer in 2..10000"))  # fmt: skip
+KG_POINTS = Option("kg_points", "int", 10, "", "samples of the contact's initial slope fitted for Kg (thesis 3.3.2: "
+                   "10); at least 2 and fewer than the longest contact of the record",
+                   (lambda v: v >= 2, "an integer >= 2"), flag="--kg-points")  # fmt: skip
 
 
-KG_WINDOW = Option("kg_window", "str", "", "stage 1b's window: noise (the thesis's kg_points samples where the record's "
-                   "noise allows them, a window grown from the noise otherwise) or thesis (always kg_points)",
+KG_WINDOW = Option("kg_window", "str", "noise", "", "stage 1b's window: noise (the thesis's kg_points samples where "
+                   "the record's noise allows them, a window grown from the noise otherwise) or thesis (always kg_points)",
                    (lambda v: v in KG_WINDOWS, f"one of: {', '.join(KG_WINDOWS)}"))  # fmt: skip
 
 
-KG_SCALE = Option("kg_scale", "float", "", "stage 1b's slopes multiplied by this factor (1: as measured; the error bars "
-                  "move it to see how every quantity follows Kg)", (lambda v: 0.5 <= v <= 2.0, "a factor in [0.5, 2]"))  # fmt: skip
+KG_SCALE = Option("kg_scale", "float", 1.0, "", "stage 1b's slopes multiplied by this factor (1: as measured; the "
+                  "error bars move it to see how every quantity follows Kg)", (lambda v: 0.5 <= v <= 2.0, "a factor in [0.5, 2]"))  # fmt: skip
 
 
 FIXED_COST = 0.1  # part of a method's seconds_per_point that does not scale with the record's samples
@@ -79,7 +129,6 @@ class ExtractionMethod(ABC):
     description: ClassVar[str]  # one line, e.g. "VETICA (thesis 3.3): creep, initial slope, superposition fit"
     title: ClassVar[str]  # heading of the text table, e.g. "VETICA"
     surface_models: ClassVar[tuple[str, ...]]  # surface models (vetica_cli.surfaces) it can extract
-    options_default: ClassVar[dict[str, Any]] = {"kg_points": 10}  # every option the method takes
     needs_approach: ClassVar[bool] = False  # analyse the approach segment even when Z1 is given
     needs_z1: ClassVar[bool] = True  # a record without Z1 (no approach segment, no metadata) is an error
     surface_note: ClassVar[str] = ""  # why it extracts only its surface_models (for the refusal message)
@@ -87,12 +136,22 @@ class ExtractionMethod(ABC):
     tap_windows: ClassVar[bool] = False  # reads a reconstructed force only in the tap windows (signals.tapforce)
     kernel_modules: ClassVar[tuple[str, ...]] = ()  # cached core modules it compiles (simulation.jit)
     seconds_per_point: ClassVar[float] = 1.0  # both force sources, 10 periods at 0.125 ns (dry-run estimate)
-    option_specs: ClassVar[tuple[Option, ...]] = (KG_POINTS,)  # the options a user may set (--option key=value)
+    option_specs: ClassVar[tuple[Option, ...]] = ()  # every option the method takes, declared once (Option)
+    options_default: ClassVar[dict[str, Any]] = {}  # derived from option_specs: {name: default}
+    references: ClassVar[tuple[str, ...]] = ()  # where the method comes from (thesis section, paper): data, not docstring
+
+    def __init_subclass__(cls, **kw):
+        super().__init_subclass__(**kw)
+        cls.options_default = {o.name: o.default for o in cls.option_specs}
+
+    def option(self, name: str) -> Option | None:
+        """The declaration of option ``name`` (None: the method takes no such option)."""
+        return next((o for o in self.option_specs if o.name == name), None)
 
     def parse_options(self, given: dict) -> dict:
         """``{name: raw value}`` (``--option key=value``) typed and checked by :attr:`option_specs`;
         InputError (one line) naming the options the method takes."""
-        specs = {o.name: o for o in self.option_specs}
+        specs = {o.name: o for o in self.option_specs if o.settable}
         out = {}
         for name, raw in given.items():
             if name not in specs:
@@ -108,7 +167,7 @@ class ExtractionMethod(ABC):
         """The quantities the method reports for a surface of ``model``, in table order."""
         return model.quantities
 
-    def references(self, model: SurfaceModel) -> dict[str, Quantity]:
+    def reference_quantities(self, model: SurfaceModel) -> dict[str, Quantity]:
         """Theory-only quantities the method reports beside its estimates (no value of their
         own: ``<name>_theory`` in a study table, ``theory`` in the JSON); default none."""
         return {}
@@ -121,11 +180,10 @@ class ExtractionMethod(ABC):
             raise InputError(
                 f"method {self.key!r} takes no option {unknown[0]!r}; options: {', '.join(self.options_default)}"
             )
-        opts = {**self.options_default, **given}
-        kg = opts.get("kg_points")
-        if "kg_points" in opts and (isinstance(kg, bool) or not isinstance(kg, (int, np.integer)) or kg < 2):
-            raise InputError(f"kg_points {kg!r} not allowed; expected an integer >= 2")
-        return opts
+        specs = {o.name: o for o in self.option_specs}
+        for name, value in given.items():
+            specs[name].check(value)
+        return {**self.options_default, **given}
 
     @abstractmethod
     def run(self, record: Record, options: dict) -> ExtractionResult:
@@ -147,6 +205,22 @@ class ExtractionMethod(ABC):
                 continue
             out[q] = scale * sp.std / math.sqrt(sp.n) * t_factor(sp.n) / abs(e.value) if sp.n >= 2 else math.inf
         return out, {"source": f"spread over taps (standard error of the {self.per_tap_statistic}, t-scaled)"}
+
+    scan_maps: ClassVar[tuple[str, ...]] = ()  # its quantities drawn in a scan's instrument figure (plots.scanmaps)
+    reads_force: ClassVar[bool] = True  # reads the force: judged by whether the force's band resolves the contact
+    referee: ClassVar[str | None] = None  # a method whose fit on the same record judges this one's (tap family: 'full')
+    compared_with: ClassVar[str | None] = None  # a variant whose difference flags this one's quantities
+
+    def checks(self, res: ExtractionResult, record: Record, options: dict, info: dict) -> None:
+        """The method's own identifiability and sanity checks (the hook of
+        :func:`vetica_cli.extraction.sanity.check`, run before the generic ones): flag what the
+        record does not determine with :func:`vetica_cli.extraction.sanity.flag` (in place) and
+        put the numbers behind each check in ``info`` (``info['sanity']`` of the result).  Default:
+        none (the generic checks -- the band's bias, a relative 1-sigma above 100 % -- apply to
+        every method)."""
+
+    def flag_dependents(self, res: ExtractionResult) -> None:
+        """After every check: flag the quantities computed from flagged ones (default: none)."""
 
     def detail_lines(self, res: ExtractionResult) -> list[str]:
         """Lines the text table adds about what the method did, e.g. what was fitted and what
@@ -176,15 +250,52 @@ class ModelFreeMethod(ExtractionMethod):
     def quantities(self, model: SurfaceModel) -> dict[str, Quantity]:
         return dict(self.fixed_quantities)
 
-    def references(self, model: SurfaceModel) -> dict[str, Quantity]:
+    def reference_quantities(self, model: SurfaceModel) -> dict[str, Quantity]:
         return dict(DYNAMIC_QUANTITIES)
 
 
+def convention_errors(method: ExtractionMethod) -> list[str]:
+    """What ``method`` misses of the convention (module docstring), checked on its declarations
+    alone (:func:`vetica_cli.testing.check_method` runs it on a record); empty when it follows
+    it.  :func:`register` refuses a method with any."""
+    out = []
+
+    def need(ok, text):
+        if not ok:
+            out.append(text)
+
+    need(isinstance(getattr(method, "key", None), str) and method.key, "a key (the --method value)")
+    need(isinstance(getattr(method, "title", None), str) and method.title, "a title")
+    d = getattr(method, "description", "")
+    need(isinstance(d, str) and d and "\n" not in d, "a one-line description")
+    models = tuple(method.surface_models) if hasattr(method, "surface_models") else ()
+    need(models and set(models) <= set(MODELS), "surface_models among the registered models")
+    need(getattr(method, "seconds_per_point", 0) > 0, "seconds_per_point > 0 (the dry-run estimate)")
+    refs = getattr(method, "references", ())
+    need(isinstance(refs, tuple) and refs and all(isinstance(r, str) and r for r in refs),
+         "references: a tuple of where the method comes from (e.g. 'thesis 3.3')")  # fmt: skip
+    names = [o.name for o in method.option_specs]
+    need(len(names) == len(set(names)), "one declaration per option")
+    for o in method.option_specs:
+        need(isinstance(o, Option) and o.help, f"option {o.name}: an Option with help")
+        need(o.type in TYPE_TEXT or (o.type == "any" and not o.settable), f"option {o.name}: a type of {tuple(TYPE_TEXT)}")
+        try:
+            o.check(o.default)
+        except InputError as exc:
+            out.append(f"option {o.name}: a default its own rule allows ({exc})")
+    return out
+
+
 def register(cls: type[ExtractionMethod]) -> type[ExtractionMethod]:
-    """Class decorator: add one instance of the method to :data:`METHODS` under its ``key``."""
+    """Class decorator: add one instance of the method to :data:`METHODS` under its ``key``,
+    after checking its declarations against the convention (:func:`convention_errors`)."""
     if cls.key in METHODS:
         raise ValueError(f"extraction method {cls.key!r} is registered twice")
-    METHODS[cls.key] = cls()
+    method = cls()
+    errors = convention_errors(method)
+    if errors:
+        raise TypeError(f"extraction method {cls.__name__} does not follow the convention: it needs " + "; ".join(errors))
+    METHODS[cls.key] = method
     return cls
 
 

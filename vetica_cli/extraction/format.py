@@ -108,7 +108,7 @@ def _material_lines(res: ExtractionResult) -> list[str]:
 
 def _reference_lines(res: ExtractionResult) -> list[str]:
     """The method's theory-only values (:meth:`~.base.ExtractionMethod.references`), one line."""
-    refs = get(res.method).references(surfaces.get(res.model))
+    refs = get(res.method).reference_quantities(surfaces.get(res.model))
     items = [f"{q.label} {_num(res.references.get(k), '.4g')}{' ' + q.unit if q.unit else ''}"
              for k, q in refs.items() if res.references.get(k) is not None]  # fmt: skip
     return ["theory: " + ", ".join(items)] if items else []
@@ -158,7 +158,7 @@ def to_json(res: ExtractionResult) -> dict:
         out["identifiable"] = {k: bool(res.estimates[k].identifiable) for k in res.fitted}
         out["identifiable_reason"] = {k: res.estimates[k].reason for k in res.fitted}
     if res.references:
-        refs = get(res.method).references(surfaces.get(res.model))
+        refs = get(res.method).reference_quantities(surfaces.get(res.model))
         out["theory"] = {k: {"value": finite_or_none(v), "unit": refs[k].unit if k in refs else ""}
                          for k, v in res.references.items()}  # fmt: skip
     if res.material is not None:

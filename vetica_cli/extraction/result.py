@@ -8,6 +8,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from ..surfaces.base import DEFAULT_MODEL
+
 
 def finite_or_none(v) -> float | None:
     """``float(v)``, or None for None, NaN and infinities (JSON has no NaN)."""
@@ -77,7 +79,7 @@ class ExtractionResult:
     force: str  # force source analysed: 'true' (f_ts) or 'reconstructed' (spectral inversion)
     taps: int  # complete taps in the record
     estimates: dict[str, Estimate]  # quantity -> estimate, in the surface model's table order
-    model: str = "sls"  # surface model whose quantities these are (vetica_cli.surfaces)
+    model: str = DEFAULT_MODEL  # surface model whose quantities these are (vetica_cli.surfaces)
     fitted: tuple[str, ...] = ()  # parameters fitted, in fit order (identifiability reported for these)
     info: dict = field(default_factory=dict)  # Z1 and its source, reconstruction, method details
     diagnostics: dict | None = None  # per-method fit quality numbers

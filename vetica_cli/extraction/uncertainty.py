@@ -1,7 +1,8 @@
 """A standard error for every method's estimates (:func:`calibrate`, applied to each
 result by :func:`vetica_cli.extraction.extract_many` after the method ran).
 
-* ``vetica``, ``vetica-prestress`` -- **spread over taps**.  Each tap (creep interval)
+* the tap methods (VETICA and VETICA with the pre-stress; their hook in
+  :mod:`vetica_cli.extraction.methods.tapsigmas`) -- **spread over taps**.  Each tap (creep interval)
   is one measurement of ``tau_c`` (stage 1a), ``Kg`` (stage 1b) and ``Kr`` (stage 2);
   the method's value is their mean, so its standard error is ``s/sqrt(n)`` (``s`` the
   per-tap standard deviation, ``n`` the taps with a value), scaled by
@@ -24,14 +25,18 @@ result by :func:`vetica_cli.extraction.extract_many` after the method ran).
   are propagated through :func:`~vetica_cli.extraction.vetica.sls_elements`
   (log-gradients; Kr's dependence on the Kg it was fitted with is not included).
   Stages independent.  A quantity measured on fewer than two taps has an unbounded sigma.
-* ``full`` -- the larger of **the fit's Jacobian and residual** (``s^2 (J^T J)^-1``) and
+* the whole-cycle fit -- the larger of **the fit's Jacobian and residual** (``s^2 (J^T J)^-1``) and
   the **tap-robust sandwich** (delete-one-tap jackknife of the linearised fit, for
   residuals correlated within a tap, e.g. thermal noise; :mod:`.fullfit.uncertainty`),
   kept as the method computes it (with the approach's Z1 reading error); a record's Z1 from
   thesis eq. 84 (no approach segment) only starts the fit's surface height, which is then
   fitted free (the height against eq. 84's lift bracket is a check, :mod:`.sanity`).
 
-Relative sigmas (fractions), as :class:`~vetica_cli.extraction.result.Estimate` holds
+* every other method -- the base's default hook: the standard error of its per-tap (or
+  per-period) values (:meth:`~vetica_cli.extraction.base.ExtractionMethod.sigmas`).
+
+Each is the method's :meth:`~vetica_cli.extraction.base.ExtractionMethod.sigmas` hook; this
+module adds the band term of a low-passed force to all of them.  Relative sigmas (fractions), as :class:`~vetica_cli.extraction.result.Estimate` holds
 them; ``info['uncertainty']`` says which source and the Z1 term.
 """
 
@@ -42,42 +47,10 @@ import math
 
 import numpy as np
 
-from ..signals.taps import find_taps
-from .result import ExtractionResult, sls_elements, t_factor  # noqa: F401  (t_factor re-exported)
-
-STAGES = ("tau_c", "k_g", "k_r")  # per-tap measurements the tap methods average
+from .result import ExtractionResult, t_factor  # noqa: F401  (t_factor re-exported)
 
 
 
-
-def z1_sigma(record, taps, kr: float | None = None) -> float:
-    """1-sigma of Z1 [m] (module docstring); 0 for a Z1 the user gave.  For eq. 84 with
-    the pull, the lift's model uncertainty too: the surface meets the tip between its
-    glassy lift ``Fa/Kg`` and its rubbery lift ``Fa/Kr`` (``kr``: stage 2's Kr), so half
-    that bracket is added in quadrature (unbounded without a Kr)."""
-    source = str(record.info.get("z1_source", ""))
-    if source == "given" or record.z1 is None:
-        return 0.0
-    zc = record.z[taps.contact]
-    scatter = float(np.std(zc, ddof=1)) if len(zc) > 1 else math.inf
-    if source.startswith("thesis eq. 84") and "Fa(a0)/Kg" in source:
-        fc = record.f[taps.contact]
-        fa = -float(np.median(fc))
-        kg = (record.z1 - record.a0) and fa / (record.z1 - record.a0)
-        s_fa = float(np.std(fc, ddof=1)) / math.sqrt(len(fc)) if len(fc) > 1 else math.inf
-        from ..signals.taps import contact_slopes
-
-        kgi = contact_slopes(record.z, record.f, taps, 10)
-        kgi = kgi[np.isfinite(kgi)]
-        s_kg = float(np.std(kgi, ddof=1)) / math.sqrt(len(kgi)) if len(kgi) > 1 else math.inf
-        if not kg > 0:
-            return math.inf
-        # the noise of eq. 84's inputs only: which lift holds (glassy Fa/Kg or rubbery Fa/Kr) is a model
-        # question the replicas of a record cannot show, judged by the flags (sanity: the lift bracket)
-        return math.sqrt(scatter**2 + (s_fa / kg) ** 2 + (fa * s_kg / kg**2) ** 2)
-    if record.approach is not None and source.startswith("approach"):
-        scatter = math.hypot(scatter, approach_jitter(*record.approach))
-    return scatter
 
 
 JITTER_WINDOW = 200  # samples each side of the approach's force minimum searched for rivals
@@ -97,125 +70,6 @@ def approach_jitter(z, f, i, sf: float | None = None) -> float:
         sf = noise_floor(f[max(0, int(i) - 5 * JITTER_WINDOW) : hi])
     rivals = z[lo:hi][f[lo:hi] <= f[int(i)] + 2.0 * sf]
     return float(np.ptp(rivals)) / math.sqrt(12.0) if len(rivals) > 1 else 0.0
-
-
-def sampling_term(record, taps) -> float:
-    """Relative 1-sigma of stage 1a's tau_c from locating the contact and separation minima on
-    the sample grid (:func:`tap_sigmas`): the median over creep intervals of ``|d ln tau_c / d Z|``
-    at ``Z'i`` and ``Z(i+1)`` (thesis eq. 73: ``tau_c = -dt / ln r``, ``r = (Z(i+1) - Z1)/(Z'i -
-    Z1)``) times ``|dz/dt| h / sqrt(12)`` there, in quadrature.  0 without Z1."""
-    if record.z1 is None or len(taps.contact) < 2:
-        return 0.0
-    z, z1 = record.z, record.z1
-    h = (record.t[-1] - record.t[0]) / (len(record.t) - 1)
-    out = []
-    for i in range(len(taps.contact) - 1):
-        js, jc = int(taps.separation[i]), int(taps.contact[i + 1])
-        zs, zc = z[js] - z1, z[jc] - z1
-        if not (zs != 0 and 0.0 < zc / zs < 1.0) or not (0 < js < len(z) - 1 and 0 < jc < len(z) - 1):
-            continue
-        lr = math.log(zc / zs)
-        vs, vc = abs(z[js + 1] - z[js - 1]) / 2.0, abs(z[jc + 1] - z[jc - 1]) / 2.0  # [m per sample]
-        # d ln tau_c = -d ln(-ln r) = -(d ln r)/ln r,  d ln r = dZc/zc - dZs/zs
-        out.append(math.hypot(vc / zc, vs / zs) / math.sqrt(12.0) / abs(lr))
-    return float(np.median(out)) if out else 0.0
-
-
-def log_gradients(values: dict, rel: float = 1e-6) -> dict:
-    """``d ln q / d ln s`` of every quantity ``q`` of ``sls_elements`` against each stage
-    ``s`` of :data:`STAGES` (central differences)."""
-
-    base = [values[s] for s in STAGES]
-    out = {}
-    for j, _ in enumerate(STAGES):
-        up, dn = list(base), list(base)
-        up[j] *= 1 + rel
-        dn[j] *= 1 - rel
-        qu, qd = sls_elements(*up), sls_elements(*dn)
-        for q in qu:
-            g = (math.log(abs(qu[q])) - math.log(abs(qd[q]))) / (2 * rel) if qu[q] and qd[q] else math.nan
-            out.setdefault(q, [0.0] * len(STAGES))[j] = g
-    return out
-
-
-def with_z1_moved(record, method, options, h: float) -> list[dict]:
-    """The method's estimates with the record's Z1 moved by ``+h`` and ``-h`` (in that order);
-    a side the method refuses gives ``{}`` (no term from it)."""
-    moved = []
-    for sign in (1.0, -1.0):
-        try:
-            moved.append(method.run(dataclasses.replace(record, z1=record.z1 + sign * h), options).estimates)
-        except Exception:  # noqa: BLE001 - a moved Z1 the method refuses: that side gives no term
-            moved.append({})
-    return moved
-
-
-def tap_sigmas(res: ExtractionResult, record, method, options) -> tuple[dict, dict]:
-    """Relative sigmas of a tap method's quantities and the bookkeeping (module docstring)."""
-    est = res.estimates
-    values = {s: est[s].value for s in STAGES if s in est}
-    if len(values) < len(STAGES) or any(v is None or v == 0 for v in values.values()):
-        return {}, {"source": "spread over taps", "note": "a stage gave no value"}
-    rel = {}
-    for s in STAGES:
-        sp = est[s].spread
-        n = sp.n if sp else 0
-        rel[s] = (sp.std / math.sqrt(n) * t_factor(n) / abs(values[s])) if n >= 2 and sp.std is not None else math.inf
-    taps = find_taps(record.f)
-    s_z1 = z1_sigma(record, taps, values["k_r"]) if record.z1 is not None else 0.0
-    # the print step: every force minimum is located on the sample grid, to within half a step in
-    # time, so each position of stage 1a (Z'i, Z(i+1), and Z1 when read on the approach) is off by
-    # up to half the tip's travel in a step -- the same for every tap when the period is a whole
-    # number of samples, so it does not average over taps: uniform, v h / sqrt(12), through eq. 73
-    rel["tau_c"] = math.hypot(rel["tau_c"], sampling_term(record, taps))
-    # the method twice more with Z1 moved by +-2 sigma: how every quantity follows Z1 (a secant
-    # over the 95 % range, so a quantity that depends on Z1 non-linearly, e.g. cd when tau_c and
-    # Kr move in opposite directions, gets the larger of the two changes), and through it tau_c
-    grad_z1 = {}
-    if record.z1 is not None and math.isfinite(s_z1):
-        h = 2.0 * s_z1 if s_z1 > 0 else 1e-13
-        kr = est["k_r"].value if "k_r" in est else None
-        warm = {**options, "kr_guess": kr} if "kr_guess" in options and kr and kr > 0 else options  # start at this Kr
-        moved = with_z1_moved(record, method, warm, h)
-        for q, e in est.items():
-            changes = [m[q].value - e.value for m in moved if q in m and m[q].value and e.value]
-            if changes:
-                grad_z1[q] = max(changes, key=abs) / (h * abs(e.value))  # d ln q / d Z1 [1/m]
-    # the method twice more with stage 1b's slopes scaled by 1 +- 2 sigma_Kg: how every quantity follows Kg,
-    # stage 2's refit of Kr at the moved Kg included (sls_elements alone holds Kr fixed)
-    grad_kg = {}
-    if "kg_scale" in options and math.isfinite(rel["k_g"]) and rel["k_g"] > 0:
-        hk = min(2.0 * rel["k_g"], 0.4)
-        moved = []
-        for sign in (1.0, -1.0):
-            try:
-                moved.append(method.run(record, {**options, "kg_scale": 1.0 + sign * hk}).estimates)
-            except Exception:  # noqa: BLE001 - a moved Kg the method refuses: that side gives no term
-                moved.append({})
-        for q, e in est.items():
-            changes = [m[q].value - e.value for m in moved if q in m and m[q].value and e.value]
-            if changes:
-                grad_kg[q] = max(changes, key=abs) / (hk * abs(e.value))  # d ln q / d ln Kg
-    g_tau = grad_z1.get("tau_c")
-    sls = log_gradients(values)
-    sig = {}
-    for q, e in est.items():
-        if e.value is None or q not in sls:
-            continue
-        gz = grad_z1.get(q)
-        if gz is not None and g_tau:
-            via_tau = gz / g_tau * rel["tau_c"]  # the taps' tau_c scatter reaches q as Z1 does
-        else:
-            via_tau = sls[q][0] * rel["tau_c"]
-        via_kg = (grad_kg[q] if q in grad_kg else sls[q][1]) * rel["k_g"]
-        terms = [via_tau, via_kg, sls[q][2] * rel["k_r"], (gz or 0.0) * s_z1]
-        terms = [x for x in terms if x]
-        sig[q] = math.sqrt(sum(x * x for x in terms)) if all(math.isfinite(x) for x in terms) else math.inf
-        if not math.isfinite(s_z1):
-            sig[q] = math.inf
-    info = {"source": "spread over taps (standard error of the tap means, t-scaled), Z1 term by reruns with Z1 "
-                      "moved by +-2 sigma", "z1_sigma_m": s_z1}  # fmt: skip
-    return sig, info
 
 
 BAND_STEPS = (math.sqrt(2.0), 2.0)  # the band term re-reads the record low-passed once more at fc / each
@@ -299,19 +153,6 @@ def band_term(res: ExtractionResult, record, method, options) -> dict:
         else:  # not monotonic in the band: the larger change, as for p = 1
             out[q] = max(abs(d[0]), abs(d[1])) / (math.sqrt(2.0) - 1.0)
     return out
-
-
-def tap_method_sigmas(res: ExtractionResult, record, method, options) -> tuple[dict, dict]:
-    """The tap methods' :meth:`~vetica_cli.extraction.base.ExtractionMethod.sigmas` hook:
-    :func:`tap_sigmas`, and where a stage failed Kg keeps its taps' standard error and the rest is
-    unbounded."""
-    sig, info = tap_sigmas(res, record, method, options)
-    for k, e in res.estimates.items():
-        if e.value is not None and k not in sig:
-            sp = e.spread
-            ok = k == "k_g" and sp is not None and sp.n >= 2 and sp.std is not None
-            sig[k] = sp.std / math.sqrt(sp.n) * t_factor(sp.n) / abs(e.value) if ok else math.inf
-    return sig, info
 
 
 def calibrate(res: ExtractionResult, record, method=None, options=None) -> ExtractionResult:

@@ -212,6 +212,37 @@ def fig_observable_vs(sw: SweepData, key: str, obs: str, thesis: str) -> Figure 
     return fig
 
 
+def fig_quantities_vs(sw: SweepData, key: str, quantities: dict) -> Figure | None:
+    """A method's own quantities (``{column: Quantity}``, e.g. the per-tap peak force and tap
+    duration of a model-free method) against a swept key, one panel each, one line per
+    setting of the other keys (no thesis figure)."""
+    pts = sw.points()
+    cols = [q for q in quantities if q in pts.columns and np.isfinite(pts[q].to_numpy(float)).any()]
+    if not cols:
+        return None
+    rest = [k for k in sw.swept if k != key]
+    groups = groups_of(pts, rest)
+    colors = colors_for(len(groups)) if rest else ["tab:purple"]
+    fig = new_figure(9, 1.5 + 3.2 * len(cols))
+    axes = np.atleast_1d(fig.subplots(len(cols), 1, sharex=True))
+    flags = set()
+    for ax, q in zip(axes, cols):
+        spec = quantities[q]
+        for (glab, _, g), color in zip(groups, colors):
+            flags |= series(ax, disp(key, g[key]), g[q] * spec.display_scale, statuses(g), color, "-", "o", True,
+                            glab or None)  # fmt: skip
+        ax.set_ylabel(axis_label(spec.label, spec.shown_unit))
+        ax.grid(alpha=0.3)
+    set_axis(axes[-1], key, "x", pts[key])
+    h, _ = axes[0].get_legend_handles_labels()
+    h += extra_handles(flags)
+    if h:
+        outside_legend(axes[0], h)
+    add_note(fig, status_note(pts, sw.swept, estimates=False))
+    set_title(fig, sw, f"{', '.join(quantities[q].label for q in cols)} against {axis_meta(key)[0]}")
+    return fig
+
+
 def fig_surface_position_vs_ps(sw: SweepData, thesis: str) -> Figure | None:
     """Where the record puts the surface against where it was, by print step (thesis figs.
     59-60): top, each point's contact (A, approach) and separation (B, retract) as measured

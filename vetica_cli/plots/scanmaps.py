@@ -25,6 +25,7 @@ from matplotlib.ticker import FixedLocator, FuncFormatter, MaxNLocator, NullLoca
 from .. import surfaces
 from ..errors import InputError
 from ..extraction import METHODS
+from ..extraction.base import ModelFreeMethod
 from ..scan.analysis import (
     apparent_heights,
     domain_stats,
@@ -129,8 +130,8 @@ def own_quantities(g: pd.DataFrame) -> list[str]:
     return [q for q in estimate_names(g) if q not in models and g[q].notna().any()]
 
 
-# the instrument's maps beside VETICA's: (method, quantity) drawn when the table has them
-INSTRUMENT_MAPS = (("vetica", "tau_c"), ("observables", "tan_delta_am"), ("dmt-fit", "e_dmt"), ("dmt-fit", "k_dmt"))
+# the instrument's maps beside VETICA's: (method, quantity) drawn when the table has them (each method's scan_maps)
+INSTRUMENT_MAPS = tuple((key, q) for key, m in METHODS.items() for q in m.scan_maps)
 TRUTH_TITLES = {"tan_delta_am": r"truth: the surface's $\tan\delta$ at $f_{drive}$",
                 "k_dmt": r"truth: the surface's $k'$ at $\pi/t_c$"}  # fmt: skip
 
@@ -226,7 +227,7 @@ def fig_instrument(geo: ScanGeometry, rows: pd.DataFrame, title: str) -> Figure 
     the drive frequency, k' at pi / contact time; none for E* of a spring surface).  None when
     the table has no instrument method."""
     have = [(m, q) for m, q in INSTRUMENT_MAPS if q in rows.columns and (rows["method"] == m).any()]
-    if not any(m in ("observables", "dmt-fit") for m, _ in have):
+    if not any(isinstance(METHODS[m], ModelFreeMethod) for m, _ in have):  # an instrument method's map
         return None
     source = rows["force_source"].iloc[0]
     fig = new_figure(4.4 * len(have), 7.0)

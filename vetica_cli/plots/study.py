@@ -8,7 +8,7 @@ import pandas as pd
 
 from .. import surfaces
 from ..errors import InputError
-from ..extraction import DEFAULT_METHOD, SOURCES
+from ..extraction import DEFAULT_METHOD, METHODS, SOURCES
 from .acceptance import fig_acceptance_vs
 from .data import AXIS_PRIORITY, SweepData, base_config, swept_keys
 from .errors import fig_errors_vs, fig_errors_vs_cd, fig_values_vs_cd
@@ -18,6 +18,7 @@ from .observables import (
     fig_force_penetration_vs,
     fig_observable_vs,
     fig_observable_vs_cd,
+    fig_quantities_vs,
     fig_surface_position_vs_ps,
 )
 from .style import CD, F1, K2, PS, RATIO, SETPOINT
@@ -112,6 +113,15 @@ def sweep_figures(df: pd.DataFrame, meta: dict) -> tuple[list, list]:
                 notes.append(f"{label} skipped: no usable points")
                 continue
             figs.append((label, fig))
+        if own and method in METHODS:  # its own numbers against each swept key instead
+            qs = METHODS[method].quantities(surfaces.get(surfaces.DEFAULT_MODEL))
+            for key in (k for k in swept if k not in text_keys):
+                label = f"{method}_values_vs_{key.replace('.', '_')}"
+                fig = fig_quantities_vs(sw, key, qs)
+                if fig is None:
+                    notes.append(f"{label} skipped: no usable points")
+                else:
+                    figs.append((label, fig))
     notes.append(f"swept keys: {', '.join(swept)}" + (f"; methods: {', '.join(methods)}" if len(methods) > 1 else ""))
     return figs, notes
 

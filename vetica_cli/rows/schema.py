@@ -35,9 +35,18 @@ STATUSES = ("ok", "no_estimate", "not_steady", "failed")
 OBSERVABLES = tuple(OBSERVABLE_UNITS)
 # column -> entry of the extraction's material object: the record's contact, the material columns' inputs
 MATERIAL_INPUTS = {"tap_peak_force": "peak_force", "tap_depth": "penetration"}
-# material columns computed when the table is assembled (the moduli from Kg, Kr also from their theory values)
+# material columns computed when the table is assembled (the moduli from Kg, Kr also from their theory values);
+# E_dmt always, the others when a surface model of the table declares them (SurfaceModel.material_columns)
 MATERIAL_COLUMNS = ("E_dmt", "E_glassy", "E_glassy_theory", "E_rubbery", "E_rubbery_theory", "viscosity",
                     "viscosity_theory")  # fmt: skip
+
+
+def material_columns_of(models=None) -> tuple[str, ...]:
+    """The material columns of a table of points of the surface ``models`` (default: the
+    default model): ``E_dmt`` and each column (with its ``_theory``) a model declares."""
+    models = models or [surfaces.get(surfaces.DEFAULT_MODEL)]
+    declared = {c for m in models for c in m.material_columns}
+    return tuple(c for c in MATERIAL_COLUMNS if c == "E_dmt" or c.removesuffix("_theory") in declared)
 
 
 def sigma_names(model: surfaces.SurfaceModel) -> tuple[str, ...]:
@@ -66,7 +75,7 @@ def method_quantities(models, methods) -> tuple[list[str], list[str]]:
     for key in methods or ():
         for m in models:
             est.update(dict.fromkeys(q for q in METHODS[key].quantities(m) if q not in own))
-            refs.update(dict.fromkeys(METHODS[key].references(m)))
+            refs.update(dict.fromkeys(METHODS[key].reference_quantities(m)))
     return list(est), [r for r in refs if r not in est and r not in own]
 
 
@@ -132,7 +141,7 @@ def column_meta(models, methods=None, replicas: int = 1) -> dict:
                 "or unbounded")  # fmt: skip
         for key in methods or ():
             meth = METHODS[key]
-            for name, q in {**meth.quantities(model), **meth.references(model)}.items():
+            for name, q in {**meth.quantities(model), **meth.reference_quantities(model)}.items():
                 if name in model.quantities:
                     continue
                 unit = _UNIT_WORDS.get(q.unit, q.unit)
@@ -151,7 +160,7 @@ def column_meta(models, methods=None, replicas: int = 1) -> dict:
     for col, entry in MATERIAL_INPUTS.items():
         unit, desc = CONTACT_UNITS[entry]
         meta[col] = (unit, f"the record's {desc}, as the row's extraction saw it")
-    for col in MATERIAL_COLUMNS:
+    for col in material_columns_of(models):
         name = col.removesuffix("_theory")
         unit, desc = MATERIAL_UNITS[name]
         src = "the theory values of" if col.endswith("_theory") else "the row's estimates of"
@@ -177,12 +186,13 @@ def units_metadata(meta: dict) -> dict:
     return {"units": {c: u for c, (u, _) in meta.items()}, "descriptions": {c: d for c, (_, d) in meta.items()}}
 
 
-def material_columns(table: pd.DataFrame, cms: dict) -> pd.DataFrame:
-    """The table with :data:`MATERIAL_COLUMNS` inserted after ``tap_depth`` (thesis 4.6.2,
-    eqs. 90-92; :func:`vetica_cli.extraction.material.moduli`): from the record's peak force
-    and penetration and the row's ``k_g, k_r, tau_r`` (estimates and theory values).
-    ``cms``: point key (the ``point`` column) -> its contact model."""
-    out = {c: np.full(len(table), np.nan) for c in MATERIAL_COLUMNS}
+def material_columns(table: pd.DataFrame, cms: dict, models=None) -> pd.DataFrame:
+    """The table with its material columns (:func:`material_columns_of` the surface ``models``)
+    inserted after ``tap_depth`` (thesis 4.6.2, eqs. 90-92;
+    :func:`vetica_cli.extraction.material.moduli`): from the record's peak force and penetration
+    and the row's ``k_g, k_r, tau_r`` (estimates and theory values).  ``cms``: point key (the
+    ``point`` column) -> its contact model."""
+    out = {c: np.full(len(table), np.nan) for c in material_columns_of(models)}
 
     def col(name):
         return table[name].to_numpy(float) if name in table.columns else np.full(len(table), np.nan)

@@ -31,7 +31,7 @@ Rows = list  # of dicts keyed by schema.result_columns()
 def extract_point(df, meta: dict, force: str, method: str) -> ExtractionResult:
     """The extraction a study row records: :func:`vetica_cli.extraction.extract` with the
     CLI's defaults (kg_points 10, low-pass at Nyquist)."""
-    return extract(df, meta, force=force, method=method, kg_points=10)
+    return extract(df, meta, force=force, method=method)
 
 
 def _err_text(exc: BaseException) -> str:

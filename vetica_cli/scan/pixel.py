@@ -154,12 +154,11 @@ class LineDriver:
     def kernel(self, m: int) -> engine.Kernel:
         if m not in self.kernels:
             st = kernel_setup(self.configs[m], self.d)
-            if self.configs[m].surface.model == "hertz":  # a sphere on a half-space: the MDR elements
-                from ..simulation.hertz import line_kernel
-
-                self.kernels[m], self.grids[m] = line_kernel(self.configs[m], st, run_spec(self.configs[m], self.d))
-            else:
-                self.kernels[m] = engine.Kernel(st)
+            cfg = self.configs[m]  # the material's model supplies its kernel (hertz: the MDR elements and their grid)
+            kern, grid = cfg.surface.surface_model.line_kernel(cfg, st, run_spec(cfg, self.d))
+            self.kernels[m] = kern
+            if grid is not None:
+                self.grids[m] = grid
         return self.kernels[m]
 
     def _enter(self, m: int, h: float) -> engine.Kernel:
@@ -262,16 +261,12 @@ class LineDriver:
         instrument model of ``cfg`` applied, ready for :mod:`vetica_cli.extraction`."""
         kern = self.kernel(m)
         rr = engine.RunResult(rec.approach, rec.window.samples, rec.stop_reason, rec.info, rec.warnings, rec.window)
-        extra = ("contact_radius",) if m in self.grids else ()
+        model = self.configs[m].surface.surface_model
         run = Run(approach=rec.approach, steady=rec.window.samples, info=run_info(rr, kern.setup, self.d),
-                  stop_reason=rec.stop_reason, params=cfg.to_dict(), wall_s=rec.wall_s, extra_columns=extra)  # fmt: skip
-        if m in self.grids:
-            from ..simulation.hertz import deepest, grid_accuracy
-
-            dmax = deepest(rr, kern.setup.a0)
-            run.info["mdr"] = {**self.grids[m], "delta_max_m": dmax,
-                               "elastic_force_error_at_delta_max": grid_accuracy(cfg.probe.tip_radius, kern.g, kern.w,
-                                                                                 dmax) if dmax > 0 else None}  # fmt: skip
+                  stop_reason=rec.stop_reason, params=cfg.to_dict(), wall_s=rec.wall_s,
+                  extra_columns=model.extra_columns)  # fmt: skip
+        if m in self.grids:  # the kernel's grid, judged at this pixel's deepest tap (the model's)
+            run.info[model.kernel_info_key] = model.pixel_kernel_info(cfg, self.grids[m], rr, kern)
         compute_observables(run, cfg, self.d)
         if rec.stop_reason == PIXEL_TIME_STOP:  # the budget of a transient pixel is its pixel time
             run.warnings = [w for w in run.warnings if not w.startswith("no proven periodic state")]

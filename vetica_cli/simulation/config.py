@@ -384,10 +384,11 @@ def _check_cross(cfg: Config) -> None:
             f"probe.f2: {p.f2!r} is not allowed; expected above probe.f1 ({p.f1!r} Hz): the torsional resonance lies "
             "above the flexural one (thesis 2.4.2: f2 = 15 f1)"
         )
-    if n.temperature > 0 and cfg.surface.model == "hertz":
+    if n.temperature > 0 and not cfg.surface.surface_model.supports_key("thermal"):
+        able = [k for k, m in surfaces.MODELS.items() if m.supports_key("thermal")]
         raise ConfigError(
-            f"numerics.temperature: {n.temperature!r} is not allowed with surface.model hertz; expected 0 (the thermal "
-            "recording kernel integrates the flat-punch surfaces sls and wiechert only)"
+            f"numerics.temperature: {n.temperature!r} is not allowed with surface.model {cfg.surface.model}; expected 0 "
+            f"(the thermal recording kernel integrates the flat-punch surfaces {', '.join(able[:-1])} and {able[-1]} only)"
         )
     amp = cfg.operation.free_amplitude
     if n.approach_gap > amp:

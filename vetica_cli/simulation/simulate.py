@@ -373,16 +373,8 @@ def _noise_free(cfg: Config):
         settle_cycles=n.settle_cycles, tol_z=n.tol_z,
     )  # fmt: skip
     t0 = time.perf_counter()
-    extra: tuple = ()
-    kern = None
-    if cfg.surface.model == "hertz":  # its own kernel (MDR elements); no thermal recording (config refuses T > 0)
-        from .hertz import run_hertz
-
-        rr, mdr_info = run_hertz(cfg, st, spec)
-        extra = ("contact_radius",)
-    else:
-        kern = engine.Kernel(st)
-        rr = engine.run(kern, spec)
+    model = cfg.surface.surface_model
+    rr, kernel_info, kern = model.run_kernel(cfg, st, spec)  # the model's own kernel (surfaces: run_kernel)
     wall = time.perf_counter() - t0
     run = Run(
         approach=rr.approach,
@@ -392,10 +384,10 @@ def _noise_free(cfg: Config):
         params=cfg.to_dict(),
         wall_s=wall,
         timing_s=rr.info["timing_s"],
-        extra_columns=extra,
+        extra_columns=model.extra_columns,
     )
-    if extra:
-        run.info["mdr"] = mdr_info
+    if kernel_info is not None:
+        run.info[model.kernel_info_key] = kernel_info
     compute_observables(run, cfg, d)  # from the noise-free signals
     run.warnings = rr.warnings + run.warnings
     return run, kern, (rr.window.states[0] if kern is not None else None), d

@@ -47,7 +47,7 @@ import math
 
 import numpy as np
 
-from ..core import prescribed, tapping
+from ..core import prescribed, session, tapping
 from ..core import thermal as kernel
 
 KB = 1.380649e-23  # Boltzmann constant [J/K] (SI, exact)
@@ -143,10 +143,11 @@ def thermal_record(kern, s0, cfg, d, rng) -> np.ndarray:
     p, a, emi = kern.coef[0], kern.coef[1], kern.coef[2]
     (m1, k1, q1), (m2, k2, q2) = modes(cfg, d)
     s = np.array(s0, float).copy()
-    s[tapping.S_ZC] += rng.normal(0.0, math.sqrt(KB * temp / k1))
-    s[tapping.S_VC] += rng.normal(0.0, math.sqrt(KB * temp / m1))
-    s[tapping.S_ZP] += rng.normal(0.0, math.sqrt(KB * temp / k2))
-    s[tapping.S_VP] += rng.normal(0.0, math.sqrt(KB * temp / m2))
+    dzc = rng.normal(0.0, math.sqrt(KB * temp / k1))  # equipartition, drawn in this order (the seed's stream)
+    dvc = rng.normal(0.0, math.sqrt(KB * temp / m1))
+    dzp = rng.normal(0.0, math.sqrt(KB * temp / k2))
+    dvp = rng.normal(0.0, math.sqrt(KB * temp / m2))
+    session.kick_probe(s, dzc, dvc, dzp, dvp)
     sig1 = step_sigma(m1, k1, q1, temp, st.dt)
     sig2 = step_sigma(m2, k2, q2, temp, st.dt)
     nt = kern.nt
@@ -156,7 +157,7 @@ def thermal_record(kern, s0, cfg, d, rng) -> np.ndarray:
     for cyc in range(SETTLE_CYCLES + cfg.numerics.record_cycles):
         if cyc == SETTLE_CYCLES:
             pos = 0
-            origin = int(s[tapping.S_IDX])
+            origin = session.step_index(s)
         fb1 = rng.normal(0.0, sig1, nt)
         fb2 = rng.normal(0.0, sig2, nt)
         pos = kernel.brownian_steps(s, fb1, fb2, p, a, emi, buf, st.stride, origin, pos)

@@ -1,7 +1,9 @@
 """The acceptance regime (thesis fig. 52): the range of the dashpot ``cd`` whose points
 have status 'ok' (a steady record with every quantity estimated) and a ``tau_c`` error of
 magnitude below 30 %; points with status 'no_estimate', 'not_steady' or 'failed' are
-counted, never accepted.
+counted, never accepted.  The quantity and the swept parameter are the surface model's
+declaration (:attr:`vetica_cli.surfaces.SurfaceModel.acceptance`: the SLS's ``(tau_c, cd)``);
+a model that declares none has no regime.
 
 One definition for ``vetica sweep`` (printed, and stored in the table's metadata),
 ``vetica plot`` (shaded regions, interval bars, the 30 % contour) and the scripts.
@@ -14,10 +16,21 @@ from dataclasses import dataclass
 import numpy as np
 import pandas as pd
 
+from .. import surfaces
 from ..rows.schema import ACCEPT_ERR_PCT  # [%] tau_c error below which a point is accepted (thesis fig. 52)
 
-CD_KEY = "surface.cd"  # the swept key the regime is a range of
-ERR_COL = "tau_c_err_pct"  # the error that decides (any *_err_pct column may be asked for)
+
+def acceptance_keys(model=None) -> tuple[str, str, str] | None:
+    """``(swept key, error column, the key's unit)`` of the acceptance regime that ``model``
+    (default: the default model, the thesis's SLS) declares; None when it declares none."""
+    m = model if model is not None else surfaces.get(surfaces.DEFAULT_MODEL)
+    if m.acceptance is None:
+        return None
+    quantity, parameter = m.acceptance
+    return f"surface.{parameter}", f"{quantity}_err_pct", m.parameter_units.get(parameter, "")
+
+
+CD_KEY, ERR_COL, _ = acceptance_keys()  # the default model's: the swept key the regime is a range of, the error that decides
 
 
 def accepted(d: pd.DataFrame, err_col: str = ERR_COL) -> pd.Series:
@@ -55,9 +68,16 @@ def regime(d: pd.DataFrame, err_col: str = ERR_COL, cd_key: str = CD_KEY) -> Reg
 _FIELDS = ("n_points", "n_accepted", "n_no_estimate", "n_not_steady", "n_failed", "cd_min", "cd_max", "decades", "contiguous")
 
 
-def acceptance_regime(table: pd.DataFrame, keys, cd_key: str = CD_KEY, err_col: str = ERR_COL) -> list[dict]:
+def acceptance_regime(table: pd.DataFrame, keys, cd_key: str | None = None, err_col: str | None = None,
+                      model=None) -> list[dict]:  # fmt: skip
     """:func:`regime` for every combination of the other swept keys (the extraction method
-    is the 'method' column) and each force source, with point counts."""
+    is the 'method' column) and each force source, with point counts.  The swept key and the
+    error column default to ``model``'s declaration (:func:`acceptance_keys`)."""
+    declared = acceptance_keys(model)
+    if declared is None and (cd_key is None or err_col is None):
+        return []
+    cd_key = cd_key or declared[0]
+    err_col = err_col or declared[1]
     if cd_key not in keys:
         return []
     # extraction keys are columns of their own: extract.method -> 'method', extract.force -> 'force_source'
@@ -95,18 +115,23 @@ def _plain(v):
     return v
 
 
-def format_acceptance(acc: list[dict], keys) -> str:
+def format_acceptance(acc: list[dict], keys, model=None) -> str:
     """Human-readable acceptance regime, one line per combination and force source."""
-    if CD_KEY not in keys:
-        return "acceptance regime: surface.cd is not swept, so there is no cd range to report"
-    lines = [f"acceptance regime (status ok and tau_c error < {ACCEPT_ERR_PCT:g} %):"]
+    declared = acceptance_keys(model)
+    if declared is None:
+        return f"acceptance regime: the surface model {model.key} declares none"
+    key, err_col, unit = declared
+    name = key.split(".", 1)[1]
+    if key not in keys:
+        return f"acceptance regime: {key} is not swept, so there is no {name} range to report"
+    lines = [f"acceptance regime (status ok and {err_col.removesuffix('_err_pct')} error < {ACCEPT_ERR_PCT:g} %):"]
     for e in acc:
         where = ", ".join(f"{k}={_g(v)}" for k, v in e.items() if k not in _FIELDS and k != "force_source")
         head = f"  {where + ', ' if where else ''}{e['force_source']} force: "
         if e["n_accepted"] == 0:
             body = "none"
         else:
-            body = f"cd {e['cd_min']:.3g} .. {e['cd_max']:.3g} kg/s ({e['decades']:.2f} decades)"
+            body = f"{name} {e['cd_min']:.3g} .. {e['cd_max']:.3g} {unit} ({e['decades']:.2f} decades)"
             if not e["contiguous"]:
                 body += ", with gaps"
         extra = f"{e['n_accepted']}/{e['n_points']} points"

@@ -185,7 +185,7 @@ def check_point_part(df: pd.DataFrame, meta: dict, point) -> str:
 def _write_table(study, output, done) -> SweepResult:
     """Assemble the table, take its acceptance regime, write it and the resolved config."""
     table = assemble(study, done)
-    acceptance = acceptance_regime(table, study.keys)
+    acceptance = acceptance_regime(table, study.keys, model=study.points[0].config.surface.surface_model)
     config_path = config_copy_path(output)
     meta = {
         "study": study.name,
@@ -215,7 +215,7 @@ def summary(res: SweepResult, study: Study) -> str:
     lines = [
         f"{len(study.points)} points ({len(res.computed)} computed, {len(res.reused)} reused from {where}), "
         f"{len(t)} rows: " + ", ".join(f"{by_status.get(s, 0)} {s}" for s in STATUSES),
-        format_acceptance(res.acceptance, study.keys),
+        format_acceptance(res.acceptance, study.keys, study.points[0].config.surface.surface_model),
         f"wrote {res.output} and {res.config_path} in {res.wall_s:.1f} s"
         + (f"; kept {pdir}/" if res.parts_kept else ""),
     ]

@@ -79,4 +79,4 @@ def assemble(study: Study, done: dict) -> pd.DataFrame:
     table["method"] = table["method"].astype(str)
     table["stop_reason"] = table["stop_reason"].fillna("").astype(str)
     table["taps"] = table["taps"].astype("int64")
-    return material_columns(table, point_contact(study))
+    return material_columns(table, point_contact(study), models_of(p.config for p in study.points))

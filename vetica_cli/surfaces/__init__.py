@@ -10,6 +10,7 @@ from . import (
     wiechert,  # noqa: F401  (registers "wiechert")
 )
 from . import hertz  # noqa: F401, I001  (registers "hertz"; after the others: the registry keeps their order)
+from . import kelvin_voigt  # noqa: F401, I001  (registers "kelvin-voigt")
 from .base import COMMON_KEYS, DEFAULT_MODEL, MODELS, CommonKey, DerivedKey, Quantity, SurfaceModel, get, register
 
 __all__ = [

@@ -7,10 +7,13 @@ model modules: it declares its ``key``, ``parameter_keys`` and
 docstring, validates its keys of the config's ``surface:`` section, gives the
 theory values of the quantities an extraction reports, the fit bounds of its
 parameters, the derived sweep keys it offers, and the coefficient arrays the
-numba kernel needs (:meth:`SurfaceModel.kernel_arms`).  Adding a model is adding
-a module and one import line in :mod:`vetica_cli.surfaces`;
-``tests/test_registries.py`` checks every registered model against this
-convention.
+numba kernel needs (:meth:`SurfaceModel.kernel_arms`) or its own kernel
+(:meth:`SurfaceModel.run_kernel`), what its simulation supports (thermal noise, scans,
+fits), its ``references`` (where it comes from, as data) and, where it has them, its
+acceptance regime and material columns.  Adding a model is adding a module and one import
+line in :mod:`vetica_cli.surfaces`; :func:`register` checks its declarations
+(:func:`convention_errors`) and :func:`vetica_cli.testing.check_surface_model` runs the
+whole convention on it (``tests/test_registries.py`` runs it on every registered model).
 
 The van der Waals attraction is common to every model (thesis eq. 3):
 its keys (:data:`COMMON_KEYS`) live in the same ``surface:`` section.
@@ -127,6 +130,50 @@ class SurfaceModel(ABC):
     item_help: ClassVar[str] = ""  # the dotted item keys (item_key), for messages, e.g. "surface.arms.<i>.cd"
     common_defaults: ClassVar[dict[str, Any]] = {}  # COMMON_KEYS defaults the model changes (hertz: no pull on the surface)
     kernel_modules: ClassVar[tuple[str, ...]] = ("tapping", "expm")  # cached core modules its simulation compiles
+    supports: ClassVar[frozenset[str]] = frozenset({"thermal", "scan", "fit"})  # what its simulation offers
+    # (SUPPORTS: thermal noise in the recorded window, pixels of a raster scan, the whole-cycle fit of its records)
+    extra_columns: ClassVar[tuple[str, ...]] = ()  # recorded columns after the dashpots (hertz: contact_radius)
+    kernel_info_key: ClassVar[str] = "kernel_grid"  # the run's metadata key of its kernel's info (run_kernel)
+    references: ClassVar[tuple[str, ...]] = ()  # where the model and its equations come from (thesis section, paper)
+    acceptance: ClassVar[tuple[str, str] | None] = None  # (quantity, swept parameter) of the acceptance regime
+    # the thesis's material columns (4.6.2, from Kg, Kr, tau_r) a study table of this model carries
+    # besides E_dmt (none by default; the SLS family declares E_glassy, E_rubbery, viscosity)
+    material_columns: ClassVar[tuple[str, ...]] = ()
+
+    # ---- the model's own kernel (PyBaMM's BaseModel carries its default solver): the simulation,
+    # the scan and the bench ask the model, never which model it is
+
+    def run_kernel(self, cfg, st, spec):
+        """Run the kernel of a resolved config ``cfg`` to its steady state (``st``: the kernel
+        setup, ``spec``: the run's :class:`~vetica_cli.core.engine.RunSpec`): ``(RunResult, info
+        for the run's metadata or None, kernel or None)``; the kernel (for the thermal recording
+        of the window) is None when the model does not support ``thermal``.  Default: the
+        flat-punch kernel of :meth:`kernel_arms` (:mod:`vetica_cli.core.tapping`)."""
+        from ..core import engine
+
+        kern = engine.Kernel(st)
+        return engine.run(kern, spec), None, kern
+
+    def line_kernel(self, cfg, st, spec):
+        """The kernel of a scan's pixels of this model, ``(kernel, grid info or None)``."""
+        from ..core import engine
+
+        return engine.Kernel(st), None
+
+    def pixel_kernel_info(self, cfg, grid: dict, rr, kern) -> dict:
+        """A scan pixel's kernel info (its :meth:`line_kernel` grid info judged on the pixel's
+        run ``rr``); default: the grid info as it is."""
+        return dict(grid)
+
+    def kernel_of_run(self, cfg, st, run):
+        """The kernel a finished run used (``vetica bench`` times one period on it)."""
+        from ..core import engine
+
+        return engine.Kernel(st)
+
+    def supports_key(self, what: str) -> bool:
+        """Whether the model's simulation offers ``what`` (:attr:`supports`)."""
+        return what in self.supports
 
     @property
     def config_keys(self) -> tuple[str, ...]:
@@ -231,7 +278,7 @@ class SurfaceModel(ABC):
     def complex_stiffness(self, params: dict, omega: float) -> tuple[float, float] | None:
         """Storage and loss stiffness ``k'(omega), k''(omega)`` [N/m] at angular frequency
         ``omega`` [rad/s] of a surface that is a spring ``k_inf`` in parallel with Maxwell arms
-        ``(k_i, cd_i)`` (the AM-AFM energy balance; the Wiechert model)::
+        ``(k_i, cd_i)`` (the AM-AFM energy balance)::
 
             k*(omega) = k_inf + sum_i k_i (i x_i)/(1 + i x_i),   x_i = omega tau_i,  tau_i = cd_i/k_i
             k'  = k_inf + sum_i k_i x_i^2/(1 + x_i^2)            k'' = sum_i k_i x_i/(1 + x_i^2)
@@ -298,11 +345,54 @@ def parse_arm_field(i: int, field: str, value: Any, fields: dict[str, tuple[str,
     return check(key, value, coerce(key, value, "float"), fields[field][1])
 
 
+SUPPORTS = ("thermal", "scan", "fit")  # what a model's simulation may offer (SurfaceModel.supports)
+
+
+def convention_errors(model: SurfaceModel) -> list[str]:
+    """What ``model`` misses of the convention (module docstring), checked on its declarations
+    alone (no simulation: :func:`vetica_cli.testing.check_surface_model` runs the rest); empty
+    when it follows it.  :func:`register` refuses a model with any."""
+    out = []
+
+    def need(ok, text):
+        if not ok:
+            out.append(text)
+
+    need(isinstance(getattr(model, "key", None), str) and model.key, "a key (the surface.model value)")
+    need(isinstance(getattr(model, "name", None), str) and model.name, "a name")
+    keys = tuple(getattr(model, "parameter_keys", ()) or ())
+    need(keys and all(isinstance(k, str) for k in keys), "parameter_keys")
+    units = getattr(model, "parameter_units", {}) or {}
+    need(set(units) == set(keys) and all(units.values()), "a unit for every parameter (parameter_units)")
+    need(set(getattr(model, "parameter_labels", {}) or {}) >= set(keys), "a label for every parameter (parameter_labels)")
+    qs = getattr(model, "quantities", {}) or {}
+    need(qs and all(isinstance(q, Quantity) and q.unit is not None and q.label and q.tex for q in qs.values()),
+         "quantities, each a Quantity with unit, label and tex")  # fmt: skip
+    need(set(getattr(model, "fit_bounds", {}) or {}) == set(keys), "fit_bounds for every parameter")
+    need(bool(getattr(model, "theory_source", "")), "a theory_source")
+    refs = getattr(model, "references", ())
+    need(isinstance(refs, tuple) and refs and all(isinstance(r, str) and r for r in refs),
+         "references: a tuple of where the model comes from (e.g. 'thesis 3.2')")  # fmt: skip
+    need("=" in doc(model), "its equation in the class docstring")
+    need(set(getattr(model, "supports", ())) <= set(SUPPORTS), f"supports within {SUPPORTS}")
+    need(isinstance(getattr(model, "defaults", None), dict), "defaults of its config keys")
+    for name, dk in (getattr(model, "derived_keys", {}) or {}).items():
+        need(dk.target in model.defaults and dk.source in model.defaults, f"derived key {name}: target and source keys")
+    acc = getattr(model, "acceptance", None)
+    need(acc is None or (acc[0] in qs and acc[1] in keys), "acceptance: (one of its quantities, one of its parameters)")
+    return out
+
+
 def register(cls: type[SurfaceModel]) -> type[SurfaceModel]:
-    """Class decorator: add one instance of the model to :data:`MODELS` under its ``key``."""
+    """Class decorator: add one instance of the model to :data:`MODELS` under its ``key``,
+    after checking its declarations against the convention (:func:`convention_errors`)."""
     if cls.key in MODELS:
         raise ValueError(f"surface model {cls.key!r} is registered twice")
-    MODELS[cls.key] = cls()
+    model = cls()
+    errors = convention_errors(model)
+    if errors:
+        raise TypeError(f"surface model {cls.__name__} does not follow the convention: it needs " + "; ".join(errors))
+    MODELS[cls.key] = model
     return cls
 
 

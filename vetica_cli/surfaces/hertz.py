@@ -74,6 +74,11 @@ class Hertz(SurfaceModel):
     }
     common_defaults: ClassVar[dict[str, Any]] = {"vdw_on_surface": False}
     kernel_modules: ClassVar[tuple[str, ...]] = ("mdr", "tapping", "expm")
+    supports: ClassVar[frozenset[str]] = frozenset({"scan", "fit"})  # no thermal recording (the flat-punch kernel's)
+    extra_columns: ClassVar[tuple[str, ...]] = ("contact_radius",)
+    kernel_info_key = "mdr"  # the run's metadata: its element grid
+    material_columns = ("E_glassy", "E_rubbery", "viscosity")  # from Kg, Kr, tau_r (thesis 4.6.2)
+    references = ("Popov & Hess 2015 (MDR)", "thesis 5.3 (outlook: more complex linear viscoelastic materials)")
     theory_source = "Prony-series modulus of the hertz surface (MDR, Popov & Hess 2015)"
     item_help = "surface.arms.<i>.e, surface.arms.<i>.tau (hertz, i the list index from 0)"
 
@@ -96,6 +101,33 @@ class Hertz(SurfaceModel):
             q[f"tau_{i}"] = Quantity("s", f"tau_{i}", rf"$\tau_{i}$", "µs", 1e6, description=f"relaxation time of arm {i}")
         self.quantities = q
         self.fit_bounds = {p: ((1e-12, 1e3) if p.startswith("tau_") else (1e3, 1e13)) for p in self.parameter_keys}
+
+    # ---- its kernel: the MDR elements on a grid checked at the deepest tap (.hertz_run)
+
+    def run_kernel(self, cfg, st, spec):
+        from .hertz_run import run_hertz
+
+        rr, info = run_hertz(cfg, st, spec)
+        return rr, info, None
+
+    def line_kernel(self, cfg, st, spec):
+        from .hertz_run import line_kernel
+
+        return line_kernel(cfg, st, spec)
+
+    def pixel_kernel_info(self, cfg, grid: dict, rr, kern) -> dict:
+        """The line's grid with its elastic accuracy at the pixel's deepest tap."""
+        from .hertz_run import deepest, grid_accuracy
+
+        dmax = deepest(rr, kern.setup.a0)
+        return {**grid, "delta_max_m": dmax,
+                "elastic_force_error_at_delta_max": grid_accuracy(cfg.probe.tip_radius, kern.g, kern.w, dmax)
+                if dmax > 0 else None}  # fmt: skip
+
+    def kernel_of_run(self, cfg, st, run):
+        from .hertz_run import kernel_of_run
+
+        return kernel_of_run(cfg, st, run)
 
     # ---- config
 

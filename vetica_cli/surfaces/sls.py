@@ -42,6 +42,9 @@ class SLS(SurfaceModel):
 
     key = "sls"
     name = "SLS"
+    references = ("thesis 3.2, appendix C", "thesis eqs. 43-44, 68, 75-76", "thesis tables 2-4 (defaults)")
+    acceptance = ("tau_c", "cd")  # the acceptance regime: the cd range where tau_c is within 30 % (thesis fig. 52)
+    material_columns = ("E_glassy", "E_rubbery", "viscosity")  # from Kg, Kr, tau_r (thesis 4.6.2)
     parameter_keys = ("k_inf", "k0", "cd")
     parameter_units: ClassVar[dict[str, str]] = {"k_inf": "N/m", "k0": "N/m", "cd": "kg/s"}
     parameter_labels: ClassVar[dict[str, str]] = {"k_inf": r"$k_\infty$", "k0": "$k_0$", "cd": "$c_d$"}

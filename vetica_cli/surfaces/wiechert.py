@@ -57,6 +57,8 @@ class Wiechert(SurfaceModel):
     """
 
     key = "wiechert"
+    references = ("thesis 5.3.2 (generalized Maxwell surface)", "thesis eq. 43 (relaxation modulus, generalised)")
+    material_columns = ("E_glassy", "E_rubbery", "viscosity")  # from Kg, Kr, tau_r (thesis 4.6.2)
     name = "Wiechert"
     defaults: ClassVar[dict[str, Any]] = {"k_inf": 4.0, "arms": [{"k": 64.0, "cd": 3.0e-5}, {"k": 32.0, "cd": 1.0e-3}]}
     rules: ClassVar[dict[str, Rule]] = {"k_inf": limit("surface.k_inf")}

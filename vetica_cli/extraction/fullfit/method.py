@@ -6,7 +6,6 @@ from __future__ import annotations
 import math
 import time
 from dataclasses import replace
-from typing import Any, ClassVar
 
 import numpy as np
 
@@ -226,38 +225,46 @@ def order_arms(theta, n_arms: int, truth_taus: list | None):
 
 @register
 class FullFit(ExtractionMethod):
-    """Whole-cycle inversion: the SLS or Wiechert surface driven by the measured
+    """Whole-cycle inversion: the SLS, Wiechert or Hertzian surface driven by the measured
     tip trajectory, fitted to every sample of the record (:mod:`vetica_cli.extraction.fullfit`)."""
 
     key = "full"
     description = (
-        "whole-cycle model inversion (SLS or Wiechert surface): the surface driven by the measured tip, "
+        "whole-cycle model inversion (SLS, Wiechert or Hertzian surface): the surface driven by the measured tip, "
         "fitted to every sample"
     )
     title = "whole-cycle fit"
     surface_models = ("sls", "wiechert", "hertz")
-    options_default: ClassVar[dict[str, Any]] = {
-        "kg_points": 10, "start": None, "fit_hamaker": None, "near_stride": 4, "far_stride": 256, "scan": True,
-        "fit_offset": True, "state": "auto", "substeps": None, "arms": None, "hamaker": None, "tip_radius": None,
-        "a0": None, "vdw_on_surface": None, "fit_model": None, "nu": None,
-    }  # fmt: skip
     option_specs = (
         KG_POINTS,
-        Option("arms", "int", "", "Maxwell arms to fit (1 = SLS, 2+ = Wiechert); default: the record's surface",
-               (lambda v: 1 <= v <= MAX_ARMS, f"an integer in 1..{MAX_ARMS}")),
-        Option("hamaker", "float", "J", "Hamaker constant H (fixes H R; default: metadata, else H R fitted)",
-               limit("surface.hamaker", "a Hamaker constant")),
-        Option("tip_radius", "float", "m", "tip radius R (default: metadata, else 10 nm)",
-               limit("probe.tip_radius", "a radius")),
-        Option("state", "str", "", "dashpot state at the window start", one_of(*STATES)),
-        Option("fit_hamaker", "bool", "", "fit H R (default: when neither H nor R is known)"),
-        Option("near_stride", "int", "", "kernel steps per evaluation near the surface", (lambda v: 1 <= v <= 4096,
+        Option("start", "any", None, "", "starting values of the fit ({parameter: value}; default: VETICA's stages on "
+               "the record)", settable=False),
+        Option("fit_hamaker", "bool", None, "", "fit H R (default: when neither H nor R is known)"),
+        Option("near_stride", "int", 4, "", "kernel steps per evaluation near the surface", (lambda v: 1 <= v <= 4096,
                "an integer in 1..4096")),
-        Option("far_stride", "int", "", "kernel steps per evaluation far from the surface", (lambda v: 1 <= v <= 65536,
-               "an integer in 1..65536")),
-        Option("scan", "bool", "", "scan cd on a grid before the fit"),
-        Option("fit_offset", "bool", "", "fit the surface height offset"),
+        Option("far_stride", "int", 256, "", "kernel steps per evaluation far from the surface",
+               (lambda v: 1 <= v <= 65536, "an integer in 1..65536")),
+        Option("scan", "bool", True, "", "scan cd on a grid before the fit"),
+        Option("fit_offset", "bool", True, "", "fit the surface height offset"),
+        Option("state", "str", "auto", "", "dashpot state at the window start", one_of(*STATES)),
+        Option("substeps", "int", None, "", "kernel substeps per print step (default: from the record's sampling)",
+               (lambda v: v >= 1, "an integer >= 1"), settable=False),
+        Option("arms", "int", None, "", "Maxwell arms to fit (1 = SLS, 2+ = Wiechert); default: the record's surface, "
+               "else 1", (lambda v: 1 <= v <= MAX_ARMS, f"an integer in 1..{MAX_ARMS}"), flag="--arms"),
+        Option("hamaker", "float", None, "J", "Hamaker constant H (fixes H R; default: metadata, else H R fitted)",
+               limit("surface.hamaker", "a Hamaker constant"), flag="--hamaker"),
+        Option("tip_radius", "float", None, "m", "tip radius R (default: metadata, else 10 nm assumed)",
+               limit("probe.tip_radius", "a radius"), flag="--tip-radius"),
+        Option("a0", "float", None, "m", "intermolecular distance a0 (the record's --a0; default: metadata, else "
+               "0.2 nm assumed)", (lambda v: v > 0, "a number > 0 m"), settable=False),
+        Option("vdw_on_surface", "bool", None, "", "whether the surface feels the pull (the record's "
+               "--vdw-on-surface; unknown: both fitted, the better kept)", settable=False),
+        Option("fit_model", "str", None, "", "the surface model fitted (sls, wiechert, hertz); default: the record's "
+               "surface, else sls", one_of("sls", "wiechert", "hertz"), flag="--fit-model"),
+        Option("nu", "float", None, "", "with hertz: the sample's Poisson ratio (default: metadata, else 0.5 assumed)",
+               (lambda v: -1.0 < v <= 0.5, "a Poisson ratio > -1 and <= 0.5"), flag="--nu"),
     )  # fmt: skip
+    references = ("thesis 3.2 and appendix C (the surface driven by the tip)", "MDR, Popov & Hess 2015 (hertz)")
     needs_approach = True
     needs_z1 = False
     uniform_sampling = True
@@ -266,34 +273,16 @@ class FullFit(ExtractionMethod):
     # (reconstructed), measured while the other core was busy
     seconds_per_point = 1.8  # both forces, 10 periods at 0.125 ns: 1.76 CPU s measured
 
-    def options(self, given: dict) -> dict:
-        opts = super().options(given)
-        if opts["state"] not in STATES:
-            raise InputError(f"state {opts['state']!r} not allowed; choose one of: {', '.join(STATES)}")
-        arms = opts["arms"]
-        if arms is not None and (isinstance(arms, bool) or not isinstance(arms, (int, np.integer)) or arms < 1):
-            raise InputError(f"arms {arms!r} not allowed; expected an integer >= 1 (Maxwell arms to fit)")
-        for name, unit in (("hamaker", "J"), ("tip_radius", "m"), ("a0", "m")):
-            v = opts[name]
-            if v is not None and (isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v)
-                                  or not v > 0):  # fmt: skip
-                raise InputError(f"{name.replace('_', '-')} {v!r} not allowed; expected a number > 0 {unit}")
-        if opts["vdw_on_surface"] not in (None, True, False):
-            raise InputError(f"vdw_on_surface {opts['vdw_on_surface']!r} not allowed; expected true, false or auto")
-        if opts["fit_hamaker"] not in (None, True, False):
-            raise InputError(f"fit_hamaker {opts['fit_hamaker']!r} not allowed; expected true, false or auto")
-        if opts["fit_model"] is not None and opts["fit_model"] not in self.surface_models:
-            raise InputError(f"fit-model {opts['fit_model']!r} not allowed; expected one of: {', '.join(self.surface_models)}")
-        nu = opts["nu"]
-        if nu is not None and (isinstance(nu, bool) or not isinstance(nu, (int, float)) or not -1.0 < nu <= 0.5):
-            raise InputError(f"nu {nu!r} not allowed; expected a Poisson ratio > -1 and <= 0.5")
-        return opts
-
-    referee = True  # an independent formulation of the tap methods' quantities: their checks consult it (sanity)
-
     def sigmas(self, res: ExtractionResult, record: Record, options: dict) -> tuple[dict, dict]:
         """The fit's own sigma, computed in :meth:`run` (nothing to add)."""
         return {}, {"source": "the larger of the fit's Jacobian-and-residual error and the tap-robust sandwich"}
+
+    def checks(self, res: ExtractionResult, record: Record, options: dict, info: dict) -> None:
+        """The fit's residual, a fitted height against the creep, the pinned height and eq. 84's
+        bracket (:func:`.checks.fit_checks`)."""
+        from .checks import fit_checks
+
+        fit_checks(self, res, record, options, info)
 
     def run(self, record: Record, options: dict) -> ExtractionResult:
         """Fit the surface's parameters (and what the record does not say: the surface height,

@@ -9,7 +9,7 @@ import math
 import numpy as np
 
 from ...errors import InputError
-from ..vetica import vetica
+from ..methods.vetica import vetica
 
 START_TAPS = 3  # taps of the record VETICA sees for the starting point
 

@@ -1,4 +1,5 @@
-"""Runs of the ``hertz`` surface (:mod:`vetica_cli.core.mdr`): the element grid and its check.
+"""Runs of the ``hertz`` surface (:mod:`vetica_cli.core.mdr`), the kernel factory of
+:class:`vetica_cli.surfaces.hertz.Hertz`: the element grid and its check.
 
 The grid must reach beyond the deepest tap's contact radius and resolve it, but the
 deepest tap is an outcome of the run.  So the controlled approach is first run on a
@@ -18,7 +19,7 @@ import math
 
 import numpy as np
 
-from ..core import engine, mdr
+from ..core import engine, mdr, session
 from ..core import tapping as T
 
 PROVISIONAL = 24  # elements of the provisional grid over [0, R] (the depth estimate)
@@ -53,7 +54,7 @@ def estimate_depth(st: engine.KernelSetup, spec: engine.RunSpec, radius: float) 
                          no_contact_max=None if spec.controller_on else int(10 * q1))  # fmt: skip
     if ap.last is None:
         return 0.0
-    return float(max(-(ap.last[T.O_QMIN] + s[T.S_ZB] - st.a0), 0.0))
+    return float(max(-(ap.last[T.O_QMIN] + session.base(s) - st.a0), 0.0))
 
 
 def line_kernel(cfg, st: engine.KernelSetup, spec: engine.RunSpec):

@@ -56,16 +56,15 @@ from __future__ import annotations
 import math
 import time
 from dataclasses import dataclass, field
-from typing import Any, ClassVar
 
 import numpy as np
 
-from ..checks import one_of
-from ..errors import InputError
-from ..signals.taps import Taps, contact_slopes, find_taps
-from .base import KG_SCALE, KG_POINTS, KG_WINDOW, ExtractionMethod, Option, register
-from .record import Record
-from .result import ExtractionResult, Spread, estimates, sls_elements  # noqa: F401  (sls_elements re-exported)
+from ...checks import one_of
+from ...errors import InputError
+from ...signals.taps import Taps, contact_slopes, find_taps
+from ..base import KG_SCALE, KG_POINTS, KG_WINDOW, ExtractionMethod, Option, register
+from ..record import Record
+from ..result import ExtractionResult, Spread, estimates, sls_elements  # noqa: F401  (sls_elements re-exported)
 
 MIN_CONTACT_SAMPLES = 20  # stage 2 needs the contact resolved: 3 sines + constant = 10 parameters
 
@@ -453,7 +452,7 @@ def stage2_tap_closed(u, z, f, kg: float, tau_c: float, fc: float, kr_guess: flo
     parameter fitted with Kr.  ``warm``: ``kr_guess`` is the previous iteration's Kr (the
     root is bracketed near it instead of scanning the bounds; same root).
     """
-    from ..core.superposition import solve_kr  # lazy: numba only when a record is extracted
+    from ...core.superposition import solve_kr  # lazy: numba only when a record is extracted
 
     u = np.asarray(u, dtype=float)
     h = uniform_step(u)
@@ -575,19 +574,34 @@ class Vetica(ExtractionMethod):
     tap_windows = True  # the force is read only around the contacts (and the approach's first contact)
     kernel_modules = ("superposition",)  # stage 2, closed (measured: simulation.jit)
     surface_note = "VETICA assumes one relaxation time (thesis 3.3)"
-    options_default: ClassVar[dict[str, Any]] = {"kg_points": 10, "kr_guess": None, "stage2": "closed", "kg_window": "noise",
-                                                 "kg_scale": 1.0}  # fmt: skip
-    option_specs = (KG_POINTS, Option("kr_guess", "float", "N/m", "start of the rubbery stiffness Kr in the "
+    option_specs = (KG_POINTS, Option("kr_guess", "float", None, "N/m", "start of the rubbery stiffness Kr in the "
                                       "superposition fit (default: from the creep)", (lambda v: v > 0, "a stiffness > 0 N/m")),
-                    Option("stage2", "str", "", "closed (compiled superposition of the samples) or sines (the thesis's "
-                           "sum-of-sines fit)", one_of(*STAGE2)), KG_WINDOW, KG_SCALE)  # fmt: skip
+                    Option("stage2", "str", "closed", "", "closed (compiled superposition of the samples) or sines (the "
+                           "thesis's sum-of-sines fit)", one_of(*STAGE2), flag="--stage2"), KG_WINDOW, KG_SCALE)  # fmt: skip
+    references = ("thesis 3.3 (stages 1a, 1b, 2; eqs. 73-84)",)
+    scan_maps = ("tau_c",)  # drawn in a scan's instrument figure
     seconds_per_point = 0.45  # both forces, 10 periods at 0.125 ns: 0.44 CPU s measured with standard errors and checks
 
+    referee = "full"  # the whole-cycle fit on the same record judges the stages (tapchecks.referee)
+    compared_with = "vetica-prestress"  # the thesis's stages against the pre-stress at contact (tapchecks)
+
     def sigmas(self, res: ExtractionResult, record: Record, options: dict) -> tuple[dict, dict]:
-        """Spread over taps with the Z1 and Kg terms (:func:`vetica_cli.extraction.uncertainty.tap_method_sigmas`)."""
-        from .uncertainty import tap_method_sigmas
+        """Spread over taps with the Z1 and Kg terms (:func:`.tapsigmas.tap_method_sigmas`)."""
+        from .tapsigmas import tap_method_sigmas
 
         return tap_method_sigmas(res, record, self, options)
+
+    def checks(self, res: ExtractionResult, record: Record, options: dict, info: dict) -> None:
+        """The tap family's stage checks (:func:`.tapchecks.stage_checks`)."""
+        from .tapchecks import stage_checks
+
+        stage_checks(self, res, record, options, info)
+
+    def flag_dependents(self, res: ExtractionResult) -> None:
+        """Stage 2 and the elements follow a flagged tau_c or Kg (:func:`.tapchecks.stage_dependents`)."""
+        from .tapchecks import stage_dependents
+
+        stage_dependents(res)
 
     def run(self, record: Record, options: dict) -> ExtractionResult:
         ex = vetica(record.t, record.z, record.f, record.z1, kg_points=options["kg_points"],
@@ -607,12 +621,6 @@ class Vetica(ExtractionMethod):
             warnings=ex.warnings + record.meta_warnings,
             timing_s=timing,
         )
-
-    def options(self, given: dict) -> dict:
-        opts = super().options(given)
-        if opts["stage2"] not in STAGE2:
-            raise InputError(f"stage2 {opts['stage2']!r} not allowed; choose one of: {', '.join(STAGE2)}")
-        return opts
 
     def timing_line(self, timing_s: dict) -> str:
         tm = timing_s

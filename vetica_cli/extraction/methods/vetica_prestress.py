@@ -56,16 +56,15 @@ from __future__ import annotations
 import math
 import time
 from dataclasses import dataclass
-from typing import Any, ClassVar
 
 import numpy as np
 
-from ..checks import one_of
-from ..errors import InputError
-from ..signals.taps import Taps, find_taps
-from .base import KG_POINTS, ExtractionMethod, Option, get, register
-from .record import Record
-from .result import ExtractionResult, Spread, estimates
+from ...checks import one_of
+from ...errors import InputError
+from ...signals.taps import Taps, find_taps
+from ..base import ExtractionMethod, Option, get, register
+from ..record import Record
+from ..result import ExtractionResult, Spread, estimates
 from .vetica import (
     MIN_CONTACT_SAMPLES,
     SineFit,
@@ -150,7 +149,7 @@ class ClosedTap:
 
     def stage1b(self, kg: float, kr: float, tau_r: float, sigma0: float) -> float:
         """:func:`stage1b_tap` on the samples (the superposition by the same recursion)."""
-        from ..core.superposition import superpose
+        from ...core.superposition import superpose
 
         if self.window is not None:  # the noisy record's grown window: the model's correction read the same way
             start, n, at, measured = self.window
@@ -159,7 +158,7 @@ class ClosedTap:
             y, dy = np.empty(m), np.empty(m)
             superpose(delta, float(self.u[1] - self.u[0]), tau_r, y, dy)
             corr = relaxation(self.u[start:m], sigma0, tau_r) + (kg - kr) * (y[start:m] - delta[start:m])
-            from ..signals.slopes import quad_slope
+            from ...signals.slopes import quad_slope
 
             bc, _ = quad_slope(corr, at)
             bz, _ = quad_slope(self.z[start:m], at)
@@ -393,25 +392,32 @@ class VeticaPrestress(ExtractionMethod):
     surface_models = ("sls",)
     tap_windows = True  # the force is read only around the contacts (and the approach's first contact)
     kernel_modules = ("superposition",)  # stage 2, closed (measured: simulation.jit)
-    options_default: ClassVar[dict[str, Any]] = {"kg_points": 10, "kr_guess": None, "prestress": "auto",
-                                                 "stage2": "closed", "kg_window": "noise", "kg_scale": 1.0}  # fmt: skip
     option_specs = (*get("vetica").option_specs,
-                    Option("prestress", "str", "", "how the Maxwell arm's pre-stress at contact is found", one_of(*PRESTRESS)))  # fmt: skip
+                    Option("prestress", "str", "auto", "", "how the Maxwell arm's pre-stress at contact is found: auto "
+                           "(adhesion if the surface feels the pull, else creep), adhesion, creep or fit",
+                           one_of(*PRESTRESS), flag="--prestress"))  # fmt: skip
+    references = ("thesis 3.3 (VETICA's stages), with the Maxwell arm's pre-stress at contact",)
     seconds_per_point = 0.55  # both forces, 10 periods at 0.125 ns: 0.53 CPU s measured with standard errors and checks
 
-    def options(self, given: dict) -> dict:
-        opts = super().options(given)
-        if opts["prestress"] not in PRESTRESS:
-            raise InputError(f"prestress {opts['prestress']!r} not allowed; choose one of: {', '.join(PRESTRESS)}")
-        if opts["stage2"] not in STAGE2:
-            raise InputError(f"stage2 {opts['stage2']!r} not allowed; choose one of: {', '.join(STAGE2)}")
-        return opts
+    referee = "full"  # the whole-cycle fit on the same record judges the stages (tapchecks.referee)
 
     def sigmas(self, res: ExtractionResult, record: Record, options: dict) -> tuple[dict, dict]:
-        """Spread over taps with the Z1 and Kg terms (:func:`vetica_cli.extraction.uncertainty.tap_method_sigmas`)."""
-        from .uncertainty import tap_method_sigmas
+        """Spread over taps with the Z1 and Kg terms (:func:`.tapsigmas.tap_method_sigmas`)."""
+        from .tapsigmas import tap_method_sigmas
 
         return tap_method_sigmas(res, record, self, options)
+
+    def checks(self, res: ExtractionResult, record: Record, options: dict, info: dict) -> None:
+        """The tap family's stage checks (:func:`.tapchecks.stage_checks`)."""
+        from .tapchecks import stage_checks
+
+        stage_checks(self, res, record, options, info)
+
+    def flag_dependents(self, res: ExtractionResult) -> None:
+        """Stage 2 and the elements follow a flagged tau_c or Kg (:func:`.tapchecks.stage_dependents`)."""
+        from .tapchecks import stage_dependents
+
+        stage_dependents(res)
 
     def run(self, record: Record, options: dict) -> ExtractionResult:
         mode = options["prestress"]

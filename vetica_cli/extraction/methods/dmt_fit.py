@@ -37,18 +37,17 @@ from __future__ import annotations
 
 import math
 import time
-from typing import Any, ClassVar
 
 import numpy as np
 
-from ..constants import EV
-from ..errors import InputError
-from ..signals.taps import find_taps
-from ..surfaces import Quantity
-from .base import ModelFreeMethod, register
-from .observables import check_positive, dynamic_references
-from .record import Record
-from .result import ExtractionResult, Spread, estimates
+from ...constants import EV
+from ...errors import InputError
+from ...signals.taps import find_taps
+from ...surfaces import Quantity
+from ..base import ModelFreeMethod, Option, register
+from .observables import dynamic_references
+from ..record import Record
+from ..result import ExtractionResult, Spread, estimates
 
 FIT_LOW, FIT_HIGH = 0.3, 0.9  # default fit range: fractions of the peak-to-adhesion force on the unloading branch
 MIN_FIT_POINTS = 3
@@ -155,8 +154,16 @@ class DmtFit(ModelFreeMethod):
     description = ("per-tap force-curve analysis (PeakForce/HarmoniX style): adhesion, DMT modulus on the unloading "
                    "branch, loop dissipation, deformation")  # fmt: skip
     title = "per-tap DMT analysis"
-    options_default: ClassVar[dict[str, Any]] = {"kg_points": 10, "fit_low": FIT_LOW, "fit_high": FIT_HIGH,
-                                                 "tip_radius": None}  # fmt: skip  (kg_points: not used)
+    option_specs = (
+        Option("fit_low", "float", FIT_LOW, "", "lower end of the unloading branch fitted, a fraction of the "
+               "peak-to-adhesion force", (lambda v: 0.0 <= v <= 1.0, "a fraction in [0, 1]")),
+        Option("fit_high", "float", FIT_HIGH, "", "upper end of the unloading branch fitted, a fraction of the "
+               "peak-to-adhesion force (above fit_low)", (lambda v: 0.0 <= v <= 1.0, "a fraction in [0, 1]")),
+        Option("tip_radius", "float", None, "m", "tip radius R of the DMT contact (default: the metadata's)",
+               (lambda v: v > 0, "a number > 0 m"), flag="--tip-radius"),
+    )  # fmt: skip
+    references = ("Derjaguin, Muller & Toporov 1975", "PeakForce QNM / HarmoniX per-tap analysis")
+    scan_maps = ("e_dmt", "k_dmt")  # drawn in a scan's instrument figure
     needs_z1 = False
     seconds_per_point = 0.4  # both forces, 10 periods at 0.125 ns: 0.41 CPU s measured
     theory_sources = THEORY_SOURCES
@@ -169,7 +176,6 @@ class DmtFit(ModelFreeMethod):
         if not (ok and 0.0 <= lo < hi <= 1.0):
             raise InputError(f"fit_low {lo!r}, fit_high {hi!r} not allowed; expected 0 <= fit_low < fit_high <= 1 "
                              "(fractions of the peak-to-adhesion force)")  # fmt: skip
-        check_positive(opts, {"tip_radius": "m"})
         return opts
 
     def run(self, record: Record, options: dict) -> ExtractionResult:
@@ -202,6 +208,14 @@ class DmtFit(ModelFreeMethod):
         return ExtractionResult(method=self.key, force=record.force, taps=len(per["adhesion"]), model=record.model.key,
                                 estimates=estimates(values, units, truth, spreads=spread), info=dict(record.info),
                                 diagnostics=diag, warnings=warnings, timing_s=timing, references=refs)  # fmt: skip
+
+    def checks(self, res: ExtractionResult, record: Record, options: dict, info: dict) -> None:
+        """Every quantity is read from the taps: flagged when the force shows more taps than the
+        tip shows cycles (:func:`.tapchecks.taps_against_cycles`)."""
+        from .tapchecks import taps_against_cycles
+
+        f = np.asarray(record.f, float)
+        taps_against_cycles(res, record, info, info["force_noise_floor_n"], float(np.max(np.abs(f))) or 1.0)
 
     def detail_lines(self, res: ExtractionResult) -> list[str]:
         d = res.diagnostics or {}

@@ -38,18 +38,17 @@ from __future__ import annotations
 
 import math
 import time
-from typing import Any, ClassVar
 
 import numpy as np
 
-from ..constants import EV
-from ..ranges import check_range
-from ..errors import InputError
-from ..surfaces import Quantity
-from ..surfaces.base import DYNAMIC_QUANTITIES
-from .base import ModelFreeMethod, register
-from .record import Record
-from .result import ExtractionResult, estimates, t_factor
+from ...constants import EV
+from ...ranges import range_rule
+from ...errors import InputError
+from ...surfaces import Quantity
+from ...surfaces.base import DYNAMIC_QUANTITIES
+from ..base import ModelFreeMethod, Option, register
+from ..record import Record
+from ..result import ExtractionResult, estimates, t_factor
 
 QUANTITIES: dict[str, Quantity] = {
     "amplitude_obs": Quantity("m", "A", "$A$", "nm", 1e9, True, "first-harmonic amplitude of z_tip at the drive frequency"),
@@ -103,7 +102,7 @@ def per_period(t: np.ndarray, z: np.ndarray, inp: dict, omega: float) -> dict:
     """``{quantity: Spread}`` of the lock-in and the energy balance over each whole drive period
     of the record on its own (their scatter: what the error bar of the record's values is
     computed from); {} for fewer than two periods."""
-    from .result import Spread
+    from ..result import Spread
 
     f_d, t0 = inp["drive_frequency"], inp["drive_t0"]
     h = (t[-1] - t[0]) / (len(t) - 1)
@@ -181,26 +180,22 @@ class Observables(ModelFreeMethod):
     """Amplitude and phase at the drive frequency, and E_diss, V_ts and tan d_AM from them (the AM-AFM energy balance)."""
 
     key = "observables"
+    reads_force = False  # the lock-in reads z_tip only
     description = ("the instrument's amplitude and phase, and E_diss, virial and loss tangent tan d_AM from them "
                    "(the AM-AFM energy balance)")  # fmt: skip
     title = "AM-AFM observables (amplitude and phase)"
-    options_default: ClassVar[dict[str, Any]] = {"kg_points": 10, **dict.fromkeys(INPUTS)}  # kg_points: not used
+    option_specs = tuple(
+        Option(k, "float", None, unit, what if "default" in what else f"{what} (default: the metadata's)",
+               range_rule(flag) if k != "drive_t0" else None, flag=flag if k != "f1" else None)  # --f1: the record's
+        for k, (flag, unit, what) in INPUTS.items()
+    )  # fmt: skip
+    references = ("Cleveland et al. 1998", "San Paulo & Garcia 2001", "Proksch et al. 2016")
+    scan_maps = ("tan_delta_am",)  # drawn in a scan's instrument figure
     needs_z1 = False
     uniform_sampling = True
     seconds_per_point = 0.5  # both forces, 10 periods at 0.125 ns: 0.49 CPU s measured
     theory_sources = THEORY_SOURCES
     fixed_quantities = QUANTITIES
-
-    def options(self, given: dict) -> dict:
-        opts = super().options(given)
-        check_positive(opts, {k: v[1] for k, v in INPUTS.items() if k != "drive_t0"})
-        for k, (flag, _, _) in INPUTS.items():  # the one range of each quantity (vetica_cli.ranges)
-            if k != "drive_t0" and opts.get(k) is not None:
-                check_range(flag, opts[k], flag)
-        t0 = opts["drive_t0"]
-        if t0 is not None and (isinstance(t0, bool) or not isinstance(t0, (int, float)) or not math.isfinite(t0)):
-            raise InputError(f"drive-t0 {t0!r} not allowed; expected a time in s")
-        return opts
 
     def run(self, record: Record, options: dict) -> ExtractionResult:
         inp, src = instrument_inputs(record, options)
@@ -289,7 +284,7 @@ def _v(inp: dict, k: str, fmt: str) -> str:
 
 def _taps(record: Record) -> int:
     """Complete taps in the record (0 for a record without contact, e.g. a free cantilever)."""
-    from ..signals.taps import find_taps
+    from ...signals.taps import find_taps
 
     try:
         return len(find_taps(record.f).contact)
