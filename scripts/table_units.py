@@ -20,7 +20,10 @@ sys.path.insert(0, str(ROOT))
 from vetica_cli.io import read_table, write_table  # noqa: E402
 
 QUANTITY_UNITS = {"tau_c": "s", "tau_r": "s", "k_g": "N/m", "k_r": "N/m", "k0": "N/m", "k_inf": "N/m",
-                  "cd": "kg/s", "k_1": "N/m", "cd_1": "kg/s", "k_2": "N/m", "cd_2": "kg/s"}  # fmt: skip
+                  "cd": "kg/s", "k_1": "N/m", "cd_1": "kg/s", "k_2": "N/m", "cd_2": "kg/s",
+                  "adhesion": "N", "e_dmt": "Pa", "k_dmt": "N/m", "e_diss_tap": "eV", "deformation": "m",
+                  "amplitude_obs": "m", "phase_obs": "deg", "e_diss_obs": "eV", "virial_obs": "eV",
+                  "tan_delta_am": "", "hamaker_radius": "J m"}  # fmt: skip
 COMMON = {
     "surface.cd": ("kg/s", "the point's dashpot cd"),
     "cd": ("kg/s", "the point's dashpot cd"),
@@ -58,6 +61,18 @@ COMMON = {
     "cd_hi": ("kg/s", "the acceptance regime's upper cd"),
     "flagged": ("", "points with a flagged estimate"),
     "extract_s_median": ("s", "median wall time of one extraction"),
+    # scripts/trust.py
+    "condition": ("", "the record condition: thermal (300 K, reconstructed force), lab (the lab preset), stripped"),
+    "material": ("", "index of the drawn material"),
+    "k_inf": ("N/m", "the drawn material's relaxed stiffness k_inf"),
+    "k0": ("N/m", "the drawn material's instantaneous stiffness k0"),
+    "replica": ("", "index of the noisy replica"),
+    "seed": ("", "the replica's noise seed"),
+    "reference": ("", "the method's answer on the noise-free record of the same path (unit: quantity_units)"),
+    "reference_full_band": ("", "the same at the whole band (unit: quantity_units)"),
+    "band_bias": ("", "the band term the method estimated on the record (relative)"),
+    "sigma_rel": ("", "the reported relative 1-sigma"),
+    "cutoff_hz": ("Hz", "the reconstruction's low-pass chosen from the record's noise"),
 }
 for _q in ("tau_c", "k0", "k_inf", "cd"):
     COMMON[f"{_q}_err_pct"] = ("percent", f"signed error of {_q} against the theory value")
@@ -66,7 +81,8 @@ for _q in ("k0", "k_inf", "cd"):
     COMMON[f"med_{_q}_tau"] = ("percent", f"median |error| of {_q} within the acceptance regime")
 TABLES = ["results/methods/method_comparison_noisy_reconstructed.parquet",
           "results/methods/method_comparison_summary.parquet",
-          "results/noise/stripped_records.parquet", "results/noise/thermal_methods.parquet"]  # fmt: skip
+          "results/noise/stripped_records.parquet", "results/noise/thermal_methods.parquet",
+          "results/noise/trust.parquet"]  # fmt: skip
 
 
 def units_of(columns) -> dict:

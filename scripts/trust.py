@@ -44,6 +44,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
+from table_units import stamp  # scripts/table_units.py
 from vetica_cli.extraction import extract_many
 from vetica_cli.simulation.config import load
 from vetica_cli.simulation.simulate import replicas
@@ -209,6 +210,7 @@ def main(argv=None):
                                                               args.print_step, args.cycles) for mat, i, c in tasks)  # fmt: skip
     table = pd.DataFrame([r for p in parts for r in p])
     table.to_parquet(args.out)
+    stamp(args.out)  # units and descriptions in the metadata
     s = summary(table)
     with pd.option_context("display.width", 220, "display.max_columns", 20, "display.max_rows", 500):
         print(s.to_string(index=False, float_format=lambda v: f"{v:.3g}"))

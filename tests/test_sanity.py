@@ -56,7 +56,9 @@ def _taps_record(n_taps=5, spacing=400):
 
     f = _force(n_taps, spacing) * 1e-8
     z = 1e-9 * np.cos(2 * np.pi * np.arange(len(f)) / spacing)
-    return SimpleNamespace(t=np.arange(len(f)) * 1e-9, z=z, f=f, z1=None, a0=2e-10, taps=None, info={})
+    # the surface pull off (the thesis's assumption): no pull-biased flag, only the dependency checks
+    return SimpleNamespace(t=np.arange(len(f)) * 1e-9, z=z, f=f, z1=None, a0=2e-10, taps=None, info={},
+                           vdw_on_surface=False)
 
 
 @pytest.mark.parametrize("stage", ["tau_c", "k_g"])
@@ -98,7 +100,9 @@ def test_eq84_lift_bracket_is_a_check_not_a_standard_error():
     df = df[df["segment"] == "steady"][["t", "z_tip", "f_ts"]].reset_index(drop=True)
     res = extract(df, None, force="true", method="vetica", a0=0.2e-9, vdw_on_surface=True)
     assert str(res.info["z1_source"]).startswith("thesis eq. 84")
-    assert res.estimates["k0"].sigma < 1e-3  # noise-free: no bracket in the standard error
+    # noise-free: no bracket (>= 10 %, below) in the standard error; what is left is the sampling
+    # term of stage 1a (minima located on the 1 ns grid, measured 0.2 % on k0)
+    assert res.estimates["k0"].sigma < 1e-2
     bracket = res.info["sanity"]["z1_lift_bracket"]
     assert all(abs(v) > 0.1 for v in bracket.values())
     for q in bracket:

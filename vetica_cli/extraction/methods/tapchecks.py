@@ -242,7 +242,7 @@ def stage_checks(method, res: ExtractionResult, record, options: dict, info: dic
     for q, (rel, value) in ref.items():
         flag(res, [q], f"the whole-cycle fit gives {value:.4g} ({100 * rel:+.3g} %): the thesis's stages "
                         "misread this record")  # fmt: skip
-    if record.vdw_on_surface is not False:  # the thesis's assumption broken, and nothing to confirm the result
+    if getattr(record, "vdw_on_surface", None) is not False:  # the thesis's assumption broken, and nothing to confirm the result
         unconfirmed = [q for q in PULL_BIASED if q in est and q not in judged and q not in ref]
         flag(res, unconfirmed, "the surface feels the tip's pull, which the thesis's stages ignore (tau_c +30 .. "
                                "+100 % seen), and the whole-cycle fit cannot confirm this value")  # fmt: skip
