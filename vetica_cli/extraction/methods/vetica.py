@@ -563,27 +563,11 @@ def vetica(
     )
 
 
-@register
-class Vetica(ExtractionMethod):
-    """VETICA (thesis 3.3): Z1 from the approach, then stages 1a, 1b and 2 on the steady taps."""
-
-    key = "vetica"
-    description = "VETICA (thesis 3.3): creep between taps, initial contact slope, superposition fit"
-    title = "VETICA"
-    surface_models = ("sls",)
-    tap_windows = True  # the force is read only around the contacts (and the approach's first contact)
-    kernel_modules = ("superposition",)  # stage 2, closed (measured: simulation.jit)
-    surface_note = "VETICA assumes one relaxation time (thesis 3.3)"
-    option_specs = (KG_POINTS, Option("kr_guess", "float", None, "N/m", "start of the rubbery stiffness Kr in the "
-                                      "superposition fit (default: from the creep)", (lambda v: v > 0, "a stiffness > 0 N/m")),
-                    Option("stage2", "str", "closed", "", "closed (compiled superposition of the samples) or sines (the "
-                           "thesis's sum-of-sines fit)", one_of(*STAGE2), flag="--stage2"), KG_WINDOW, KG_SCALE)  # fmt: skip
-    references = ("thesis 3.3 (stages 1a, 1b, 2; eqs. 73-84)",)
-    scan_maps = ("tau_c",)  # drawn in a scan's instrument figure
-    seconds_per_point = 0.45  # both forces, 10 periods at 0.125 ns: 0.44 CPU s measured with standard errors and checks
+class TapMethod(ExtractionMethod):
+    """The tap family (VETICA and its pre-stress variant): the stages read tap by tap, their
+    error bars (:mod:`.tapsigmas`) and checks (:mod:`.tapchecks`), refereed by the whole-cycle fit."""
 
     referee = "full"  # the whole-cycle fit on the same record judges the stages (tapchecks.referee)
-    compared_with = "vetica-prestress"  # the thesis's stages against the pre-stress at contact (tapchecks)
 
     def sigmas(self, res: ExtractionResult, record: Record, options: dict) -> tuple[dict, dict]:
         """Spread over taps with the Z1 and Kg terms (:func:`.tapsigmas.tap_method_sigmas`)."""
@@ -602,6 +586,28 @@ class Vetica(ExtractionMethod):
         from .tapchecks import stage_dependents
 
         stage_dependents(res)
+
+
+@register
+class Vetica(TapMethod):
+    """VETICA (thesis 3.3): Z1 from the approach, then stages 1a, 1b and 2 on the steady taps."""
+
+    key = "vetica"
+    description = "VETICA (thesis 3.3): creep between taps, initial contact slope, superposition fit"
+    title = "VETICA"
+    surface_models = ("sls",)
+    tap_windows = True  # the force is read only around the contacts (and the approach's first contact)
+    kernel_modules = ("superposition",)  # stage 2, closed (measured: simulation.jit)
+    surface_note = "VETICA assumes one relaxation time (thesis 3.3)"
+    option_specs = (KG_POINTS, Option("kr_guess", "float", None, "N/m", "start of the rubbery stiffness Kr in the "
+                                      "superposition fit (default: from the creep)", (lambda v: v > 0, "a stiffness > 0 N/m")),
+                    Option("stage2", "str", "closed", "", "closed (compiled superposition of the samples) or sines (the "
+                           "thesis's sum-of-sines fit)", one_of(*STAGE2), flag="--stage2"), KG_WINDOW, KG_SCALE)  # fmt: skip
+    references = ("thesis 3.3 (stages 1a, 1b, 2; eqs. 73-84)",)
+    scan_maps = ("tau_c",)  # drawn in a scan's instrument figure
+    seconds_per_point = 0.45  # both forces, 10 periods at 0.125 ns: 0.44 CPU s measured with standard errors and checks
+
+    compared_with = "vetica-prestress"  # the thesis's stages against the pre-stress at contact (tapchecks)
 
     def run(self, record: Record, options: dict) -> ExtractionResult:
         ex = vetica(record.t, record.z, record.f, record.z1, kg_points=options["kg_points"],

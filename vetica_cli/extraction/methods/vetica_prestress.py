@@ -62,10 +62,11 @@ import numpy as np
 from ...checks import one_of
 from ...errors import InputError
 from ...signals.taps import Taps, find_taps
-from ..base import ExtractionMethod, Option, get, register
+from ..base import Option, get, register
 from ..record import Record
 from ..result import ExtractionResult, Spread, estimates
 from .vetica import (
+    TapMethod,
     MIN_CONTACT_SAMPLES,
     SineFit,
     Superposition,
@@ -382,7 +383,7 @@ def vetica_prestress(t, z, f, z1: float, kg_points: int = 10, kr_guess: float | 
 
 
 @register
-class VeticaPrestress(ExtractionMethod):
+class VeticaPrestress(TapMethod):
     """VETICA whose stages 1b and 2 account for the Maxwell arm's pre-stress at contact."""
 
     key = "vetica-prestress"
@@ -398,26 +399,6 @@ class VeticaPrestress(ExtractionMethod):
                            one_of(*PRESTRESS), flag="--prestress"))  # fmt: skip
     references = ("thesis 3.3 (VETICA's stages), with the Maxwell arm's pre-stress at contact",)
     seconds_per_point = 0.55  # both forces, 10 periods at 0.125 ns: 0.53 CPU s measured with standard errors and checks
-
-    referee = "full"  # the whole-cycle fit on the same record judges the stages (tapchecks.referee)
-
-    def sigmas(self, res: ExtractionResult, record: Record, options: dict) -> tuple[dict, dict]:
-        """Spread over taps with the Z1 and Kg terms (:func:`.tapsigmas.tap_method_sigmas`)."""
-        from .tapsigmas import tap_method_sigmas
-
-        return tap_method_sigmas(res, record, self, options)
-
-    def checks(self, res: ExtractionResult, record: Record, options: dict, info: dict) -> None:
-        """The tap family's stage checks (:func:`.tapchecks.stage_checks`)."""
-        from .tapchecks import stage_checks
-
-        stage_checks(self, res, record, options, info)
-
-    def flag_dependents(self, res: ExtractionResult) -> None:
-        """Stage 2 and the elements follow a flagged tau_c or Kg (:func:`.tapchecks.stage_dependents`)."""
-        from .tapchecks import stage_dependents
-
-        stage_dependents(res)
 
     def run(self, record: Record, options: dict) -> ExtractionResult:
         mode = options["prestress"]
