@@ -204,15 +204,7 @@ def advise_task(item: dict) -> list[dict]:
     sim_wall = time.perf_counter() - t0
     rows = []
     for cfg_d in cfgs:
-        row = {**{k: cfg_d[k.split(".")[0]][k.split(".")[1]] for k in SETTING_KEYS}, "status": "failed",
-               "stop_reason": "", "error": err, "sim_wall_s": sim_wall / len(cfgs), "extract_wall_s": 0.0}  # fmt: skip
-        for m in methods:
-            for q in LIMITS:
-                row[f"{m}.{q}_err_pct"] = math.nan
-                row[f"{m}.{q}_sigma_pct"] = math.nan
-            row[f"{m}.margin"] = math.nan
-            row[f"{m}.flagged"] = ""
-            row[f"{m}.why"] = ""
+        row = _empty_row(cfg_d, methods, err, sim_wall / len(cfgs))
         if run is not None:
             _extract_row(row, run, methods, force)
         margins = [row[f"{m}.margin"] for m in methods]
