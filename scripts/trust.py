@@ -44,6 +44,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
+from stripped_records import stripped  # scripts/stripped_records.py: nine periods as t, z_tip, f_ts
 from table_units import stamp  # scripts/table_units.py
 from vetica_cli.extraction import extract_many
 from vetica_cli.simulation.config import load
@@ -73,17 +74,6 @@ def condition_overrides(condition: str, print_step: float, cycles: int) -> dict:
     if condition == "lab":
         return {**base, "numerics.instrument": "lab"}
     return {**base, "numerics.temperature": 300.0, "numerics.print_step": print_step}
-
-
-def stripped(run, periods: int = 9, start_fraction: float = 1 / 3) -> pd.DataFrame:
-    """``periods`` periods of the steady record from ``start_fraction`` of a period in, as ``t, z_tip, f_ts``."""
-    f1 = run.params["probe"]["f1"]
-    df = run.frame()
-    df = df[df["segment"] == "steady"]
-    t = df["t"].to_numpy()
-    t0 = t[0] + start_fraction / f1
-    keep = (t >= t0) & (t < t0 + periods / f1)
-    return df.loc[keep, ["t", "z_tip", "f_ts"]].reset_index(drop=True)
 
 
 def answers(run, condition: str, rng=None, cutoff_hz=None) -> dict:
