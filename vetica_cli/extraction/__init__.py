@@ -126,7 +126,7 @@ def extract_many(df, meta: dict | None, force: str, methods: dict, *, contact=No
     out = {}
     # a method other methods' checks consult (the whole-cycle fit referees the tap methods) runs first, and its
     # result on its default options is kept on the record for them (.sanity), so it is computed once
-    referees = {m.referee for m in ms.values() if m.referee}
+    referees = {k for m in ms.values() for k in (m.referee, m.band_model) if k}
     order = sorted(ms, key=lambda k: k not in referees)
     for key in order:
         m = ms[key]

@@ -209,6 +209,7 @@ class ExtractionMethod(ABC):
     scan_maps: ClassVar[tuple[str, ...]] = ()  # its quantities drawn in a scan's instrument figure (plots.scanmaps)
     reads_force: ClassVar[bool] = True  # reads the force: judged by whether the force's band resolves the contact
     referee: ClassVar[str | None] = None  # a method whose fit on the same record judges this one's (tap family: 'full')
+    band_model: ClassVar[str | None] = None  # a method whose fitted surface measures the band's bias (default: referee)
     compared_with: ClassVar[str | None] = None  # a variant whose difference flags this one's quantities
 
     def checks(self, res: ExtractionResult, record: Record, options: dict, info: dict) -> None:

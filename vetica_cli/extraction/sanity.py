@@ -156,10 +156,13 @@ def check(res: ExtractionResult, record, options: dict | None = None, method=Non
     band = ((res.info.get("uncertainty") or {}).get("band") or {})
     info["band_bias"] = band.get("bias")
     judged = set(info.get("refereed") or ())  # confirmed by an independent method (its verdict holds the band's bias)
-    for q, b in ((q, b) for q, b in (band.get("bias") or {}).items() if q not in judged):
-        if b > TOLERANCE:
-            flag(res, [q], f"the force's band ({band['cutoff_hz'] / 1e6:.3g} MHz, set by its noise) biases it by "
-                           f"~{100 * b:.2g} %: the contact is not resolved")  # fmt: skip
+    corrected = band.get("source") == "model"
+    for q, b in ((q, b) for q, b in (band.get("sigma") or {}).items() if q not in judged):
+        if not b <= TOLERANCE:  # the band's bias (or, corrected, the correction's error) beyond the tolerance
+            fc = band["cutoff_hz"] / 1e6
+            what = (f"biases it by {100 * band['bias'][q]:+.2g} %, corrected to within ~{100 * b:.2g} %" if corrected
+                    else f"biases it by ~{100 * b:.2g} %")  # fmt: skip
+            flag(res, [q], f"the force's band ({fc:.3g} MHz, set by its noise) {what}: the contact is not resolved")
     for q, e in res.estimates.items():
         if e.value is not None and e.sigma is not None and not (e.sigma <= REL_LIMIT):
             if e.identifiable is not False:

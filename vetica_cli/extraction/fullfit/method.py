@@ -300,6 +300,11 @@ class FullFit(ExtractionMethod):
         choices = [bool(vdw_known)] if vdw_known is not None else [True, False]
         results = [self._run_one(record, opts, consts, vdw) for vdw in choices]
         best = min(results, key=lambda r: r.info["fit"]["residual_rms_pct"])
+        forward = best.__dict__.pop("forward", None)
+        for r in results:
+            r.__dict__.pop("forward", None)
+        if forward is not None and hasattr(record, "memo") and dict(options) == self.options({}):
+            record.memo[("forward", self.key, id(record.f), record.z1)] = forward  # (uncertainty.band_term)
         if len(results) > 1:  # the surface pull was unknown: both fitted, the better one kept
             rms = {("on" if r.info["fit"]["vdw_on_surface"] else "off"): r.info["fit"]["residual_rms_pct"]
                    for r in results}  # fmt: skip
@@ -362,8 +367,11 @@ class FullFit(ExtractionMethod):
         pin = z1 is not None and record.approach is None and opts["fit_offset"]
         model, stages, info["free_state_gain"] = _stages(make, len(z), taps, theta0, opts_run, bounds, n_arms, pin)
         t_fit = time.perf_counter()
+        last = stages[-1]
+        forward = ForwardForce(model, last["theta"], last["s0"], last["xd0"], model._state[1])
         info["start"] = {"source": source, **start_sls}
         result = self._result(record, surface, model, stages, taps, h, radius, opts_run, info, warnings, consts, vdw)
+        result.forward = forward  # taken off the result by run() and kept on the record
         result.info["fit"]["substeps_source"] = substeps_source
         result.timing_s = {"reconstruction": record.reconstruction_s, "start": t_start_done - record.t_force,
                            "fit": t_fit - t_start_done, "total": time.perf_counter() - record.t_start}  # fmt: skip
@@ -528,6 +536,24 @@ class FullFit(ExtractionMethod):
         if height:
             lines.append(f"surface height: {height['value'] * 1e9:.4f} nm in the record's z_tip ({height['source']})")
         return lines
+
+
+class ForwardForce:
+    """The fitted surface's force through the whole band at every sample of the record it was
+    fitted to (:meth:`.model.SurfaceFit.force_everywhere`): what a record's low-pass does to
+    another method's answer is read on it (:func:`vetica_cli.extraction.uncertainty.band_term`)."""
+
+    def __init__(self, model, theta, s0, xd0, contact0):
+        self.model, self.theta, self.s0 = model, np.asarray(theta, float), float(s0)
+        self.xd0, self.contact0 = np.atleast_1d(np.asarray(xd0, float)), bool(contact0)
+
+    def steady(self, z) -> np.ndarray:
+        """Force [N] at the tip positions ``z`` of the steady window (in its fitted start state)."""
+        return self.model.force_everywhere(self.theta, self.s0, self.xd0, self.contact0, z)
+
+    def approach(self, z) -> np.ndarray:
+        """Force [N] at the tip positions ``z`` of the approach (the surface undeformed at its start)."""
+        return self.model.force_everywhere(self.theta, self.s0, None, False, z, start=False)
 
 
 def _sls_start(start: dict | None) -> dict | None:

@@ -216,6 +216,20 @@ class SurfaceFit:
         the attraction's feedback gain ``2 Fa(d)/(d Kg) = 2 H R/(6 d^3 Kg)`` exceeds 1 %."""
         return max(2.0 * self.a0, (200.0 * hr6 / kg) ** (1.0 / 3.0))
 
+    def force_everywhere(self, theta, s0, xd0, contact0, z, start=True):
+        """Model force [N] at every sample of the tip positions ``z`` (no coarse blocks), from
+        the dashpot positions ``xd0`` [m] and contact state ``contact0`` at its first sample
+        (``start=False``: ``z`` is an approach record, the surface undeformed at its start):
+        the fitted surface's force through the whole band, for what the record's low-pass
+        does to a method's answer (:func:`vetica_cli.extraction.uncertainty.band_term`)."""
+        z = np.ascontiguousarray(z, dtype=float)
+        n = len(z)
+        out_f, out_j = np.empty(n), np.empty((n, 1))
+        xd = np.asarray(xd0, float) if start else np.zeros(self.n_arms)
+        self._kernel(z, np.zeros(max(n // self.block, 1), np.uint8), np.ones(n, np.uint8), out_f, out_j,
+                     float(s0), np.asarray(theta, float), xd, bool(contact0) if start else False, 0)  # fmt: skip
+        return out_f
+
     # ---- the periodic state
 
     def _regularised_inverse(self, b):

@@ -144,22 +144,9 @@ def referee(method, res: ExtractionResult, record) -> tuple[dict, set]:
     which no check of the tap method itself showed).  The fit's result is kept on the record
     (``record.memo``, also filled by :func:`vetica_cli.extraction.extract_many` when the fit was
     asked for) for the other tap method."""
-    from ..base import METHODS
-    from ..sanity import check
+    from ..referee import referee_fit
 
-    full = METHODS.get(method.referee) if method.referee else None
-    model = getattr(record, "model", None)
-    if full is None or model is None or model.key not in full.surface_models or not hasattr(record, "memo"):
-        return {}, set()
-    key = ("referee", full.key, id(record.f), record.z1)
-    if key not in record.memo:
-        try:
-            fit = full.run(record, full.options({}))
-            check(fit, record, None, full)  # its own checks (no referee for the fit): a flagged quantity referees nothing
-            record.memo[key] = fit.estimates
-        except Exception:  # noqa: BLE001 - the fit refuses the record: no referee
-            record.memo[key] = {}
-    alt = record.memo[key]
+    alt, _ = referee_fit(method, record)
     out, judged = {}, set()
     for q, e in res.estimates.items():
         a = alt.get(q)
