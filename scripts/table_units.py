@@ -70,7 +70,9 @@ COMMON = {
     "seed": ("", "the replica's noise seed"),
     "reference": ("", "the method's answer on the noise-free record of the same path (unit: quantity_units)"),
     "reference_full_band": ("", "the same at the whole band (unit: quantity_units)"),
-    "band_bias": ("", "the band term the method estimated on the record (relative)"),
+    "band_bias": ("", "the band term the method estimated on the record (relative; signed where divided out)"),
+    "reference_flagged": ("", "the noise-free reference is itself flagged (or missing)"),
+    "coverage_sound_ref": ("", "coverage counting only results whose noise-free reference is unflagged"),
     "sigma_rel": ("", "the reported relative 1-sigma"),
     "cutoff_hz": ("Hz", "the reconstruction's low-pass chosen from the record's noise"),
 }
