@@ -127,6 +127,16 @@ def _reconstruction_lines(info: dict) -> list[str]:
             f"reconstructed vs true f_ts (% of peak force): RMS {r['rms_pct']:.2g}, max {r['max_pct']:.2g}, "
             f"peak {r['peak_pct']:+.2g}"
         )
+    band = (info.get("uncertainty") or {}).get("band") or {}
+    if band.get("bias"):
+        worst = sorted(band["bias"].items(), key=lambda kv: -abs(kv[1]))[:3]
+        text = ", ".join(f"{q} {100 * b:+.2g} %" if band.get("source") == "model" else
+                         f"{q} ~{100 * abs(b):.2g} %" for q, b in worst)  # fmt: skip
+        lines.append(
+            f"the low-pass's bias, read on the whole-cycle fit's surface and divided out (largest: {text}); its error "
+            "is in the standard errors" if band.get("source") == "model" else
+            f"the low-pass's bias, estimated on the record (largest: {text}), is in the standard errors"
+        )
     return lines
 
 
