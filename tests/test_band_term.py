@@ -17,7 +17,7 @@ import numpy as np
 import pytest
 
 from vetica_cli.extraction import extract_many
-from vetica_cli.extraction.uncertainty import _lowpass
+from vetica_cli.extraction.uncertainty import lowpass
 from vetica_cli.simulation.config import load
 from vetica_cli.simulation.simulate import simulate
 
@@ -58,8 +58,8 @@ def test_an_approach_is_low_passed_without_wrapping_its_end_onto_its_start():
     sinc tail, 1/(pi fc t), of the step 3 us away)."""
     h, n = 1e-9, 4000
     x = np.where(np.arange(n) > 3000, 1.0, 0.0)
-    wrapped = _lowpass(x, h, 2e7)
-    mirrored = _lowpass(x, h, 2e7, periodic=False)
+    wrapped = lowpass(x, h, 2e7)
+    mirrored = lowpass(x, h, 2e7, periodic=False)
     assert abs(wrapped[0]) > 0.2
     assert np.max(np.abs(mirrored[:1000])) < 2e-3
     assert math.isclose(mirrored[-1], 1.0, abs_tol=0.05)

@@ -75,7 +75,7 @@ def approach_jitter(z, f, i, sf: float | None = None) -> float:
 BAND_STEPS = (math.sqrt(2.0), 2.0)  # the band term re-reads the record low-passed once more at fc / each
 
 
-def _lowpass(x, h: float, fc: float, periodic: bool = True) -> np.ndarray:
+def lowpass(x, h: float, fc: float, periodic: bool = True) -> np.ndarray:
     """``x`` (sampled every ``h`` [s]) without its content above ``fc`` [Hz].  ``periodic=False``
     (an approach segment, whose ends differ): filtered with its mirror image appended, so the
     segment's end does not wrap onto its start (it made the start look in contact)."""
@@ -101,7 +101,7 @@ def band_record(record, step: float):
     fc2 = fc / step
     h = (record.t[-1] - record.t[0]) / (len(record.t) - 1)
 
-    f2 = _lowpass(record.f, h, fc2)
+    f2 = lowpass(record.f, h, fc2)
     drive = (record.info.get("noise") or {}).get("drive_hz")
     choice = nz.measure(f2, h, drive, cutoff_hz=fc2) if drive else None
     if choice is not None:
@@ -109,7 +109,7 @@ def band_record(record, step: float):
     changes = {"f": f2, "taps": None, "info": {**record.info, "cutoff_hz": fc2}}
     if record.approach is not None and str(record.info.get("z1_source", "")).startswith("approach"):
         za, fa, _ = record.approach
-        fa2 = _lowpass(fa, h, fc2, periodic=False)
+        fa2 = lowpass(fa, h, fc2, periodic=False)
         try:
             i1 = first_contact_minimum(fa2, choice.noise_rms if choice is not None else 0.0)
         except Exception:  # noqa: BLE001 - the narrower band loses the first contact: no band term
@@ -160,13 +160,13 @@ def model_band(res: ExtractionResult, record, method, options) -> dict | None:
     rec2 = band_record(record, BAND_STEPS[0])
 
     def model_record(cut, noise):  # the whole band without noise (as the answer it is compared with), or a band
-        f2 = fs.copy() if cut is None else _lowpass(fs, h, cut)
+        f2 = fs.copy() if cut is None else lowpass(fs, h, cut)
         if noise is not None:  # the record's noise at that band: the method's thresholds as on the record
             nz.declare(f2, *noise)
         changes = {"f": f2, "taps": None, "memo": {}, "info": {**record.info, "cutoff_hz": cut}}
         if from_approach:
             za = record.approach[0]
-            fa2 = fa.copy() if cut is None else _lowpass(fa, h, cut, periodic=False)
+            fa2 = fa.copy() if cut is None else lowpass(fa, h, cut, periodic=False)
             i1 = first_contact_minimum(fa2, noise[0] if noise is not None else 0.0)
             changes.update(approach=(za, fa2, i1), z1=float(za[i1]))
         return dataclasses.replace(record, **changes)
