@@ -390,14 +390,52 @@ def _mean(values: np.ndarray) -> float:
     return float(np.nanmean(values)) if np.any(np.isfinite(values)) else math.nan
 
 
-def _stage1(t, z, f, z1, kg_points, taps: Taps | None = None, kg_window: str = "noise"):
-    """Taps, then stages 1a and 1b: ``(taps, tau_c per interval, Kg per tap, warnings)``."""
+@dataclass
+class Stage1:
+    """What stages 1a and 1b read of a record that depends neither on Z1 nor on the Kg scale
+    of the error bars: the taps, stage 1b's slopes as measured (:func:`stage1b_kg`) and its
+    windows' bookkeeping.  Measured once per record and window (:func:`record_stage1`); the
+    error bars' and checks' re-runs at a moved Z1 or Kg start from it."""
+
+    taps: Taps
+    kg: np.ndarray  # [N/m] stage 1b per tap, unscaled
+    windows: dict | None  # stage 1b's windows (None: the thesis's)
+    kg_points: int
+    kg_window: str
+
+
+def measure_stage1(z, f, kg_points: int, taps: Taps | None = None, kg_window: str = "noise") -> Stage1:
+    """The taps (located on ``f`` unless given) and stage 1b's slopes; InputError for fewer than
+    two complete taps."""
     taps = find_taps(f) if taps is None else taps
     n_taps = len(taps.contact)
     if n_taps < 2:
         raise InputError(
             f"too few taps: {n_taps} complete tap(s) in the record ({taps.incomplete} cut by its ends), need at least 2"
         )
+    kg, windows = stage1b_kg(z, f, taps, kg_points, kg_window, details=True)
+    return Stage1(taps=taps, kg=kg, windows=windows, kg_points=kg_points, kg_window=kg_window)
+
+
+def record_stage1(record: Record, kg_points: int, kg_window: str) -> Stage1:
+    """:func:`measure_stage1` of ``record``, kept on it (``record.memo``, shared by the records
+    :func:`dataclasses.replace` makes of it with another Z1) for the same force, position and
+    taps: every re-run of a tap method on the record (error bars, checks) reads it once."""
+    key = ("tap-stage1", kg_points, kg_window)
+    held = record.memo.get(key)
+    if held is not None and held[0] is record.f and held[1] is record.z and held[2] is record.taps:
+        return held[3]
+    stage1 = measure_stage1(record.z, record.f, kg_points, record.taps, kg_window)
+    record.memo[key] = (record.f, record.z, record.taps, stage1)  # the arrays held: their ids cannot be reused
+    return stage1
+
+
+def _stage1(t, z, f, z1, kg_points, taps: Taps | None = None, kg_window: str = "noise", stage1: Stage1 | None = None):
+    """Taps, then stages 1a and 1b: ``(taps, tau_c per interval, Kg per tap, warnings)``;
+    ``stage1``: the record's taps and slopes when already measured (:func:`record_stage1`)."""
+    if stage1 is None:
+        stage1 = measure_stage1(z, f, kg_points, taps, kg_window)
+    taps = stage1.taps
     longest = int(np.max(taps.separation - taps.contact)) - 1  # samples after the contact minimum, before separation
     if kg_points > longest:
         raise InputError(
@@ -408,7 +446,7 @@ def _stage1(t, z, f, z1, kg_points, taps: Taps | None = None, kg_window: str = "
     pk = np.diff(taps.peak)
     if len(pk) and np.ptp(pk) > 0.1 * np.median(pk):
         warnings.append("irregular tap spacing (chatter or several contacts per drive period?)")
-    return taps, stage1a_tau_c(t, z, taps, z1), stage1b_kg(z, f, taps, kg_points, kg_window), warnings
+    return taps, stage1a_tau_c(t, z, taps, z1), stage1.kg, warnings
 
 
 def _stage1_warnings(tau_c: float, kg: float, z1: float, kg_points: int) -> list[str]:
@@ -466,11 +504,12 @@ def stage2_tap_closed(u, z, f, kg: float, tau_c: float, fc: float, kr_guess: flo
     return float(kr), float(s0), float(rms), int(calls)
 
 
-def stage2_tap(u, z, f, kg: float, tau_c: float, fc: float, kr_guess=None, solver: str = "closed"):
+def stage2_tap(u, z, f, kg: float, tau_c: float, fc: float, kr_guess=None, solver: str = "closed", warm: bool = False):
     """Kr of one tap from its contact samples (``u`` [s] from the contact minimum, ``z_tip``,
-    force): ``(Kr, sine-fit RMS [m] or nan, force residual RMS [N], cost evaluations)``."""
+    force): ``(Kr, sine-fit RMS [m] or nan, force residual RMS [N], cost evaluations)``.
+    ``warm``: ``kr_guess`` is this tap's Kr at nearby inputs (:func:`stage2_tap_closed`)."""
     if solver == "closed":
-        out = stage2_tap_closed(u, z, f, kg, tau_c, fc, kr_guess)
+        out = stage2_tap_closed(u, z, f, kg, tau_c, fc, kr_guess, warm=warm)
         if out is not None:
             return out[0], math.nan, out[2], out[3]
     fit = fit_sum_of_sines(u, z)
@@ -478,15 +517,19 @@ def stage2_tap(u, z, f, kg: float, tau_c: float, fc: float, kr_guess=None, solve
     return kr, fit.rms, rms, nf
 
 
-def _stage2(t, z, f, taps: Taps, kg: float, tau_c: float, kr_guess, solver: str = "closed"):
-    """Kr of every tap long enough (nan otherwise) and the fit residuals of those fitted."""
+def _stage2(t, z, f, taps: Taps, kg: float, tau_c: float, kr_guess, solver: str = "closed", kr_start=None):
+    """Kr of every tap long enough (nan otherwise) and the fit residuals of those fitted;
+    ``kr_start``: each tap's Kr at nearby inputs, where each tap's root is looked for first
+    (a warm start: the same root, found without scanning the bounds)."""
     kr_i, fit_rms, f_rms, nfev = [], [], [], []
-    for ic, isep in zip(taps.contact, taps.separation):
+    for j, (ic, isep) in enumerate(zip(taps.contact, taps.separation)):
         if isep - ic < MIN_CONTACT_SAMPLES:
             kr_i.append(math.nan)
             continue
         sl = slice(ic, isep + 1)
-        kr, zrms, rms, nf = stage2_tap(t[sl] - t[ic], z[sl], f[sl], kg, tau_c, float(f[ic]), kr_guess, solver)
+        warm = kr_start is not None and math.isfinite(kr_start[j]) and 0.0 < kr_start[j] < kg
+        guess = float(kr_start[j]) if warm else kr_guess
+        kr, zrms, rms, nf = stage2_tap(t[sl] - t[ic], z[sl], f[sl], kg, tau_c, float(f[ic]), guess, solver, warm)
         kr_i.append(kr)
         fit_rms.append(zrms)
         f_rms.append(rms)
@@ -505,6 +548,8 @@ def vetica(
     taps: Taps | None = None,
     kg_window: str = "noise",
     kg_scale: float = 1.0,
+    stage1: Stage1 | None = None,
+    kr_start: np.ndarray | None = None,
 ) -> VeticaResult:
     """Run VETICA stages 1a, 1b and 2 on a record of consecutive taps.
 
@@ -517,7 +562,10 @@ def vetica(
     InputError for no contact or fewer than two complete taps.  ``stage2``: 'closed'
     (:func:`stage2_tap_closed`, compiled, the default) or 'sines' (the thesis's sum-of-sines
     fit, :func:`fit_sum_of_sines` and :func:`stage2_kr`).  ``taps``: the record's taps when
-    already located (else :func:`~vetica_cli.signals.taps.find_taps` on ``f``).
+    already located (else :func:`~vetica_cli.signals.taps.find_taps` on ``f``).  ``stage1``:
+    the record's taps and stage 1b's slopes when already measured (:func:`record_stage1`);
+    ``kr_start``: each tap's Kr from a run at nearby inputs (the error bars' re-runs), where
+    stage 2 looks for each root first.
     """
     if stage2 not in STAGE2:
         raise InputError(f"stage2 {stage2!r} not allowed; choose one of: {', '.join(STAGE2)}")
@@ -527,14 +575,15 @@ def vetica(
     if kg_points < 2:
         raise InputError(f"kg_points {kg_points} not allowed; expected an integer >= 2")
     t0 = time.perf_counter()
-    taps, tau_c_i, kg_i, warnings = _stage1(t, z, f, z1, kg_points, taps, kg_window)
+    taps, tau_c_i, kg_i, warnings = _stage1(t, z, f, z1, kg_points, taps, kg_window, stage1)
     kg_i = kg_i * kg_scale  # the error bars move Kg to see how stage 2 follows it
     n_taps = len(taps.contact)
     t1 = time.perf_counter()
     tau_c, kg = _mean(tau_c_i), _mean(kg_i)
     warnings += _stage1_warnings(tau_c, kg, z1, kg_points)
     run2 = not (math.isnan(tau_c) or math.isnan(kg)) and kg > 0
-    kr_i, fit_rms, f_rms, nfev = _stage2(t, z, f, taps, kg, tau_c, kr_guess, stage2) if run2 else ([], [], [], [])
+    kr_i, fit_rms, f_rms, nfev = (_stage2(t, z, f, taps, kg, tau_c, kr_guess, stage2, kr_start) if run2
+                                  else ([], [], [], []))  # fmt: skip
     t2 = time.perf_counter()
     kr_i = np.array(kr_i) if kr_i else np.full(n_taps, math.nan)
     if run2 and not fit_rms:
@@ -587,6 +636,34 @@ class TapMethod(ExtractionMethod):
 
         stage_dependents(res)
 
+    def moved(self, record: Record, options: dict, res: ExtractionResult, z1: float | None = None,
+              kg_scale: float | None = None) -> dict:  # fmt: skip
+        """The estimates of the method re-run on ``record`` with Z1 at ``z1`` and/or the option
+        ``kg_scale`` at ``kg_scale`` (the error bars' and checks' re-runs; ``res``: the run at the
+        record's own inputs).  The tap methods re-run only the stages that move, from the taps and
+        slopes measured once (:func:`record_stage1`) and each tap's state in ``res``'s pass
+        (:meth:`pass_of`); values as a whole run gives them (the same roots)."""
+        opts = options if kg_scale is None else {**options, "kg_scale": kg_scale}
+        ex = self.tap_pass(record, opts, record.z1 if z1 is None else z1, start=self.pass_of(record, res))
+        units = {k: q.unit for k, q in self.quantities(record.model).items()}
+        return estimates(ex.values, units)
+
+    def tap_pass(self, record: Record, options: dict, z1: float, start=None):
+        """The method's stages on ``record`` at ``z1`` (its own result type); ``start``: the pass of
+        a run at nearby inputs whose per-tap state starts this one."""
+        raise NotImplementedError  # pragma: no cover - each tap method has its own
+
+    @staticmethod
+    def keep_pass(record: Record, res: ExtractionResult, ex) -> None:
+        """Keep the pass ``ex`` behind ``res`` on the record (``record.memo``) for :meth:`moved`."""
+        record.memo[("tap-pass", id(res))] = (res, ex)
+
+    @staticmethod
+    def pass_of(record: Record, res: ExtractionResult):
+        """The pass behind ``res`` kept by :meth:`keep_pass`, or None."""
+        held = record.memo.get(("tap-pass", id(res)))
+        return held[1] if held is not None and held[0] is res else None
+
 
 @register
 class Vetica(TapMethod):
@@ -609,14 +686,26 @@ class Vetica(TapMethod):
 
     compared_with = "vetica-prestress"  # the thesis's stages against the pre-stress at contact (tapchecks)
 
+    def tap_pass(self, record: Record, options: dict, z1: float, start: VeticaResult | None = None) -> VeticaResult:
+        """:func:`vetica` on the record's taps and slopes measured once (:func:`record_stage1`);
+        ``start``: a pass at nearby inputs whose per-tap Kr starts stage 2."""
+        stage1 = record_stage1(record, options["kg_points"], options["kg_window"])
+        kr_start = None if start is None else start.per_tap.get("k_r")
+        return vetica(record.t, record.z, record.f, z1, kg_points=options["kg_points"],
+                      kr_guess=options["kr_guess"], stage2=options["stage2"], taps=record.taps,
+                      kg_window=options["kg_window"], kg_scale=options.get("kg_scale", 1.0), stage1=stage1,
+                      kr_start=kr_start)  # fmt: skip
+
     def run(self, record: Record, options: dict) -> ExtractionResult:
-        ex = vetica(record.t, record.z, record.f, record.z1, kg_points=options["kg_points"],
-                    kr_guess=options["kr_guess"], stage2=options["stage2"], taps=record.taps,
-                    kg_window=options["kg_window"], kg_scale=options.get("kg_scale", 1.0))  # fmt: skip
+        if options["stage2"] not in STAGE2:
+            raise InputError(f"stage2 {options['stage2']!r} not allowed; choose one of: {', '.join(STAGE2)}")
+        if options["kg_points"] < 2:
+            raise InputError(f"kg_points {options['kg_points']} not allowed; expected an integer >= 2")
+        ex = self.tap_pass(record, options, record.z1)
         units = {k: q.unit for k, q in self.quantities(record.model).items()}
         timing = {"reconstruction": record.reconstruction_s, **ex.timing_s,
                   "total": time.perf_counter() - record.t_start}  # fmt: skip
-        return ExtractionResult(
+        res = ExtractionResult(
             method=self.key,
             force=record.force,
             taps=ex.taps,
@@ -627,6 +716,8 @@ class Vetica(TapMethod):
             warnings=ex.warnings + record.meta_warnings,
             timing_s=timing,
         )
+        self.keep_pass(record, res, ex)
+        return res
 
     def timing_line(self, timing_s: dict) -> str:
         tm = timing_s

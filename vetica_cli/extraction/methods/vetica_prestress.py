@@ -73,6 +73,9 @@ from .vetica import (
     fit_sum_of_sines,
     STAGE2,
     sls_elements,
+    Stage1,
+    measure_stage1,
+    record_stage1,
     stage1a_tau_c,
     stage1b_kg,
     stage2_tap_closed,
@@ -253,6 +256,7 @@ class PrestressResult:
     timing_s: dict
     diagnostics: dict
     warnings: list
+    state: dict | None = None  # the fixed point reached: Kg, Kr and sigma0 per tap, the Kg scale (starts a nearby pass)
 
 
 def _mean(v) -> float:
@@ -260,12 +264,21 @@ def _mean(v) -> float:
     return float(np.nanmean(v)) if np.any(np.isfinite(v)) else math.nan
 
 
-def _stages(fits, mode, z1, kg, tau_c, kr_guess, s_of_tap, kg_scale: float = 1.0):
+def _stages(fits, mode, z1, kg, tau_c, kr_guess, s_of_tap, kg_scale: float = 1.0, start: dict | None = None):
     """Stages 2 and 1b to their fixed point.  Returns ``(Kg, Kr per tap, Kg per tap,
-    sigma0 per tap, force RMS per tap, iterations, converged)``."""
+    sigma0 per tap, force RMS per tap, iterations, converged)``.  ``start``: the fixed point of
+    a pass at nearby inputs (``kg``, ``kr_i``, ``s0_i``), from which the iterations start
+    instead of the thesis's Kg and ``kr_guess`` (the same fixed point, to :data:`RTOL`)."""
     n = len(fits)
     kr_i, s0_i, rms_i, kg_i = (np.full(n, math.nan) for _ in range(4))
     kr = kr_guess if kr_guess is not None else 0.1 * kg
+    warm0 = False
+    if start is not None and len(start["kr_i"]) == n and math.isfinite(start["kg"]) and start["kg"] > 0:
+        kr_i, s0_i = np.array(start["kr_i"], dtype=float), np.array(start["s0_i"], dtype=float)
+        if np.any(np.isfinite(kr_i)) and np.all(kr_i[np.isfinite(kr_i)] < start["kg"]):
+            kg, kr, warm0 = float(start["kg"]), _mean(kr_i), True
+        else:
+            kr_i, s0_i = np.full(n, math.nan), np.full(n, math.nan)
     for it in range(1, MAX_ITER + 1):
         for j, tf in enumerate(fits):
             if tf is None:
@@ -273,7 +286,7 @@ def _stages(fits, mode, z1, kg, tau_c, kr_guess, s_of_tap, kg_scale: float = 1.0
             s0 = s0_i[j] if math.isfinite(s0_i[j]) else s_of_tap(tf, kg, kr)
             kr0 = kr_i[j] if math.isfinite(kr_i[j]) else kr
             if isinstance(tf, ClosedTap):
-                kr_i[j], s0_i[j], rms_i[j] = tf.stage2(mode, z1, kg, tau_c, kr0, s0, warm=it > 1)
+                kr_i[j], s0_i[j], rms_i[j] = tf.stage2(mode, z1, kg, tau_c, kr0, s0, warm=it > 1 or warm0)
             else:
                 kr_i[j], s0_i[j], rms_i[j] = stage2_tap(tf, mode, z1, kg, tau_c, kr0, s0)
         kr_new = _mean(kr_i)
@@ -296,7 +309,8 @@ def _stages(fits, mode, z1, kg, tau_c, kr_guess, s_of_tap, kg_scale: float = 1.0
 
 def vetica_prestress(t, z, f, z1: float, kg_points: int = 10, kr_guess: float | None = None,
                      prestress: str = "adhesion", stage2: str = "closed", taps: Taps | None = None,
-                     kg_window: str = "noise", kg_scale: float = 1.0) -> PrestressResult:  # fmt: skip
+                     kg_window: str = "noise", kg_scale: float = 1.0, stage1: Stage1 | None = None,
+                     start: dict | None = None) -> PrestressResult:  # fmt: skip
     """Run VETICA with the pre-stress (module docstring) on a record of consecutive taps.
 
     ``prestress``: ``adhesion``, ``creep`` or ``fit`` (the method resolves ``auto``).
@@ -305,7 +319,10 @@ def vetica_prestress(t, z, f, z1: float, kg_points: int = 10, kr_guess: float | 
     values with a warning, as in ``vetica``.  ``stage2``: 'closed' (compiled, on the samples:
     :class:`ClosedTap`; with ``fit`` the pre-stress is projected out unbounded) or 'sines'
     (the sum-of-sines fit of each contact, thesis eq. 88, and scipy's least squares).
-    ``taps``: the record's taps when already located.
+    ``taps``: the record's taps when already located; ``stage1``: the record's taps and stage
+    1b's slopes when already measured (:func:`~.vetica.record_stage1`); ``start``: the fixed point
+    of a pass at nearby inputs (``PrestressResult.state``, with its Kg scale), where the
+    iterations of stages 1b and 2 start.
     """
     if stage2 not in STAGE2:
         raise InputError(f"stage2 {stage2!r} not allowed; choose one of: {', '.join(STAGE2)}")
@@ -313,14 +330,12 @@ def vetica_prestress(t, z, f, z1: float, kg_points: int = 10, kr_guess: float | 
         raise InputError(f"prestress {prestress!r} not allowed here; choose one of: {', '.join(PRESTRESS[1:])}")
     t, z, f = (np.asarray(a, dtype=float) for a in (t, z, f))
     t0 = time.perf_counter()
-    taps = find_taps(f) if taps is None else taps
+    if stage1 is None:
+        stage1 = measure_stage1(z, f, kg_points, taps, kg_window)
+    taps = stage1.taps
     n_taps = len(taps.contact)
-    if n_taps < 2:
-        raise InputError(
-            f"too few taps: {n_taps} complete tap(s) in the record ({taps.incomplete} cut by its ends), need at least 2"
-        )
     tau_c_i = stage1a_tau_c(t, z, taps, z1)
-    kg_thesis_i, windows = stage1b_kg(z, f, taps, kg_points, kg_window, details=True)
+    kg_thesis_i, windows = stage1.kg, stage1.windows
     kg_thesis_i = kg_thesis_i * kg_scale  # the error bars move the measured slopes to see how everything follows
     tau_c, kg0 = _mean(tau_c_i), _mean(kg_thesis_i)
     problem = None
@@ -341,8 +356,8 @@ def vetica_prestress(t, z, f, z1: float, kg_points: int = 10, kr_guess: float | 
     if windows is not None and not all(windows["thesis"]):  # stage 1b read over windows grown from the noise
         for j, tf in enumerate(fits):
             if tf is not None and not windows["thesis"][j] and windows["window"][j] > 0:
-                start = max(1, int(windows["start"][j]) - int(taps.contact[j]))
-                tf.window = (start, int(windows["window"][j]), float(windows["at"][j]), float(kg_thesis_i[j]))
+                first = max(1, int(windows["start"][j]) - int(taps.contact[j]))
+                tf.window = (first, int(windows["window"][j]), float(windows["at"][j]), float(kg_thesis_i[j]))
     if not any(tf is not None for tf in fits):
         fits = tap_fits(t, z, f, taps, kg_points)
     if all(tf is None for tf in fits):
@@ -352,7 +367,10 @@ def vetica_prestress(t, z, f, z1: float, kg_points: int = 10, kr_guess: float | 
     def start_sigma(tf, kg, kr):  # fit mode starts from the adhesion estimate
         return prestress_of("adhesion" if mode == "fit" else mode, tf.fc, tf.zc, z1, kg, kr)
 
-    kg, kr_i, kg_i, s0_i, rms_i, iters, converged = _stages(fits, mode, z1, kg0, tau_c, kr_guess, start_sigma, kg_scale)
+    if start is not None:  # a nearby pass's fixed point, its Kg moved as this pass's slopes are
+        start = {**start, "kg": start["kg"] * kg_scale / start["kg_scale"]}
+    kg, kr_i, kg_i, s0_i, rms_i, iters, converged = _stages(fits, mode, z1, kg0, tau_c, kr_guess, start_sigma, kg_scale,
+                                                            start)  # fmt: skip
     t2 = time.perf_counter()
     warnings = []
     if not converged:
@@ -379,6 +397,7 @@ def vetica_prestress(t, z, f, z1: float, kg_points: int = 10, kr_guess: float | 
     return PrestressResult(
         values=sls_elements(tau_c, kg, kr), per_tap=per_tap, taps=n_taps,
         timing_s={"stage1": t1 - t0, "stages_1b_2": t2 - t1}, diagnostics=diagnostics, warnings=warnings,
+        state={"kg": kg, "kr_i": kr_i, "s0_i": s0_i, "kg_scale": kg_scale},
     )  # fmt: skip
 
 
@@ -400,7 +419,21 @@ class VeticaPrestress(TapMethod):
     references = ("thesis 3.3 (VETICA's stages), with the Maxwell arm's pre-stress at contact",)
     seconds_per_point = 0.55  # both forces, 10 periods at 0.125 ns: 0.53 CPU s measured with standard errors and checks
 
-    def run(self, record: Record, options: dict) -> ExtractionResult:
+    def tap_pass(self, record: Record, options: dict, z1: float, start: PrestressResult | None = None
+                 ) -> PrestressResult:  # fmt: skip
+        """:func:`vetica_prestress` on the record's taps and slopes measured once
+        (:func:`~.vetica.record_stage1`); ``start``: a pass at nearby inputs whose fixed point
+        starts this one's iterations."""
+        stage1 = record_stage1(record, options["kg_points"], options["kg_window"])
+        return vetica_prestress(record.t, record.z, record.f, z1, kg_points=options["kg_points"],
+                                kr_guess=options["kr_guess"], prestress=self.mode(record, options)[0],
+                                stage2=options["stage2"], taps=record.taps, kg_window=options["kg_window"],
+                                kg_scale=options.get("kg_scale", 1.0), stage1=stage1,
+                                start=None if start is None else start.state)  # fmt: skip
+
+    @staticmethod
+    def mode(record: Record, options: dict) -> tuple[str, str]:
+        """The pre-stress mode the option resolves to on this record, and how it was chosen."""
         mode = options["prestress"]
         if mode == "auto":  # the record's knowledge of the pull; unknown: the method's premise, it does
             mode = "creep" if record.vdw_on_surface is False else "adhesion"
@@ -410,10 +443,15 @@ class VeticaPrestress(TapMethod):
             source = f"auto: {mode} ({why})"
         else:
             source = mode
-        ex = vetica_prestress(record.t, record.z, record.f, record.z1, kg_points=options["kg_points"],
-                              kr_guess=options["kr_guess"], prestress=mode, stage2=options["stage2"],
-                              taps=record.taps, kg_window=options["kg_window"],
-                              kg_scale=options.get("kg_scale", 1.0))  # fmt: skip
+        return mode, source
+
+    def run(self, record: Record, options: dict) -> ExtractionResult:
+        mode, source = self.mode(record, options)
+        if options["stage2"] not in STAGE2:
+            raise InputError(f"stage2 {options['stage2']!r} not allowed; choose one of: {', '.join(STAGE2)}")
+        if mode not in PRESTRESS[1:]:
+            raise InputError(f"prestress {mode!r} not allowed here; choose one of: {', '.join(PRESTRESS[1:])}")
+        ex = self.tap_pass(record, options, record.z1)
         units = {k: q.unit for k, q in self.quantities(record.model).items()}
         timing = {
             "reconstruction": record.reconstruction_s,
@@ -422,10 +460,12 @@ class VeticaPrestress(TapMethod):
         }
         spread = {k: Spread.of(v) for k, v in ex.per_tap.items()}
         info = {**record.info, "prestress": source}
-        return ExtractionResult(method=self.key, force=record.force, taps=ex.taps,
-                                estimates=estimates(ex.values, units, record.truth, spreads=spread),
-                                model=record.model.key, info=info, diagnostics=ex.diagnostics,
-                                warnings=ex.warnings + record.meta_warnings, timing_s=timing)  # fmt: skip
+        res = ExtractionResult(method=self.key, force=record.force, taps=ex.taps,
+                               estimates=estimates(ex.values, units, record.truth, spreads=spread),
+                               model=record.model.key, info=info, diagnostics=ex.diagnostics,
+                               warnings=ex.warnings + record.meta_warnings, timing_s=timing)  # fmt: skip
+        self.keep_pass(record, res, ex)
+        return res
 
     def detail_lines(self, res: ExtractionResult) -> list[str]:
         d = res.diagnostics or {}
