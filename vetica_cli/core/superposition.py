@@ -52,7 +52,7 @@ def superpose(delta, h, tau, y, dy):
 
 @njit(cache=True)
 def _cost(delta, f, h, kg, kr, tau_c, fc, scale, sa, sb, fit_sigma, y, dy, out):
-    """``out = (S, S'/2, sigma0)`` at ``kr``; the superposition (:func:`superpose`) fused
+    """``out = (S, S'/2, sigma0, kr)`` at ``kr``; the superposition (:func:`superpose`) fused
     into the pass over the samples (``y``, ``dy`` are filled only with ``fit_sigma``)."""
     tau = tau_c * kr / kg
     n = len(delta)
@@ -98,6 +98,7 @@ def _cost(delta, f, h, kg, kr, tau_c, fc, scale, sa, sb, fit_sigma, y, dy, out):
     out[0] = s
     out[1] = slope
     out[2] = sigma
+    out[3] = kr  # where out was evaluated: a solver whose last evaluation was at its answer does not repeat it
 
 
 @njit(cache=True)
@@ -180,12 +181,13 @@ def _golden(delta, f, h, kg, tau_c, fc, scale, sa, sb, fit_sigma, y, dy, out, a,
 def solve_kr(delta, f, h, kg, tau_c, fc, kr_guess, sa, sb, fit_sigma, n_scan, rtol):
     """Least-squares ``Kr`` of one tap on ``(1e-12 Kg, Kg (1 - 1e-9))`` (module docstring).
     ``kr_guess <= 0``: none.  ``n_scan = 0`` with a guess: a warm start (a fixed-point
-    iteration's previous Kr) -- the root of ``S'`` is bracketed by steps growing from 1e-3
-    of the guess (the scan when that finds none).  Returns ``(Kr, sigma0 [N], residual RMS [N], cost evaluations)``."""
+    iteration's previous Kr, or the root at nearby inputs) -- the root of ``S'`` is bracketed by
+    steps growing from 1e-3 of the guess, or reaching 20 % past the secant's root through the last
+    two points where that is nearer (the scan when neither finds it).  Returns ``(Kr, sigma0 [N], residual RMS [N], cost evaluations)``."""
     n = len(delta)
     y = np.empty(n)
     dy = np.empty(n)
-    out = np.zeros(3)
+    out = np.zeros(4)
     scale = 0.0
     for k in range(n):
         scale = max(scale, abs(f[k]))
@@ -199,14 +201,22 @@ def solve_kr(delta, f, h, kg, tau_c, fc, kr_guess, sa, sb, fit_sigma, n_scan, rt
         calls += 1
         g0 = out[1]
         step = 1e-3
-        for _ in range(12):
-            other = kr_guess * (1.0 - step) if g0 > 0.0 else min(kr_guess * (1.0 + step), hi)
-            other = max(other, lo)
+        g1 = g0
+        other = kr_guess
+        prev, gp = kr_guess, g0
+        for it in range(12):
+            grow = kr_guess * (1.0 - step) if g0 > 0.0 else kr_guess * (1.0 + step)
+            if it > 0 and g0 != gp:  # the secant through the last two points, 20 % past its root
+                ahead = kr_guess - 1.2 * g0 * (kr_guess - prev) / (g0 - gp)
+                if (ahead - kr_guess) * (grow - kr_guess) > 0.0 and abs(ahead - kr_guess) < abs(grow - kr_guess):
+                    grow = ahead
+            other = max(min(grow, hi), lo)
             _cost(delta, f, h, kg, other, tau_c, fc, scale, sa, sb, fit_sigma, y, dy, out)
             calls += 1
             g1 = out[1]
             if g0 == 0.0 or g1 == 0.0 or (g0 > 0.0) != (g1 > 0.0):
                 break
+            prev, gp = kr_guess, g0
             kr_guess, g0 = other, g1
             step *= 4.0
         if g0 == 0.0:
@@ -220,8 +230,10 @@ def solve_kr(delta, f, h, kg, tau_c, fc, kr_guess, sa, sb, fit_sigma, n_scan, rt
         else:
             kr = -1.0
         if kr > 0.0:
-            _cost(delta, f, h, kg, kr, tau_c, fc, scale, sa, sb, fit_sigma, y, dy, out)
-            return kr, out[2], scale * math.sqrt(out[0] / n), calls + 1
+            if out[3] != kr:
+                _cost(delta, f, h, kg, kr, tau_c, fc, scale, sa, sb, fit_sigma, y, dy, out)
+                calls += 1
+            return kr, out[2], scale * math.sqrt(out[0] / n), calls
         n_scan = 16  # no bracket near the guess: scan the bounds
     if n_scan < 2:  # a warm start whose guess lies outside the bounds (Kg moved below it): scan them
         n_scan = 16
@@ -271,6 +283,7 @@ def solve_kr(delta, f, h, kg, tau_c, fc, kr_guess, sa, sb, fit_sigma, n_scan, rt
         kr, c = _golden(delta, f, h, kg, tau_c, fc, scale, sa, sb, fit_sigma, y, dy, out,
                         xs[max(best - 1, 0)], xs[min(best + 1, m - 1)], rtol)  # fmt: skip
         calls += c
-    _cost(delta, f, h, kg, kr, tau_c, fc, scale, sa, sb, fit_sigma, y, dy, out)
-    calls += 1
+    if out[3] != kr:
+        _cost(delta, f, h, kg, kr, tau_c, fc, scale, sa, sb, fit_sigma, y, dy, out)
+        calls += 1
     return kr, out[2], scale * math.sqrt(out[0] / n), calls

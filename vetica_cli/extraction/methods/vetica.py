@@ -650,8 +650,17 @@ class TapMethod(ExtractionMethod):
 
     def tap_pass(self, record: Record, options: dict, z1: float, start=None):
         """The method's stages on ``record`` at ``z1`` (its own result type); ``start``: the pass of
-        a run at nearby inputs whose per-tap state starts this one."""
+        a run at nearby inputs (of this tap method or another) whose per-tap state starts this one."""
         raise NotImplementedError  # pragma: no cover - each tap method has its own
+
+    def values_from(self, record: Record, options: dict, start=None) -> dict:
+        """The estimates (values only: no spread, sigma or checks) of the method on ``record``,
+        its stages started from ``start``, the pass of another tap method on the same record (the
+        checks' comparison of the two VETICA variants; the same answer as a run, to the stages'
+        tolerance)."""
+        ex = self.tap_pass(record, options, record.z1, start=start)
+        units = {k: q.unit for k, q in self.quantities(record.model).items()}
+        return estimates(ex.values, units)
 
     @staticmethod
     def keep_pass(record: Record, res: ExtractionResult, ex) -> None:

@@ -367,7 +367,7 @@ def vetica_prestress(t, z, f, z1: float, kg_points: int = 10, kr_guess: float | 
     def start_sigma(tf, kg, kr):  # fit mode starts from the adhesion estimate
         return prestress_of("adhesion" if mode == "fit" else mode, tf.fc, tf.zc, z1, kg, kr)
 
-    if start is not None:  # a nearby pass's fixed point, its Kg moved as this pass's slopes are
+    if start is not None and start.get("kg_scale"):  # a nearby pass's fixed point, its Kg moved as this pass's slopes are
         start = {**start, "kg": start["kg"] * kg_scale / start["kg_scale"]}
     kg, kr_i, kg_i, s0_i, rms_i, iters, converged = _stages(fits, mode, z1, kg0, tau_c, kr_guess, start_sigma, kg_scale,
                                                             start)  # fmt: skip
@@ -401,6 +401,19 @@ def vetica_prestress(t, z, f, z1: float, kg_points: int = 10, kr_guess: float | 
     )  # fmt: skip
 
 
+def start_state(start) -> dict | None:
+    """Where a pass's iterations of stages 1b and 2 start: the fixed point of a pass of this
+    method at nearby inputs (:attr:`PrestressResult.state`), or the Kg and per-tap Kr of a
+    VETICA pass on the same record (:class:`~.vetica.VeticaResult`; the pre-stress from them)."""
+    if start is None:
+        return None
+    if isinstance(start, PrestressResult):
+        return start.state
+    kr_i = np.asarray(start.per_tap.get("k_r"), dtype=float)
+    kg = start.values.get("k_g", math.nan)
+    return {"kg": kg, "kr_i": kr_i, "s0_i": np.full(len(kr_i), math.nan), "kg_scale": None}  # its Kg as it is
+
+
 @register
 class VeticaPrestress(TapMethod):
     """VETICA whose stages 1b and 2 account for the Maxwell arm's pre-stress at contact."""
@@ -429,7 +442,7 @@ class VeticaPrestress(TapMethod):
                                 kr_guess=options["kr_guess"], prestress=self.mode(record, options)[0],
                                 stage2=options["stage2"], taps=record.taps, kg_window=options["kg_window"],
                                 kg_scale=options.get("kg_scale", 1.0), stage1=stage1,
-                                start=None if start is None else start.state)  # fmt: skip
+                                start=start_state(start))  # fmt: skip
 
     @staticmethod
     def mode(record: Record, options: dict) -> tuple[str, str]:
