@@ -287,3 +287,117 @@ def solve_kr(delta, f, h, kg, tau_c, fc, kr_guess, sa, sb, fit_sigma, n_scan, rt
         _cost(delta, f, h, kg, kr, tau_c, fc, scale, sa, sb, fit_sigma, y, dy, out)
         calls += 1
     return kr, out[2], scale * math.sqrt(out[0] / n), calls
+
+
+@njit(cache=True)
+def solve_taps(delta, f, start, stop, h, kg, tau_c, fc, guess, warm, sa, sb, fit_sigma, n_scan, rtol,
+               kr, s0, rms, calls):  # fmt: skip
+    """:func:`solve_kr` on every tap of a record in one call: tap ``j``'s samples are
+    ``delta[start[j]:stop[j]]``, ``f[start[j]:stop[j]]`` at the step ``h[j]``, force ``fc[j]`` at
+    its contact minimum and pre-stress law ``sa[j] + sb[j] Kr``; ``guess[j]`` (<= 0: none) is a
+    warm start where ``warm[j]``.  Taps with ``start[j] < 0`` are skipped (their outputs left as
+    they are).  Fills ``kr, s0, rms, calls``."""
+    for j in range(len(start)):
+        a = start[j]
+        if a < 0:
+            continue
+        b = stop[j]
+        out = solve_kr(delta[a:b], f[a:b], h[j], kg, tau_c, fc[j], guess[j], sa[j], sb[j], fit_sigma,
+                       0 if warm[j] else n_scan, rtol)  # fmt: skip
+        kr[j] = out[0]
+        s0[j] = out[1]
+        rms[j] = out[2]
+        calls[j] = out[3]
+
+
+@njit(cache=True)
+def _line_slope(x, y):
+    """Least-squares slope of ``y`` against ``x``."""
+    n = len(x)
+    mx = 0.0
+    my = 0.0
+    for k in range(n):
+        mx += x[k]
+        my += y[k]
+    mx /= n
+    my /= n
+    num = 0.0
+    den = 0.0
+    for k in range(n):
+        xc = x[k] - mx
+        num += xc * (y[k] - my)
+        den += xc * xc
+    return num / den
+
+
+@njit(cache=True)
+def _nanmean(v):
+    s = 0.0
+    n = 0
+    for x in v:
+        if math.isfinite(x):
+            s += x
+            n += 1
+    return s / n if n else np.nan
+
+
+@njit(cache=True)
+def prestress_fixed_point(delta, z, f, u, start, stop, h, fc, zc, kg_points, mode, z1, kg, tau_c, kr, kr_i, s0_i,
+                          warm0, kg_scale, max_iter, rtol_fp, n_scan, rtol, kg_i, rms_i):  # fmt: skip
+    """Stages 2 and 1b of VETICA with the pre-stress to their fixed point, compiled (the thesis's
+    stage-1b window of ``kg_points`` samples; :func:`vetica_cli.extraction.vetica_prestress._stages`
+    is the same loop in Python).  ``mode``: 0 adhesion, 1 creep, 2 fit.  Per tap ``j`` the contact
+    samples ``[start[j], stop[j])`` (``start[j] < 0``: skipped) of the indentation ``delta``, the tip
+    position ``z``, the force ``f`` and the time ``u`` from the contact minimum, the step ``h[j]``,
+    the force ``fc[j]`` and position ``zc[j]`` at the contact minimum.  ``kg``, ``kr``: where the
+    iterations start (``kr_i``, ``s0_i``: the per-tap start, nan where none; ``warm0``: stage 2
+    warm from the first iteration).  Fills ``kr_i, s0_i, kg_i, rms_i``; returns ``(Kg,
+    iterations, converged)``."""
+    n = len(start)
+    guess = np.empty(n)
+    warm = np.zeros(n, dtype=np.bool_)
+    sa = np.zeros(n)
+    sb = np.zeros(n)
+    calls = np.zeros(n, dtype=np.int64)
+    fit_sigma = mode == 2
+    m = kg_points + 1
+    y = np.empty(m)
+    dy = np.empty(m)
+    corr_f = np.empty(m - 1)
+    for it in range(1, max_iter + 1):
+        for j in range(n):
+            if start[j] < 0:
+                continue
+            guess[j] = kr_i[j] if math.isfinite(kr_i[j]) else kr
+            warm[j] = it > 1 or warm0
+            if mode == 2:
+                sa[j] = 0.0
+                sb[j] = 0.0
+            else:
+                sa[j] = 0.0 if mode == 1 else -fc[j]
+                sb[j] = -(zc[j] - z1) + (fc[j] / kg if mode == 0 else 0.0)
+        solve_taps(delta, f, start, stop, h, kg, tau_c, fc, guess, warm, sa, sb, fit_sigma, n_scan, rtol,
+                   kr_i, s0_i, rms_i, calls)  # fmt: skip
+        kr_new = _nanmean(kr_i)
+        tau_r = tau_c * kr_new / kg
+        for j in range(n):
+            a = start[j]
+            if a < 0:
+                continue
+            if mode == 2:
+                sig = s0_i[j]
+            else:
+                creep = -kr_new * (zc[j] - z1)
+                sig = creep - fc[j] * (1.0 - kr_new / kg) if mode == 0 else creep
+            dj = delta[a : a + m]
+            superpose(dj, u[a + 1] - u[a], tau_r, y, dy)
+            for k in range(1, m):
+                corr_f[k - 1] = f[a + k] - (sig * -math.expm1(-u[a + k] / tau_r) + (kg - kr_new) * (y[k] - dj[k]))
+            kg_i[j] = -_line_slope(z[a + 1 : a + m], corr_f) * kg_scale
+        kg_new = _nanmean(kg_i)
+        done = abs(kg_new - kg) <= rtol_fp * kg and abs(kr_new - kr) <= rtol_fp * abs(kr)
+        kg = kg_new
+        kr = kr_new
+        if done or not (math.isfinite(kg) and kg > 0 and math.isfinite(kr)):
+            return kg, it, done
+    return kg, max_iter, False

@@ -391,6 +391,47 @@ def _mean(values: np.ndarray) -> float:
 
 
 @dataclass
+class Contacts:
+    """Every complete tap's contact, from its contact minimum to its separation minimum (both
+    included), as plain arrays for the compiled stages (:mod:`vetica_cli.core.superposition`):
+    the samples of all taps end to end, tap ``j``'s in ``[start[j], stop[j])``."""
+
+    delta: np.ndarray  # [m] indentation from the contact minimum, z_tip(contact) - z_tip
+    z: np.ndarray  # [m] tip position
+    f: np.ndarray  # [N] force
+    u: np.ndarray  # [s] time from the contact minimum
+    start: np.ndarray  # first sample of each tap
+    stop: np.ndarray  # one past its last
+    h: np.ndarray  # [s] each tap's constant sample step (:func:`uniform_step`), nan where it has none
+    fc: np.ndarray  # [N] force at each contact minimum
+    zc: np.ndarray  # [m] tip position there
+
+    @property
+    def samples(self) -> np.ndarray:
+        """Samples of each contact."""
+        return self.stop - self.start
+
+
+def contacts_of(t, z, f, taps: Taps) -> Contacts:
+    """The taps' contacts as :class:`Contacts`."""
+    parts, start, stop, h = [], [], [], []
+    at = 0
+    for ic, isep in zip(taps.contact, taps.separation):
+        sl = slice(int(ic), int(isep) + 1)
+        u = t[sl] - t[ic]
+        parts.append((float(z[ic]) - z[sl], z[sl], f[sl], u))
+        step = uniform_step(u)
+        start.append(at)
+        at += len(u)
+        stop.append(at)
+        h.append(math.nan if step is None else step)
+    cat = [np.concatenate([p[k] for p in parts]) if parts else np.empty(0) for k in range(4)]
+    return Contacts(delta=cat[0], z=cat[1], f=cat[2], u=cat[3], start=np.array(start, dtype=np.int64),
+                    stop=np.array(stop, dtype=np.int64), h=np.array(h, dtype=float),
+                    fc=np.array([float(f[i]) for i in taps.contact]), zc=np.array([float(z[i]) for i in taps.contact]))  # fmt: skip
+
+
+@dataclass
 class Stage1:
     """What stages 1a and 1b read of a record that depends neither on Z1 nor on the Kg scale
     of the error bars: the taps, stage 1b's slopes as measured (:func:`stage1b_kg`) and its
@@ -402,11 +443,12 @@ class Stage1:
     windows: dict | None  # stage 1b's windows (None: the thesis's)
     kg_points: int
     kg_window: str
+    contacts: Contacts | None = None  # the contacts for the compiled stage 2 (None: measured without the times)
 
 
-def measure_stage1(z, f, kg_points: int, taps: Taps | None = None, kg_window: str = "noise") -> Stage1:
-    """The taps (located on ``f`` unless given) and stage 1b's slopes; InputError for fewer than
-    two complete taps."""
+def measure_stage1(z, f, kg_points: int, taps: Taps | None = None, kg_window: str = "noise", t=None) -> Stage1:
+    """The taps (located on ``f`` unless given), stage 1b's slopes and, with the times ``t``, the
+    contacts; InputError for fewer than two complete taps."""
     taps = find_taps(f) if taps is None else taps
     n_taps = len(taps.contact)
     if n_taps < 2:
@@ -414,7 +456,8 @@ def measure_stage1(z, f, kg_points: int, taps: Taps | None = None, kg_window: st
             f"too few taps: {n_taps} complete tap(s) in the record ({taps.incomplete} cut by its ends), need at least 2"
         )
     kg, windows = stage1b_kg(z, f, taps, kg_points, kg_window, details=True)
-    return Stage1(taps=taps, kg=kg, windows=windows, kg_points=kg_points, kg_window=kg_window)
+    contacts = None if t is None else contacts_of(t, z, f, taps)
+    return Stage1(taps=taps, kg=kg, windows=windows, kg_points=kg_points, kg_window=kg_window, contacts=contacts)
 
 
 def record_stage1(record: Record, kg_points: int, kg_window: str) -> Stage1:
@@ -422,11 +465,13 @@ def record_stage1(record: Record, kg_points: int, kg_window: str) -> Stage1:
     :func:`dataclasses.replace` makes of it with another Z1) for the same force, position and
     taps: every re-run of a tap method on the record (error bars, checks) reads it once."""
     key = ("tap-stage1", kg_points, kg_window)
-    held = record.memo.get(key)
+    memo = getattr(record, "memo", None)  # None: a record-like object without one (measured every time)
+    held = None if memo is None else memo.get(key)
     if held is not None and held[0] is record.f and held[1] is record.z and held[2] is record.taps:
         return held[3]
-    stage1 = measure_stage1(record.z, record.f, kg_points, record.taps, kg_window)
-    record.memo[key] = (record.f, record.z, record.taps, stage1)  # the arrays held: their ids cannot be reused
+    stage1 = measure_stage1(record.z, record.f, kg_points, record.taps, kg_window, record.t)
+    if memo is not None:
+        memo[key] = (record.f, record.z, record.taps, stage1)  # the arrays held: their ids cannot be reused
     return stage1
 
 
@@ -434,7 +479,7 @@ def _stage1(t, z, f, z1, kg_points, taps: Taps | None = None, kg_window: str = "
     """Taps, then stages 1a and 1b: ``(taps, tau_c per interval, Kg per tap, warnings)``;
     ``stage1``: the record's taps and slopes when already measured (:func:`record_stage1`)."""
     if stage1 is None:
-        stage1 = measure_stage1(z, f, kg_points, taps, kg_window)
+        stage1 = measure_stage1(z, f, kg_points, taps, kg_window, t)
     taps = stage1.taps
     longest = int(np.max(taps.separation - taps.contact)) - 1  # samples after the contact minimum, before separation
     if kg_points > longest:
@@ -517,10 +562,40 @@ def stage2_tap(u, z, f, kg: float, tau_c: float, fc: float, kr_guess=None, solve
     return kr, fit.rms, rms, nf
 
 
-def _stage2(t, z, f, taps: Taps, kg: float, tau_c: float, kr_guess, solver: str = "closed", kr_start=None):
+def _stage2_compiled(c: Contacts, kg: float, tau_c: float, kr_guess, kr_start=None):
+    """:func:`_stage2` with ``solver='closed'`` in one compiled call over the taps
+    (:func:`vetica_cli.core.superposition.solve_taps`); None when a contact has no constant step."""
+    from ...core.superposition import solve_taps
+
+    long = c.samples >= MIN_CONTACT_SAMPLES + 1  # isep - ic >= MIN_CONTACT_SAMPLES
+    if not np.all(np.isfinite(c.h[long])):
+        return None
+    n = len(c.start)
+    start = np.where(long, c.start, -1)
+    guess = np.full(n, -1.0 if kr_guess is None else float(kr_guess))
+    warm = np.zeros(n, dtype=bool)
+    if kr_start is not None:
+        ks = np.asarray(kr_start, dtype=float)
+        warm = np.isfinite(ks) & (ks > 0.0) & (ks < kg)
+        guess = np.where(warm, ks, guess)
+    kr, s0, rms = np.full(n, math.nan), np.zeros(n), np.zeros(n)
+    calls = np.zeros(n, dtype=np.int64)
+    zeros = np.zeros(n)
+    solve_taps(c.delta, c.f, start, c.stop, c.h, float(kg), float(tau_c), c.fc, guess, warm, zeros, zeros, False,
+               KR_SCAN, KR_RTOL, kr, s0, rms, calls)  # fmt: skip
+    return (list(kr), [math.nan] * int(np.sum(long)), [float(x) for x in rms[long]],
+            [int(x) for x in calls[long]])  # fmt: skip
+
+
+def _stage2(t, z, f, taps: Taps, kg: float, tau_c: float, kr_guess, solver: str = "closed", kr_start=None,
+            contacts: Contacts | None = None):  # fmt: skip
     """Kr of every tap long enough (nan otherwise) and the fit residuals of those fitted;
     ``kr_start``: each tap's Kr at nearby inputs, where each tap's root is looked for first
     (a warm start: the same root, found without scanning the bounds)."""
+    if solver == "closed" and contacts is not None:
+        out = _stage2_compiled(contacts, kg, tau_c, kr_guess, kr_start)
+        if out is not None:
+            return out
     kr_i, fit_rms, f_rms, nfev = [], [], [], []
     for j, (ic, isep) in enumerate(zip(taps.contact, taps.separation)):
         if isep - ic < MIN_CONTACT_SAMPLES:
@@ -575,6 +650,8 @@ def vetica(
     if kg_points < 2:
         raise InputError(f"kg_points {kg_points} not allowed; expected an integer >= 2")
     t0 = time.perf_counter()
+    if stage1 is None:
+        stage1 = measure_stage1(z, f, kg_points, taps, kg_window, t)
     taps, tau_c_i, kg_i, warnings = _stage1(t, z, f, z1, kg_points, taps, kg_window, stage1)
     kg_i = kg_i * kg_scale  # the error bars move Kg to see how stage 2 follows it
     n_taps = len(taps.contact)
@@ -582,7 +659,8 @@ def vetica(
     tau_c, kg = _mean(tau_c_i), _mean(kg_i)
     warnings += _stage1_warnings(tau_c, kg, z1, kg_points)
     run2 = not (math.isnan(tau_c) or math.isnan(kg)) and kg > 0
-    kr_i, fit_rms, f_rms, nfev = (_stage2(t, z, f, taps, kg, tau_c, kr_guess, stage2, kr_start) if run2
+    contacts = stage1.contacts
+    kr_i, fit_rms, f_rms, nfev = (_stage2(t, z, f, taps, kg, tau_c, kr_guess, stage2, kr_start, contacts) if run2
                                   else ([], [], [], []))  # fmt: skip
     t2 = time.perf_counter()
     kr_i = np.array(kr_i) if kr_i else np.full(n_taps, math.nan)
@@ -665,12 +743,13 @@ class TapMethod(ExtractionMethod):
     @staticmethod
     def keep_pass(record: Record, res: ExtractionResult, ex) -> None:
         """Keep the pass ``ex`` behind ``res`` on the record (``record.memo``) for :meth:`moved`."""
-        record.memo[("tap-pass", id(res))] = (res, ex)
+        if hasattr(record, "memo"):
+            record.memo[("tap-pass", id(res))] = (res, ex)
 
     @staticmethod
     def pass_of(record: Record, res: ExtractionResult):
         """The pass behind ``res`` kept by :meth:`keep_pass`, or None."""
-        held = record.memo.get(("tap-pass", id(res)))
+        held = getattr(record, "memo", {}).get(("tap-pass", id(res)))
         return held[1] if held is not None and held[0] is res else None
 
 

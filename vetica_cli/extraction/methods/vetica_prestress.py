@@ -80,6 +80,8 @@ from .vetica import (
     stage1b_kg,
     stage2_tap_closed,
     uniform_step,
+    KR_RTOL,
+    KR_SCAN,
 )
 
 PRESTRESS = ("auto", "adhesion", "creep", "fit")
@@ -270,15 +272,8 @@ def _stages(fits, mode, z1, kg, tau_c, kr_guess, s_of_tap, kg_scale: float = 1.0
     a pass at nearby inputs (``kg``, ``kr_i``, ``s0_i``), from which the iterations start
     instead of the thesis's Kg and ``kr_guess`` (the same fixed point, to :data:`RTOL`)."""
     n = len(fits)
-    kr_i, s0_i, rms_i, kg_i = (np.full(n, math.nan) for _ in range(4))
-    kr = kr_guess if kr_guess is not None else 0.1 * kg
-    warm0 = False
-    if start is not None and len(start["kr_i"]) == n and math.isfinite(start["kg"]) and start["kg"] > 0:
-        kr_i, s0_i = np.array(start["kr_i"], dtype=float), np.array(start["s0_i"], dtype=float)
-        if np.any(np.isfinite(kr_i)) and np.all(kr_i[np.isfinite(kr_i)] < start["kg"]):
-            kg, kr, warm0 = float(start["kg"]), _mean(kr_i), True
-        else:
-            kr_i, s0_i = np.full(n, math.nan), np.full(n, math.nan)
+    rms_i, kg_i = np.full(n, math.nan), np.full(n, math.nan)
+    kg, kr, kr_i, s0_i, warm0 = _start(n, kg, kr_guess, start)
     for it in range(1, MAX_ITER + 1):
         for j, tf in enumerate(fits):
             if tf is None:
@@ -307,6 +302,38 @@ def _stages(fits, mode, z1, kg, tau_c, kr_guess, s_of_tap, kg_scale: float = 1.0
     return kg, kr_i, kg_i, s0_i, rms_i, MAX_ITER, False
 
 
+MODES = {"adhesion": 0, "creep": 1, "fit": 2}  # the pre-stress modes as the compiled fixed point numbers them
+
+
+def _start(n: int, kg: float, kr_guess, start: dict | None):
+    """Where the fixed point's iterations start: ``(Kg, Kr, Kr per tap, sigma0 per tap, stage 2 warm
+    from the first iteration)`` (:func:`_stages`'s ``start``)."""
+    kr_i, s0_i = np.full(n, math.nan), np.full(n, math.nan)
+    kr = kr_guess if kr_guess is not None else 0.1 * kg
+    if start is not None and len(start["kr_i"]) == n and math.isfinite(start["kg"]) and start["kg"] > 0:
+        ks = np.array(start["kr_i"], dtype=float)
+        if np.any(np.isfinite(ks)) and np.all(ks[np.isfinite(ks)] < start["kg"]):
+            return float(start["kg"]), _mean(ks), ks, np.array(start["s0_i"], dtype=float), True
+    return kg, kr, kr_i, s0_i, False
+
+
+def _stages_compiled(c, fits, mode, z1, kg, tau_c, kr_guess, kg_scale: float, start: dict | None, kg_points: int):
+    """:func:`_stages` over the contacts ``c`` (:class:`~.vetica.Contacts`) in one compiled call
+    (:func:`vetica_cli.core.superposition.prestress_fixed_point`); the taps whose ``fits`` entry is
+    None are skipped."""
+    from ...core.superposition import prestress_fixed_point
+
+    n = len(fits)
+    first = np.array([c.start[j] if fits[j] is not None else -1 for j in range(n)], dtype=np.int64)
+    kg, kr, kr_i, s0_i, warm0 = _start(n, kg, kr_guess, start)
+    kg_i, rms_i = np.full(n, math.nan), np.full(n, math.nan)
+    kg, iters, done = prestress_fixed_point(c.delta, c.z, c.f, c.u, first, c.stop, c.h, c.fc, c.zc, int(kg_points),
+                                            MODES[mode], float(z1), float(kg), float(tau_c), float(kr), kr_i, s0_i,
+                                            bool(warm0), float(kg_scale), MAX_ITER, RTOL, KR_SCAN, KR_RTOL, kg_i,
+                                            rms_i)  # fmt: skip
+    return float(kg), kr_i, kg_i, s0_i, rms_i, int(iters), bool(done)
+
+
 def vetica_prestress(t, z, f, z1: float, kg_points: int = 10, kr_guess: float | None = None,
                      prestress: str = "adhesion", stage2: str = "closed", taps: Taps | None = None,
                      kg_window: str = "noise", kg_scale: float = 1.0, stage1: Stage1 | None = None,
@@ -331,7 +358,7 @@ def vetica_prestress(t, z, f, z1: float, kg_points: int = 10, kr_guess: float | 
     t, z, f = (np.asarray(a, dtype=float) for a in (t, z, f))
     t0 = time.perf_counter()
     if stage1 is None:
-        stage1 = measure_stage1(z, f, kg_points, taps, kg_window)
+        stage1 = measure_stage1(z, f, kg_points, taps, kg_window, t)
     taps = stage1.taps
     n_taps = len(taps.contact)
     tau_c_i = stage1a_tau_c(t, z, taps, z1)
@@ -369,8 +396,14 @@ def vetica_prestress(t, z, f, z1: float, kg_points: int = 10, kr_guess: float | 
 
     if start is not None and start.get("kg_scale"):  # a nearby pass's fixed point, its Kg moved as this pass's slopes are
         start = {**start, "kg": start["kg"] * kg_scale / start["kg_scale"]}
-    kg, kr_i, kg_i, s0_i, rms_i, iters, converged = _stages(fits, mode, z1, kg0, tau_c, kr_guess, start_sigma, kg_scale,
-                                                            start)  # fmt: skip
+    compiled = (stage1.contacts is not None and all(isinstance(tf, ClosedTap) and tf.window is None
+                                                    for tf in fits if tf is not None))  # fmt: skip
+    if compiled:  # the thesis's stage-1b window on every tap: the fixed point compiled
+        kg, kr_i, kg_i, s0_i, rms_i, iters, converged = _stages_compiled(stage1.contacts, fits, mode, z1, kg0, tau_c,
+                                                                         kr_guess, kg_scale, start, kg_points)  # fmt: skip
+    else:
+        kg, kr_i, kg_i, s0_i, rms_i, iters, converged = _stages(fits, mode, z1, kg0, tau_c, kr_guess, start_sigma,
+                                                                kg_scale, start)  # fmt: skip
     t2 = time.perf_counter()
     warnings = []
     if not converged:
