@@ -102,6 +102,41 @@ def _cost(delta, f, h, kg, kr, tau_c, fc, scale, sa, sb, fit_sigma, y, dy, out):
 
 
 @njit(cache=True)
+def _scan_costs(delta, f, h, kg, krs, tau_c, fc, scale, sa, sb, costs):
+    """``costs[i]`` = the cost ``S`` of :func:`_cost` at ``krs[i]`` (a known pre-stress law), every
+    ``Kr`` advanced together through one pass over the samples (independent recursions side by
+    side: the processor overlaps them), with the same arithmetic as :func:`_cost`, so the same
+    values to the last bit."""
+    m = len(krs)
+    n = len(delta)
+    e = np.empty(m)
+    c = np.empty(m)
+    sig = np.empty(m)
+    kgr = np.empty(m)
+    p = np.ones(m)
+    yk = np.zeros(m)
+    inv = 1.0 / scale
+    for i in range(m):
+        tau = tau_c * krs[i] / kg
+        e[i] = math.exp(-h / tau)
+        c[i] = tau * (1.0 - e[i]) / h
+        sig[i] = sa + sb * krs[i]
+        kgr[i] = kg - krs[i]
+        costs[i] = 0.0
+    for k in range(n):
+        dk = delta[k]
+        fk = f[k]
+        step = dk - delta[k - 1] if k > 0 else 0.0
+        for i in range(m):
+            if k > 0:
+                yk[i] = e[i] * yk[i] + step * c[i]
+            q = 1.0 - p[i]
+            r = (fc + krs[i] * dk + kgr[i] * yk[i] + sig[i] * q - fk) * inv
+            costs[i] += r * r
+            p[i] *= e[i]
+
+
+@njit(cache=True)
 def _brent_root(delta, f, h, kg, tau_c, fc, scale, sa, sb, fit_sigma, y, dy, out, a, b, fa, fb, rtol):
     """Root of ``S'`` in ``[a, b]`` (``fa < 0 < fb``) by Brent's method; returns ``(root, evaluations)``."""
     calls = 0
@@ -178,11 +213,12 @@ def _golden(delta, f, h, kg, tau_c, fc, scale, sa, sb, fit_sigma, y, dy, out, a,
 
 
 @njit(cache=True)
-def solve_kr(delta, f, h, kg, tau_c, fc, kr_guess, sa, sb, fit_sigma, n_scan, rtol):
+def solve_kr(delta, f, h, kg, tau_c, fc, kr_guess, sa, sb, fit_sigma, n_scan, rtol, step0=1e-3):
     """Least-squares ``Kr`` of one tap on ``(1e-12 Kg, Kg (1 - 1e-9))`` (module docstring).
     ``kr_guess <= 0``: none.  ``n_scan = 0`` with a guess: a warm start (a fixed-point
     iteration's previous Kr, or the root at nearby inputs) -- the root of ``S'`` is bracketed by
-    steps growing from 1e-3 of the guess, or reaching 20 % past the secant's root through the last
+    steps growing from ``step0`` of the guess (1e-3; a fixed point's late iterations, whose Kr moves
+    less, start smaller), or reaching 20 % past the secant's root through the last
     two points where that is nearer (the scan when neither finds it).  Returns ``(Kr, sigma0 [N], residual RMS [N], cost evaluations)``."""
     n = len(delta)
     y = np.empty(n)
@@ -200,7 +236,7 @@ def solve_kr(delta, f, h, kg, tau_c, fc, kr_guess, sa, sb, fit_sigma, n_scan, rt
         _cost(delta, f, h, kg, kr_guess, tau_c, fc, scale, sa, sb, fit_sigma, y, dy, out)
         calls += 1
         g0 = out[1]
-        step = 1e-3
+        step = step0
         g1 = g0
         other = kr_guess
         prev, gp = kr_guess, g0
@@ -243,12 +279,21 @@ def solve_kr(delta, f, h, kg, tau_c, fc, kr_guess, sa, sb, fit_sigma, n_scan, rt
     m = len(xs)
     best = 0
     sbest = np.inf
-    for i in range(m):
-        _cost(delta, f, h, kg, xs[i], tau_c, fc, scale, sa, sb, fit_sigma, y, dy, out)
-        calls += 1
-        if out[0] < sbest:
-            sbest = out[0]
-            best = i
+    if fit_sigma:
+        for i in range(m):
+            _cost(delta, f, h, kg, xs[i], tau_c, fc, scale, sa, sb, fit_sigma, y, dy, out)
+            calls += 1
+            if out[0] < sbest:
+                sbest = out[0]
+                best = i
+    else:  # every scanned Kr in one pass over the samples
+        costs = np.empty(m)
+        _scan_costs(delta, f, h, kg, xs, tau_c, fc, scale, sa, sb, costs)
+        calls += m
+        for i in range(m):
+            if costs[i] < sbest:
+                sbest = costs[i]
+                best = i
     _cost(delta, f, h, kg, xs[best], tau_c, fc, scale, sa, sb, fit_sigma, y, dy, out)
     calls += 1
     gi = out[1]
@@ -291,11 +336,11 @@ def solve_kr(delta, f, h, kg, tau_c, fc, kr_guess, sa, sb, fit_sigma, n_scan, rt
 
 @njit(cache=True)
 def solve_taps(delta, f, start, stop, h, kg, tau_c, fc, guess, warm, sa, sb, fit_sigma, n_scan, rtol,
-               kr, s0, rms, calls):  # fmt: skip
+               kr, s0, rms, calls, step0):  # fmt: skip
     """:func:`solve_kr` on every tap of a record in one call: tap ``j``'s samples are
     ``delta[start[j]:stop[j]]``, ``f[start[j]:stop[j]]`` at the step ``h[j]``, force ``fc[j]`` at
     its contact minimum and pre-stress law ``sa[j] + sb[j] Kr``; ``guess[j]`` (<= 0: none) is a
-    warm start where ``warm[j]``.  Taps with ``start[j] < 0`` are skipped (their outputs left as
+    warm start where ``warm[j]`` (its first bracketing step ``step0[j]`` of the guess).  Taps with ``start[j] < 0`` are skipped (their outputs left as
     they are).  Fills ``kr, s0, rms, calls``."""
     for j in range(len(start)):
         a = start[j]
@@ -303,7 +348,7 @@ def solve_taps(delta, f, start, stop, h, kg, tau_c, fc, guess, warm, sa, sb, fit
             continue
         b = stop[j]
         out = solve_kr(delta[a:b], f[a:b], h[j], kg, tau_c, fc[j], guess[j], sa[j], sb[j], fit_sigma,
-                       0 if warm[j] else n_scan, rtol)  # fmt: skip
+                       0 if warm[j] else n_scan, rtol, step0[j])  # fmt: skip
         kr[j] = out[0]
         s0[j] = out[1]
         rms[j] = out[2]
@@ -359,6 +404,8 @@ def prestress_fixed_point(delta, z, f, u, start, stop, h, fc, zc, kg_points, mod
     sa = np.zeros(n)
     sb = np.zeros(n)
     calls = np.zeros(n, dtype=np.int64)
+    step0 = np.full(n, 1e-3)  # each tap's first bracketing step: 1e-3, then twice the last iteration's move
+    prev = np.empty(n)
     fit_sigma = mode == 2
     m = kg_points + 1
     y = np.empty(m)
@@ -376,8 +423,13 @@ def prestress_fixed_point(delta, z, f, u, start, stop, h, fc, zc, kg_points, mod
             else:
                 sa[j] = 0.0 if mode == 1 else -fc[j]
                 sb[j] = -(zc[j] - z1) + (fc[j] / kg if mode == 0 else 0.0)
+        for j in range(n):
+            prev[j] = kr_i[j]
         solve_taps(delta, f, start, stop, h, kg, tau_c, fc, guess, warm, sa, sb, fit_sigma, n_scan, rtol,
-                   kr_i, s0_i, rms_i, calls)  # fmt: skip
+                   kr_i, s0_i, rms_i, calls, step0)  # fmt: skip
+        for j in range(n):
+            if start[j] >= 0 and math.isfinite(prev[j]) and prev[j] > 0.0:
+                step0[j] = min(max(2.0 * abs(kr_i[j] - prev[j]) / prev[j], 1e-13), 1e-3)
         kr_new = _nanmean(kr_i)
         tau_r = tau_c * kr_new / kg
         for j in range(n):

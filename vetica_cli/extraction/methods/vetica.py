@@ -387,6 +387,15 @@ class VeticaResult:
 
 
 def _mean(values: np.ndarray) -> float:
+    """Mean of the finite ``values`` (nan for none), as ``np.nanmean``; a few values (a pixel's
+    taps) summed in a plain loop, which is numpy's own order below eight values."""
+    if len(values) < 8:
+        total, n = 0.0, 0
+        for v in np.asarray(values, dtype=float).tolist():
+            if math.isfinite(v):
+                total += v
+                n += 1
+        return total / n if n else math.nan
     return float(np.nanmean(values)) if np.any(np.isfinite(values)) else math.nan
 
 
@@ -582,7 +591,7 @@ def _stage2_compiled(c: Contacts, kg: float, tau_c: float, kr_guess, kr_start=No
     calls = np.zeros(n, dtype=np.int64)
     zeros = np.zeros(n)
     solve_taps(c.delta, c.f, start, c.stop, c.h, float(kg), float(tau_c), c.fc, guess, warm, zeros, zeros, False,
-               KR_SCAN, KR_RTOL, kr, s0, rms, calls)  # fmt: skip
+               KR_SCAN, KR_RTOL, kr, s0, rms, calls, np.full(n, 1e-3))  # fmt: skip
     return (list(kr), [math.nan] * int(np.sum(long)), [float(x) for x in rms[long]],
             [int(x) for x in calls[long]])  # fmt: skip
 
@@ -625,6 +634,7 @@ def vetica(
     kg_scale: float = 1.0,
     stage1: Stage1 | None = None,
     kr_start: np.ndarray | None = None,
+    lean: bool = False,
 ) -> VeticaResult:
     """Run VETICA stages 1a, 1b and 2 on a record of consecutive taps.
 
@@ -640,7 +650,8 @@ def vetica(
     already located (else :func:`~vetica_cli.signals.taps.find_taps` on ``f``).  ``stage1``:
     the record's taps and stage 1b's slopes when already measured (:func:`record_stage1`);
     ``kr_start``: each tap's Kr from a run at nearby inputs (the error bars' re-runs), where
-    stage 2 looks for each root first.
+    stage 2 looks for each root first; ``lean``: the values and the per-tap Kr only (no other
+    per-tap values, diagnostics or warnings: the error bars' re-runs on a record already checked).
     """
     if stage2 not in STAGE2:
         raise InputError(f"stage2 {stage2!r} not allowed; choose one of: {', '.join(STAGE2)}")
@@ -652,7 +663,10 @@ def vetica(
     t0 = time.perf_counter()
     if stage1 is None:
         stage1 = measure_stage1(z, f, kg_points, taps, kg_window, t)
-    taps, tau_c_i, kg_i, warnings = _stage1(t, z, f, z1, kg_points, taps, kg_window, stage1)
+    if lean:
+        taps, tau_c_i, kg_i, warnings = stage1.taps, stage1a_tau_c(t, z, stage1.taps, z1), stage1.kg, []
+    else:
+        taps, tau_c_i, kg_i, warnings = _stage1(t, z, f, z1, kg_points, taps, kg_window, stage1)
     kg_i = kg_i * kg_scale  # the error bars move Kg to see how stage 2 follows it
     n_taps = len(taps.contact)
     t1 = time.perf_counter()
@@ -664,6 +678,9 @@ def vetica(
                                   else ([], [], [], []))  # fmt: skip
     t2 = time.perf_counter()
     kr_i = np.array(kr_i) if kr_i else np.full(n_taps, math.nan)
+    if lean:
+        return VeticaResult(values=sls_elements(tau_c, kg, _mean(kr_i)), per_tap={"k_r": kr_i}, taps=n_taps,
+                            z1=float(z1), timing_s={})  # fmt: skip
     if run2 and not fit_rms:
         warnings.append(f"stage 2: every contact is shorter than {MIN_CONTACT_SAMPLES} samples; Kr skipped")
     per = [sls_elements(tau_c, kg, k) for k in kr_i]
@@ -722,13 +739,14 @@ class TapMethod(ExtractionMethod):
         slopes measured once (:func:`record_stage1`) and each tap's state in ``res``'s pass
         (:meth:`pass_of`); values as a whole run gives them (the same roots)."""
         opts = options if kg_scale is None else {**options, "kg_scale": kg_scale}
-        ex = self.tap_pass(record, opts, record.z1 if z1 is None else z1, start=self.pass_of(record, res))
+        ex = self.tap_pass(record, opts, record.z1 if z1 is None else z1, start=self.pass_of(record, res), lean=True)
         units = {k: q.unit for k, q in self.quantities(record.model).items()}
         return estimates(ex.values, units)
 
-    def tap_pass(self, record: Record, options: dict, z1: float, start=None):
+    def tap_pass(self, record: Record, options: dict, z1: float, start=None, lean: bool = False):
         """The method's stages on ``record`` at ``z1`` (its own result type); ``start``: the pass of
-        a run at nearby inputs (of this tap method or another) whose per-tap state starts this one."""
+        a run at nearby inputs (of this tap method or another) whose per-tap state starts this one;
+        ``lean``: its values and the state a nearby pass starts from only."""
         raise NotImplementedError  # pragma: no cover - each tap method has its own
 
     def values_from(self, record: Record, options: dict, start=None) -> dict:
@@ -736,7 +754,7 @@ class TapMethod(ExtractionMethod):
         its stages started from ``start``, the pass of another tap method on the same record (the
         checks' comparison of the two VETICA variants; the same answer as a run, to the stages'
         tolerance)."""
-        ex = self.tap_pass(record, options, record.z1, start=start)
+        ex = self.tap_pass(record, options, record.z1, start=start, lean=True)
         units = {k: q.unit for k, q in self.quantities(record.model).items()}
         return estimates(ex.values, units)
 
@@ -774,7 +792,8 @@ class Vetica(TapMethod):
 
     compared_with = "vetica-prestress"  # the thesis's stages against the pre-stress at contact (tapchecks)
 
-    def tap_pass(self, record: Record, options: dict, z1: float, start: VeticaResult | None = None) -> VeticaResult:
+    def tap_pass(self, record: Record, options: dict, z1: float, start: VeticaResult | None = None,
+                 lean: bool = False) -> VeticaResult:  # fmt: skip
         """:func:`vetica` on the record's taps and slopes measured once (:func:`record_stage1`);
         ``start``: a pass at nearby inputs whose per-tap Kr starts stage 2."""
         stage1 = record_stage1(record, options["kg_points"], options["kg_window"])
@@ -782,7 +801,7 @@ class Vetica(TapMethod):
         return vetica(record.t, record.z, record.f, z1, kg_points=options["kg_points"],
                       kr_guess=options["kr_guess"], stage2=options["stage2"], taps=record.taps,
                       kg_window=options["kg_window"], kg_scale=options.get("kg_scale", 1.0), stage1=stage1,
-                      kr_start=kr_start)  # fmt: skip
+                      kr_start=kr_start, lean=lean)  # fmt: skip
 
     def run(self, record: Record, options: dict) -> ExtractionResult:
         if options["stage2"] not in STAGE2:

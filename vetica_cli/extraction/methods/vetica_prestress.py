@@ -317,14 +317,53 @@ def _start(n: int, kg: float, kr_guess, start: dict | None):
     return kg, kr, kr_i, s0_i, False
 
 
-def _stages_compiled(c, fits, mode, z1, kg, tau_c, kr_guess, kg_scale: float, start: dict | None, kg_points: int):
+def _compiled_taps(stage1: Stage1, stage2: str, kg_points: int) -> np.ndarray | None:
+    """Each tap's first contact sample for the compiled fixed point (-1: a contact too short for
+    stages 1b and 2, skipped), or None where the Python loop runs instead: the sum-of-sines stage 2,
+    a contact without a constant step, stage 1b's slopes read over windows grown from the noise, or
+    no contact long enough (the loop says so)."""
+    c = stage1.contacts
+    grown = stage1.windows is not None and not all(stage1.windows["thesis"])
+    if stage2 != "closed" or c is None or grown:
+        return None
+    long = c.samples - 1 >= max(MIN_CONTACT_SAMPLES, kg_points + 1)
+    if not np.any(long) or not np.all(np.isfinite(c.h[long])):
+        return None
+    return np.where(long, c.start, -1).astype(np.int64)
+
+
+def _stages_python(t, z, f, taps, windows, kg_thesis_i, z1, kg0, tau_c, kr_guess, kg_scale, start, kg_points, mode,
+                   stage2):  # fmt: skip
+    """Stages 2 and 1b to their fixed point tap by tap in Python (:func:`_stages`), on
+    :class:`ClosedTap` contacts (with stage 1b's grown windows) or the sum-of-sines fits: its
+    results, and 'closed' or the sine fits."""
+    fits = closed_taps(t, z, f, taps, kg_points) if stage2 == "closed" else []
+    if windows is not None and not all(windows["thesis"]):  # stage 1b read over windows grown from the noise
+        for j, tf in enumerate(fits):
+            if tf is not None and not windows["thesis"][j] and windows["window"][j] > 0:
+                first = max(1, int(windows["start"][j]) - int(taps.contact[j]))
+                tf.window = (first, int(windows["window"][j]), float(windows["at"][j]), float(kg_thesis_i[j]))
+    if not any(tf is not None for tf in fits):
+        fits = tap_fits(t, z, f, taps, kg_points)
+    if all(tf is None for tf in fits):
+        raise InputError(f"stage 2: every contact is shorter than {max(MIN_CONTACT_SAMPLES, kg_points + 1)} samples")
+
+    def start_sigma(tf, kg, kr):  # fit mode starts from the adhesion estimate
+        return prestress_of("adhesion" if mode == "fit" else mode, tf.fc, tf.zc, z1, kg, kr)
+
+    kg, kr_i, kg_i, s0_i, rms_i, iters, converged = _stages(fits, mode, z1, kg0, tau_c, kr_guess, start_sigma, kg_scale,
+                                                            start)  # fmt: skip
+    fitted = "closed" if any(isinstance(tf, ClosedTap) for tf in fits) else fits
+    return kg, kr_i, kg_i, s0_i, rms_i, iters, converged, fitted
+
+
+def _stages_compiled(c, first, mode, z1, kg, tau_c, kr_guess, kg_scale: float, start: dict | None, kg_points: int):
     """:func:`_stages` over the contacts ``c`` (:class:`~.vetica.Contacts`) in one compiled call
-    (:func:`vetica_cli.core.superposition.prestress_fixed_point`); the taps whose ``fits`` entry is
-    None are skipped."""
+    (:func:`vetica_cli.core.superposition.prestress_fixed_point`); the taps whose ``first`` sample
+    is -1 are skipped."""
     from ...core.superposition import prestress_fixed_point
 
-    n = len(fits)
-    first = np.array([c.start[j] if fits[j] is not None else -1 for j in range(n)], dtype=np.int64)
+    n = len(first)
     kg, kr, kr_i, s0_i, warm0 = _start(n, kg, kr_guess, start)
     kg_i, rms_i = np.full(n, math.nan), np.full(n, math.nan)
     kg, iters, done = prestress_fixed_point(c.delta, c.z, c.f, c.u, first, c.stop, c.h, c.fc, c.zc, int(kg_points),
@@ -337,7 +376,7 @@ def _stages_compiled(c, fits, mode, z1, kg, tau_c, kr_guess, kg_scale: float, st
 def vetica_prestress(t, z, f, z1: float, kg_points: int = 10, kr_guess: float | None = None,
                      prestress: str = "adhesion", stage2: str = "closed", taps: Taps | None = None,
                      kg_window: str = "noise", kg_scale: float = 1.0, stage1: Stage1 | None = None,
-                     start: dict | None = None) -> PrestressResult:  # fmt: skip
+                     start: dict | None = None, lean: bool = False) -> PrestressResult:  # fmt: skip
     """Run VETICA with the pre-stress (module docstring) on a record of consecutive taps.
 
     ``prestress``: ``adhesion``, ``creep`` or ``fit`` (the method resolves ``auto``).
@@ -349,7 +388,8 @@ def vetica_prestress(t, z, f, z1: float, kg_points: int = 10, kr_guess: float | 
     ``taps``: the record's taps when already located; ``stage1``: the record's taps and stage
     1b's slopes when already measured (:func:`~.vetica.record_stage1`); ``start``: the fixed point
     of a pass at nearby inputs (``PrestressResult.state``, with its Kg scale), where the
-    iterations of stages 1b and 2 start.
+    iterations of stages 1b and 2 start; ``lean``: the values and the fixed point only (no per-tap
+    values but Kr, diagnostics or warnings: the error bars' and checks' re-runs).
     """
     if stage2 not in STAGE2:
         raise InputError(f"stage2 {stage2!r} not allowed; choose one of: {', '.join(STAGE2)}")
@@ -379,32 +419,22 @@ def vetica_prestress(t, z, f, z1: float, kg_points: int = 10, kr_guess: float | 
                                timing_s={"stage1": time.perf_counter() - t0, "stages_1b_2": 0.0},
                                diagnostics={"prestress": prestress}, warnings=[problem])  # fmt: skip
     t1 = time.perf_counter()
-    fits = closed_taps(t, z, f, taps, kg_points) if stage2 == "closed" else []
-    if windows is not None and not all(windows["thesis"]):  # stage 1b read over windows grown from the noise
-        for j, tf in enumerate(fits):
-            if tf is not None and not windows["thesis"][j] and windows["window"][j] > 0:
-                first = max(1, int(windows["start"][j]) - int(taps.contact[j]))
-                tf.window = (first, int(windows["window"][j]), float(windows["at"][j]), float(kg_thesis_i[j]))
-    if not any(tf is not None for tf in fits):
-        fits = tap_fits(t, z, f, taps, kg_points)
-    if all(tf is None for tf in fits):
-        raise InputError(f"stage 2: every contact is shorter than {max(MIN_CONTACT_SAMPLES, kg_points + 1)} samples")
-    mode = prestress
-
-    def start_sigma(tf, kg, kr):  # fit mode starts from the adhesion estimate
-        return prestress_of("adhesion" if mode == "fit" else mode, tf.fc, tf.zc, z1, kg, kr)
-
     if start is not None and start.get("kg_scale"):  # a nearby pass's fixed point, its Kg moved as this pass's slopes are
         start = {**start, "kg": start["kg"] * kg_scale / start["kg_scale"]}
-    compiled = (stage1.contacts is not None and all(isinstance(tf, ClosedTap) and tf.window is None
-                                                    for tf in fits if tf is not None))  # fmt: skip
-    if compiled:  # the thesis's stage-1b window on every tap: the fixed point compiled
-        kg, kr_i, kg_i, s0_i, rms_i, iters, converged = _stages_compiled(stage1.contacts, fits, mode, z1, kg0, tau_c,
-                                                                         kr_guess, kg_scale, start, kg_points)  # fmt: skip
+    first = _compiled_taps(stage1, stage2, kg_points)
+    if first is not None:  # uniform contacts, the thesis's stage-1b window on every tap: the fixed point compiled
+        kg, kr_i, kg_i, s0_i, rms_i, iters, converged = _stages_compiled(stage1.contacts, first, prestress, z1, kg0,
+                                                                         tau_c, kr_guess, kg_scale, start, kg_points)  # fmt: skip
+        fitted = "closed"
     else:
-        kg, kr_i, kg_i, s0_i, rms_i, iters, converged = _stages(fits, mode, z1, kg0, tau_c, kr_guess, start_sigma,
-                                                                kg_scale, start)  # fmt: skip
+        kg, kr_i, kg_i, s0_i, rms_i, iters, converged, fitted = _stages_python(t, z, f, taps, windows, kg_thesis_i, z1,
+                                                                               kg0, tau_c, kr_guess, kg_scale, start,
+                                                                               kg_points, prestress, stage2)  # fmt: skip
     t2 = time.perf_counter()
+    if lean:
+        return PrestressResult(values=sls_elements(tau_c, kg, _mean(kr_i)), per_tap={"k_r": kr_i}, taps=n_taps,
+                               timing_s={}, diagnostics={}, warnings=[],
+                               state={"kg": kg, "kr_i": kr_i, "s0_i": s0_i, "kg_scale": kg_scale})  # fmt: skip
     warnings = []
     if not converged:
         warnings.append(f"stages 1b and 2 did not reach a fixed point in {iters} iterations")
@@ -416,17 +446,17 @@ def vetica_prestress(t, z, f, z1: float, kg_points: int = 10, kr_guess: float | 
     per_tap = {"tau_c": tau_c_i, "k_g": kg_i, "k_r": kr_i,
                **{k: np.array([p[k] for p in per]) for k in ("tau_r", "k0", "k_inf", "cd")}}  # fmt: skip
     diagnostics = {
-        "prestress": mode,
+        "prestress": prestress,
         "prestress_n": _mean(s0_i),
         "adhesion_n": float(-np.median(f[taps.contact])),
         "kg_stage1b_thesis": kg0,
         "iterations": iters,
         "force_fit_rms_n": float(np.nanmax(rms_i)),
-        "stage2": "closed" if any(isinstance(tf, ClosedTap) for tf in fits) else "sines",
+        "stage2": fitted if isinstance(fitted, str) else "sines",
         "contact_samples": int(np.median(taps.separation - taps.contact)),
     }
     if diagnostics["stage2"] == "sines":
-        diagnostics["sine_fit_rms_m"] = float(max(tf.fit.rms for tf in fits if tf is not None))
+        diagnostics["sine_fit_rms_m"] = float(max(tf.fit.rms for tf in fitted if tf is not None))
     return PrestressResult(
         values=sls_elements(tau_c, kg, kr), per_tap=per_tap, taps=n_taps,
         timing_s={"stage1": t1 - t0, "stages_1b_2": t2 - t1}, diagnostics=diagnostics, warnings=warnings,
@@ -465,8 +495,8 @@ class VeticaPrestress(TapMethod):
     references = ("thesis 3.3 (VETICA's stages), with the Maxwell arm's pre-stress at contact",)
     seconds_per_point = 0.55  # both forces, 10 periods at 0.125 ns: 0.53 CPU s measured with standard errors and checks
 
-    def tap_pass(self, record: Record, options: dict, z1: float, start: PrestressResult | None = None
-                 ) -> PrestressResult:  # fmt: skip
+    def tap_pass(self, record: Record, options: dict, z1: float, start: PrestressResult | None = None,
+                 lean: bool = False) -> PrestressResult:  # fmt: skip
         """:func:`vetica_prestress` on the record's taps and slopes measured once
         (:func:`~.vetica.record_stage1`); ``start``: a pass at nearby inputs whose fixed point
         starts this one's iterations."""
@@ -475,7 +505,7 @@ class VeticaPrestress(TapMethod):
                                 kr_guess=options["kr_guess"], prestress=self.mode(record, options)[0],
                                 stage2=options["stage2"], taps=record.taps, kg_window=options["kg_window"],
                                 kg_scale=options.get("kg_scale", 1.0), stage1=stage1,
-                                start=start_state(start))  # fmt: skip
+                                start=start_state(start), lean=lean)  # fmt: skip
 
     @staticmethod
     def mode(record: Record, options: dict) -> tuple[str, str]:
