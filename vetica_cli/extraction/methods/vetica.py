@@ -49,6 +49,15 @@ the same way (log scan, Brent on ``S'``), compiled
 ~20 ms, no scipy.  On the thesis studies the two differ by <= 1.1e-3 relative in Kr
 (k_inf, cd) in the acceptance regime and 8e-5 on scan pixels (docs/realtime.md);
 ``tau_c`` and ``Kg`` do not depend on it.
+
+One pass per record: the taps, stage 1b's slopes and the contacts as plain arrays
+(:class:`Stage1`, :class:`Contacts`) are measured once and kept on the record
+(:func:`record_stage1`); stage 2 runs over every tap in one compiled call
+(:func:`vetica_cli.core.superposition.solve_taps`, its bounds' scan one pass over the samples
+for every scanned Kr); the error bars' re-runs at a moved Z1 or Kg and the checks' comparison
+with the pre-stress variant re-run only the stages that move, each tap's root looked for first
+next to the pass's (:meth:`TapMethod.moved`, :meth:`TapMethod.values_from`): the same roots
+(tests/test_tap_pass.py).
 """
 
 from __future__ import annotations

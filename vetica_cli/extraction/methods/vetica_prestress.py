@@ -61,27 +61,26 @@ import numpy as np
 
 from ...checks import one_of
 from ...errors import InputError
-from ...signals.taps import Taps, find_taps
+from ...signals.taps import Taps
 from ..base import Option, get, register
 from ..record import Record
 from ..result import ExtractionResult, Spread, estimates
 from .vetica import (
-    TapMethod,
-    MIN_CONTACT_SAMPLES,
-    SineFit,
-    Superposition,
-    fit_sum_of_sines,
-    STAGE2,
-    sls_elements,
-    Stage1,
-    measure_stage1,
-    record_stage1,
-    stage1a_tau_c,
-    stage1b_kg,
-    stage2_tap_closed,
-    uniform_step,
     KR_RTOL,
     KR_SCAN,
+    MIN_CONTACT_SAMPLES,
+    STAGE2,
+    SineFit,
+    Stage1,
+    Superposition,
+    TapMethod,
+    fit_sum_of_sines,
+    measure_stage1,
+    record_stage1,
+    sls_elements,
+    stage1a_tau_c,
+    stage2_tap_closed,
+    uniform_step,
 )
 
 PRESTRESS = ("auto", "adhesion", "creep", "fit")
