@@ -213,13 +213,11 @@ def _golden(delta, f, h, kg, tau_c, fc, scale, sa, sb, fit_sigma, y, dy, out, a,
 
 
 @njit(cache=True)
-def solve_kr(delta, f, h, kg, tau_c, fc, kr_guess, sa, sb, fit_sigma, n_scan, rtol, step0=1e-3):
+def solve_kr(delta, f, h, kg, tau_c, fc, kr_guess, sa, sb, fit_sigma, n_scan, rtol):
     """Least-squares ``Kr`` of one tap on ``(1e-12 Kg, Kg (1 - 1e-9))`` (module docstring).
     ``kr_guess <= 0``: none.  ``n_scan = 0`` with a guess: a warm start (a fixed-point
-    iteration's previous Kr, or the root at nearby inputs) -- the root of ``S'`` is bracketed by
-    steps growing from ``step0`` of the guess (1e-3; a fixed point's late iterations, whose Kr moves
-    less, start smaller), or reaching 20 % past the secant's root through the last
-    two points where that is nearer (the scan when neither finds it).  Returns ``(Kr, sigma0 [N], residual RMS [N], cost evaluations)``."""
+    iteration's previous Kr) -- the root of ``S'`` is bracketed by steps growing from 1e-3
+    of the guess (the scan when that finds none).  Returns ``(Kr, sigma0 [N], residual RMS [N], cost evaluations)``."""
     n = len(delta)
     y = np.empty(n)
     dy = np.empty(n)
@@ -236,23 +234,17 @@ def solve_kr(delta, f, h, kg, tau_c, fc, kr_guess, sa, sb, fit_sigma, n_scan, rt
         _cost(delta, f, h, kg, kr_guess, tau_c, fc, scale, sa, sb, fit_sigma, y, dy, out)
         calls += 1
         g0 = out[1]
-        step = step0
+        step = 1e-3
         g1 = g0
         other = kr_guess
-        prev, gp = kr_guess, g0
-        for it in range(12):
-            grow = kr_guess * (1.0 - step) if g0 > 0.0 else kr_guess * (1.0 + step)
-            if it > 0 and g0 != gp:  # the secant through the last two points, 20 % past its root
-                ahead = kr_guess - 1.2 * g0 * (kr_guess - prev) / (g0 - gp)
-                if (ahead - kr_guess) * (grow - kr_guess) > 0.0 and abs(ahead - kr_guess) < abs(grow - kr_guess):
-                    grow = ahead
-            other = max(min(grow, hi), lo)
+        for _ in range(12):
+            other = kr_guess * (1.0 - step) if g0 > 0.0 else min(kr_guess * (1.0 + step), hi)
+            other = max(other, lo)
             _cost(delta, f, h, kg, other, tau_c, fc, scale, sa, sb, fit_sigma, y, dy, out)
             calls += 1
             g1 = out[1]
             if g0 == 0.0 or g1 == 0.0 or (g0 > 0.0) != (g1 > 0.0):
                 break
-            prev, gp = kr_guess, g0
             kr_guess, g0 = other, g1
             step *= 4.0
         if g0 == 0.0:
@@ -336,11 +328,11 @@ def solve_kr(delta, f, h, kg, tau_c, fc, kr_guess, sa, sb, fit_sigma, n_scan, rt
 
 @njit(cache=True)
 def solve_taps(delta, f, start, stop, h, kg, tau_c, fc, guess, warm, sa, sb, fit_sigma, n_scan, rtol,
-               kr, s0, rms, calls, step0):  # fmt: skip
+               kr, s0, rms, calls):  # fmt: skip
     """:func:`solve_kr` on every tap of a record in one call: tap ``j``'s samples are
     ``delta[start[j]:stop[j]]``, ``f[start[j]:stop[j]]`` at the step ``h[j]``, force ``fc[j]`` at
     its contact minimum and pre-stress law ``sa[j] + sb[j] Kr``; ``guess[j]`` (<= 0: none) is a
-    warm start where ``warm[j]`` (its first bracketing step ``step0[j]`` of the guess).  Taps with ``start[j] < 0`` are skipped (their outputs left as
+    warm start where ``warm[j]``.  Taps with ``start[j] < 0`` are skipped (their outputs left as
     they are).  Fills ``kr, s0, rms, calls``."""
     for j in range(len(start)):
         a = start[j]
@@ -348,7 +340,7 @@ def solve_taps(delta, f, start, stop, h, kg, tau_c, fc, guess, warm, sa, sb, fit
             continue
         b = stop[j]
         out = solve_kr(delta[a:b], f[a:b], h[j], kg, tau_c, fc[j], guess[j], sa[j], sb[j], fit_sigma,
-                       0 if warm[j] else n_scan, rtol, step0[j])  # fmt: skip
+                       0 if warm[j] else n_scan, rtol)  # fmt: skip
         kr[j] = out[0]
         s0[j] = out[1]
         rms[j] = out[2]
@@ -404,8 +396,6 @@ def prestress_fixed_point(delta, z, f, u, start, stop, h, fc, zc, kg_points, mod
     sa = np.zeros(n)
     sb = np.zeros(n)
     calls = np.zeros(n, dtype=np.int64)
-    step0 = np.full(n, 1e-3)  # each tap's first bracketing step: 1e-3, then twice the last iteration's move
-    prev = np.empty(n)
     fit_sigma = mode == 2
     m = kg_points + 1
     y = np.empty(m)
@@ -423,13 +413,8 @@ def prestress_fixed_point(delta, z, f, u, start, stop, h, fc, zc, kg_points, mod
             else:
                 sa[j] = 0.0 if mode == 1 else -fc[j]
                 sb[j] = -(zc[j] - z1) + (fc[j] / kg if mode == 0 else 0.0)
-        for j in range(n):
-            prev[j] = kr_i[j]
         solve_taps(delta, f, start, stop, h, kg, tau_c, fc, guess, warm, sa, sb, fit_sigma, n_scan, rtol,
-                   kr_i, s0_i, rms_i, calls, step0)  # fmt: skip
-        for j in range(n):
-            if start[j] >= 0 and math.isfinite(prev[j]) and prev[j] > 0.0:
-                step0[j] = min(max(2.0 * abs(kr_i[j] - prev[j]) / prev[j], 1e-13), 1e-3)
+                   kr_i, s0_i, rms_i, calls)  # fmt: skip
         kr_new = _nanmean(kr_i)
         tau_r = tau_c * kr_new / kg
         for j in range(n):

@@ -203,10 +203,9 @@ def disagreement(method, res: ExtractionResult, record, options: dict) -> dict:
     if other is None:
         return {}
     opts = other.options({k: v for k, v in (options or {}).items() if k in other.options_default})
-    start = method.pass_of(record, res) if hasattr(method, "pass_of") else None
     try:  # its own sigma not computed: the test uses vetica's
-        if start is not None and hasattr(other, "values_from"):  # its stages started from this method's pass
-            alt = other.values_from(record, opts, start)
+        if hasattr(other, "values_at"):  # the values only, from the record's taps measured once
+            alt = other.values_at(record, opts)
         else:
             alt = other.run(record, opts).estimates
     except Exception:  # noqa: BLE001 - the other stages refuse the record: nothing to compare

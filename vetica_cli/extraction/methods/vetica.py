@@ -55,9 +55,9 @@ One pass per record: the taps, stage 1b's slopes and the contacts as plain array
 (:func:`record_stage1`); stage 2 runs over every tap in one compiled call
 (:func:`vetica_cli.core.superposition.solve_taps`, its bounds' scan one pass over the samples
 for every scanned Kr); the error bars' re-runs at a moved Z1 or Kg and the checks' comparison
-with the pre-stress variant re-run only the stages that move, each tap's root looked for first
-next to the pass's (:meth:`TapMethod.moved`, :meth:`TapMethod.values_from`): the same roots
-(tests/test_tap_pass.py).
+with the pre-stress variant re-run only the stages that move, values only
+(:meth:`TapMethod.moved`, :meth:`TapMethod.values_at`), each stage solved as a whole run solves
+it (tests/test_tap_pass.py).
 """
 
 from __future__ import annotations
@@ -482,7 +482,7 @@ def record_stage1(record: Record, kg_points: int, kg_window: str) -> Stage1:
     """:func:`measure_stage1` of ``record``, kept on it (``record.memo``, shared by the records
     :func:`dataclasses.replace` makes of it with another Z1) for the same force, position and
     taps: every re-run of a tap method on the record (error bars, checks) reads it once."""
-    key = ("tap-stage1", kg_points, kg_window)
+    key = ("tap-stage1", id(record.f), kg_points, kg_window)  # a record low-passed once more (error bars) has its own
     memo = getattr(record, "memo", None)  # None: a record-like object without one (measured every time)
     held = None if memo is None else memo.get(key)
     if held is not None and held[0] is record.f and held[1] is record.z and held[2] is record.taps:
@@ -567,12 +567,11 @@ def stage2_tap_closed(u, z, f, kg: float, tau_c: float, fc: float, kr_guess: flo
     return float(kr), float(s0), float(rms), int(calls)
 
 
-def stage2_tap(u, z, f, kg: float, tau_c: float, fc: float, kr_guess=None, solver: str = "closed", warm: bool = False):
+def stage2_tap(u, z, f, kg: float, tau_c: float, fc: float, kr_guess=None, solver: str = "closed"):
     """Kr of one tap from its contact samples (``u`` [s] from the contact minimum, ``z_tip``,
-    force): ``(Kr, sine-fit RMS [m] or nan, force residual RMS [N], cost evaluations)``.
-    ``warm``: ``kr_guess`` is this tap's Kr at nearby inputs (:func:`stage2_tap_closed`)."""
+    force): ``(Kr, sine-fit RMS [m] or nan, force residual RMS [N], cost evaluations)``."""
     if solver == "closed":
-        out = stage2_tap_closed(u, z, f, kg, tau_c, fc, kr_guess, warm=warm)
+        out = stage2_tap_closed(u, z, f, kg, tau_c, fc, kr_guess)
         if out is not None:
             return out[0], math.nan, out[2], out[3]
     fit = fit_sum_of_sines(u, z)
@@ -580,7 +579,7 @@ def stage2_tap(u, z, f, kg: float, tau_c: float, fc: float, kr_guess=None, solve
     return kr, fit.rms, rms, nf
 
 
-def _stage2_compiled(c: Contacts, kg: float, tau_c: float, kr_guess, kr_start=None):
+def _stage2_compiled(c: Contacts, kg: float, tau_c: float, kr_guess):
     """:func:`_stage2` with ``solver='closed'`` in one compiled call over the taps
     (:func:`vetica_cli.core.superposition.solve_taps`); None when a contact has no constant step."""
     from ...core.superposition import solve_taps
@@ -592,37 +591,30 @@ def _stage2_compiled(c: Contacts, kg: float, tau_c: float, kr_guess, kr_start=No
     start = np.where(long, c.start, -1)
     guess = np.full(n, -1.0 if kr_guess is None else float(kr_guess))
     warm = np.zeros(n, dtype=bool)
-    if kr_start is not None:
-        ks = np.asarray(kr_start, dtype=float)
-        warm = np.isfinite(ks) & (ks > 0.0) & (ks < kg)
-        guess = np.where(warm, ks, guess)
     kr, s0, rms = np.full(n, math.nan), np.zeros(n), np.zeros(n)
     calls = np.zeros(n, dtype=np.int64)
     zeros = np.zeros(n)
     solve_taps(c.delta, c.f, start, c.stop, c.h, float(kg), float(tau_c), c.fc, guess, warm, zeros, zeros, False,
-               KR_SCAN, KR_RTOL, kr, s0, rms, calls, np.full(n, 1e-3))  # fmt: skip
+               KR_SCAN, KR_RTOL, kr, s0, rms, calls)  # fmt: skip
     return (list(kr), [math.nan] * int(np.sum(long)), [float(x) for x in rms[long]],
             [int(x) for x in calls[long]])  # fmt: skip
 
 
-def _stage2(t, z, f, taps: Taps, kg: float, tau_c: float, kr_guess, solver: str = "closed", kr_start=None,
+def _stage2(t, z, f, taps: Taps, kg: float, tau_c: float, kr_guess, solver: str = "closed",
             contacts: Contacts | None = None):  # fmt: skip
-    """Kr of every tap long enough (nan otherwise) and the fit residuals of those fitted;
-    ``kr_start``: each tap's Kr at nearby inputs, where each tap's root is looked for first
-    (a warm start: the same root, found without scanning the bounds)."""
+    """Kr of every tap long enough (nan otherwise) and the fit residuals of those fitted; with
+    the ``contacts`` (and ``solver='closed'``) in one compiled call (:func:`_stage2_compiled`)."""
     if solver == "closed" and contacts is not None:
-        out = _stage2_compiled(contacts, kg, tau_c, kr_guess, kr_start)
+        out = _stage2_compiled(contacts, kg, tau_c, kr_guess)
         if out is not None:
             return out
     kr_i, fit_rms, f_rms, nfev = [], [], [], []
-    for j, (ic, isep) in enumerate(zip(taps.contact, taps.separation)):
+    for ic, isep in zip(taps.contact, taps.separation):
         if isep - ic < MIN_CONTACT_SAMPLES:
             kr_i.append(math.nan)
             continue
         sl = slice(ic, isep + 1)
-        warm = kr_start is not None and math.isfinite(kr_start[j]) and 0.0 < kr_start[j] < kg
-        guess = float(kr_start[j]) if warm else kr_guess
-        kr, zrms, rms, nf = stage2_tap(t[sl] - t[ic], z[sl], f[sl], kg, tau_c, float(f[ic]), guess, solver, warm)
+        kr, zrms, rms, nf = stage2_tap(t[sl] - t[ic], z[sl], f[sl], kg, tau_c, float(f[ic]), kr_guess, solver)
         kr_i.append(kr)
         fit_rms.append(zrms)
         f_rms.append(rms)
@@ -642,7 +634,6 @@ def vetica(
     kg_window: str = "noise",
     kg_scale: float = 1.0,
     stage1: Stage1 | None = None,
-    kr_start: np.ndarray | None = None,
     lean: bool = False,
 ) -> VeticaResult:
     """Run VETICA stages 1a, 1b and 2 on a record of consecutive taps.
@@ -658,8 +649,7 @@ def vetica(
     fit, :func:`fit_sum_of_sines` and :func:`stage2_kr`).  ``taps``: the record's taps when
     already located (else :func:`~vetica_cli.signals.taps.find_taps` on ``f``).  ``stage1``:
     the record's taps and stage 1b's slopes when already measured (:func:`record_stage1`);
-    ``kr_start``: each tap's Kr from a run at nearby inputs (the error bars' re-runs), where
-    stage 2 looks for each root first; ``lean``: the values and the per-tap Kr only (no other
+    ``lean``: the values and the per-tap Kr only (no other
     per-tap values, diagnostics or warnings: the error bars' re-runs on a record already checked).
     """
     if stage2 not in STAGE2:
@@ -683,7 +673,7 @@ def vetica(
     warnings += _stage1_warnings(tau_c, kg, z1, kg_points)
     run2 = not (math.isnan(tau_c) or math.isnan(kg)) and kg > 0
     contacts = stage1.contacts
-    kr_i, fit_rms, f_rms, nfev = (_stage2(t, z, f, taps, kg, tau_c, kr_guess, stage2, kr_start, contacts) if run2
+    kr_i, fit_rms, f_rms, nfev = (_stage2(t, z, f, taps, kg, tau_c, kr_guess, stage2, contacts) if run2
                                   else ([], [], [], []))  # fmt: skip
     t2 = time.perf_counter()
     kr_i = np.array(kr_i) if kr_i else np.full(n_taps, math.nan)
@@ -740,44 +730,26 @@ class TapMethod(ExtractionMethod):
 
         stage_dependents(res)
 
-    def moved(self, record: Record, options: dict, res: ExtractionResult, z1: float | None = None,
-              kg_scale: float | None = None) -> dict:  # fmt: skip
-        """The estimates of the method re-run on ``record`` with Z1 at ``z1`` and/or the option
-        ``kg_scale`` at ``kg_scale`` (the error bars' and checks' re-runs; ``res``: the run at the
-        record's own inputs).  The tap methods re-run only the stages that move, from the taps and
-        slopes measured once (:func:`record_stage1`) and each tap's state in ``res``'s pass
-        (:meth:`pass_of`); values as a whole run gives them (the same roots)."""
+    def moved(self, record: Record, options: dict, z1: float | None = None, kg_scale: float | None = None) -> dict:
+        """The estimates (values only) of the method re-run on ``record`` with Z1 at ``z1`` and/or the
+        option ``kg_scale`` at ``kg_scale`` (the error bars' re-runs): only the stages that move, from
+        the taps, slopes and contacts measured once (:func:`record_stage1`), with each stage solved
+        exactly as a whole run solves it (the same roots)."""
         opts = options if kg_scale is None else {**options, "kg_scale": kg_scale}
-        ex = self.tap_pass(record, opts, record.z1 if z1 is None else z1, start=self.pass_of(record, res), lean=True)
+        return self.values_at(record, opts, record.z1 if z1 is None else z1)
+
+    def values_at(self, record: Record, options: dict, z1: float | None = None) -> dict:
+        """The estimates (values only: no spread, sigma or checks) of the method on ``record`` at
+        ``z1`` (default the record's): the checks' comparison of the two VETICA variants and the
+        error bars' re-runs (:meth:`moved`)."""
+        ex = self.tap_pass(record, options, record.z1 if z1 is None else z1, lean=True)
         units = {k: q.unit for k, q in self.quantities(record.model).items()}
         return estimates(ex.values, units)
 
-    def tap_pass(self, record: Record, options: dict, z1: float, start=None, lean: bool = False):
-        """The method's stages on ``record`` at ``z1`` (its own result type); ``start``: the pass of
-        a run at nearby inputs (of this tap method or another) whose per-tap state starts this one;
-        ``lean``: its values and the state a nearby pass starts from only."""
+    def tap_pass(self, record: Record, options: dict, z1: float, lean: bool = False):
+        """The method's stages on ``record`` at ``z1`` (its own result type) from the record's taps,
+        slopes and contacts measured once; ``lean``: its values only."""
         raise NotImplementedError  # pragma: no cover - each tap method has its own
-
-    def values_from(self, record: Record, options: dict, start=None) -> dict:
-        """The estimates (values only: no spread, sigma or checks) of the method on ``record``,
-        its stages started from ``start``, the pass of another tap method on the same record (the
-        checks' comparison of the two VETICA variants; the same answer as a run, to the stages'
-        tolerance)."""
-        ex = self.tap_pass(record, options, record.z1, start=start, lean=True)
-        units = {k: q.unit for k, q in self.quantities(record.model).items()}
-        return estimates(ex.values, units)
-
-    @staticmethod
-    def keep_pass(record: Record, res: ExtractionResult, ex) -> None:
-        """Keep the pass ``ex`` behind ``res`` on the record (``record.memo``) for :meth:`moved`."""
-        if hasattr(record, "memo"):
-            record.memo[("tap-pass", id(res))] = (res, ex)
-
-    @staticmethod
-    def pass_of(record: Record, res: ExtractionResult):
-        """The pass behind ``res`` kept by :meth:`keep_pass`, or None."""
-        held = getattr(record, "memo", {}).get(("tap-pass", id(res)))
-        return held[1] if held is not None and held[0] is res else None
 
 
 @register
@@ -801,16 +773,13 @@ class Vetica(TapMethod):
 
     compared_with = "vetica-prestress"  # the thesis's stages against the pre-stress at contact (tapchecks)
 
-    def tap_pass(self, record: Record, options: dict, z1: float, start: VeticaResult | None = None,
-                 lean: bool = False) -> VeticaResult:  # fmt: skip
-        """:func:`vetica` on the record's taps and slopes measured once (:func:`record_stage1`);
-        ``start``: a pass at nearby inputs whose per-tap Kr starts stage 2."""
+    def tap_pass(self, record: Record, options: dict, z1: float, lean: bool = False) -> VeticaResult:
+        """:func:`vetica` on the record's taps and slopes measured once (:func:`record_stage1`)."""
         stage1 = record_stage1(record, options["kg_points"], options["kg_window"])
-        kr_start = None if start is None else start.per_tap.get("k_r")
         return vetica(record.t, record.z, record.f, z1, kg_points=options["kg_points"],
                       kr_guess=options["kr_guess"], stage2=options["stage2"], taps=record.taps,
                       kg_window=options["kg_window"], kg_scale=options.get("kg_scale", 1.0), stage1=stage1,
-                      kr_start=kr_start, lean=lean)  # fmt: skip
+                      lean=lean)  # fmt: skip
 
     def run(self, record: Record, options: dict) -> ExtractionResult:
         if options["stage2"] not in STAGE2:
@@ -832,7 +801,6 @@ class Vetica(TapMethod):
             warnings=ex.warnings + record.meta_warnings,
             timing_s=timing,
         )
-        self.keep_pass(record, res, ex)
         return res
 
     def timing_line(self, timing_s: dict) -> str:

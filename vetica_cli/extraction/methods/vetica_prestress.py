@@ -257,7 +257,6 @@ class PrestressResult:
     timing_s: dict
     diagnostics: dict
     warnings: list
-    state: dict | None = None  # the fixed point reached: Kg, Kr and sigma0 per tap, the Kg scale (starts a nearby pass)
 
 
 def _mean(v) -> float:
@@ -265,14 +264,12 @@ def _mean(v) -> float:
     return float(np.nanmean(v)) if np.any(np.isfinite(v)) else math.nan
 
 
-def _stages(fits, mode, z1, kg, tau_c, kr_guess, s_of_tap, kg_scale: float = 1.0, start: dict | None = None):
+def _stages(fits, mode, z1, kg, tau_c, kr_guess, s_of_tap, kg_scale: float = 1.0):
     """Stages 2 and 1b to their fixed point.  Returns ``(Kg, Kr per tap, Kg per tap,
-    sigma0 per tap, force RMS per tap, iterations, converged)``.  ``start``: the fixed point of
-    a pass at nearby inputs (``kg``, ``kr_i``, ``s0_i``), from which the iterations start
-    instead of the thesis's Kg and ``kr_guess`` (the same fixed point, to :data:`RTOL`)."""
+    sigma0 per tap, force RMS per tap, iterations, converged)``."""
     n = len(fits)
-    rms_i, kg_i = np.full(n, math.nan), np.full(n, math.nan)
-    kg, kr, kr_i, s0_i, warm0 = _start(n, kg, kr_guess, start)
+    kr_i, s0_i, rms_i, kg_i = (np.full(n, math.nan) for _ in range(4))
+    kr = kr_guess if kr_guess is not None else 0.1 * kg
     for it in range(1, MAX_ITER + 1):
         for j, tf in enumerate(fits):
             if tf is None:
@@ -280,7 +277,7 @@ def _stages(fits, mode, z1, kg, tau_c, kr_guess, s_of_tap, kg_scale: float = 1.0
             s0 = s0_i[j] if math.isfinite(s0_i[j]) else s_of_tap(tf, kg, kr)
             kr0 = kr_i[j] if math.isfinite(kr_i[j]) else kr
             if isinstance(tf, ClosedTap):
-                kr_i[j], s0_i[j], rms_i[j] = tf.stage2(mode, z1, kg, tau_c, kr0, s0, warm=it > 1 or warm0)
+                kr_i[j], s0_i[j], rms_i[j] = tf.stage2(mode, z1, kg, tau_c, kr0, s0, warm=it > 1)
             else:
                 kr_i[j], s0_i[j], rms_i[j] = stage2_tap(tf, mode, z1, kg, tau_c, kr0, s0)
         kr_new = _mean(kr_i)
@@ -304,18 +301,6 @@ def _stages(fits, mode, z1, kg, tau_c, kr_guess, s_of_tap, kg_scale: float = 1.0
 MODES = {"adhesion": 0, "creep": 1, "fit": 2}  # the pre-stress modes as the compiled fixed point numbers them
 
 
-def _start(n: int, kg: float, kr_guess, start: dict | None):
-    """Where the fixed point's iterations start: ``(Kg, Kr, Kr per tap, sigma0 per tap, stage 2 warm
-    from the first iteration)`` (:func:`_stages`'s ``start``)."""
-    kr_i, s0_i = np.full(n, math.nan), np.full(n, math.nan)
-    kr = kr_guess if kr_guess is not None else 0.1 * kg
-    if start is not None and len(start["kr_i"]) == n and math.isfinite(start["kg"]) and start["kg"] > 0:
-        ks = np.array(start["kr_i"], dtype=float)
-        if np.any(np.isfinite(ks)) and np.all(ks[np.isfinite(ks)] < start["kg"]):
-            return float(start["kg"]), _mean(ks), ks, np.array(start["s0_i"], dtype=float), True
-    return kg, kr, kr_i, s0_i, False
-
-
 def _compiled_taps(stage1: Stage1, stage2: str, kg_points: int) -> np.ndarray | None:
     """Each tap's first contact sample for the compiled fixed point (-1: a contact too short for
     stages 1b and 2, skipped), or None where the Python loop runs instead: the sum-of-sines stage 2,
@@ -331,8 +316,7 @@ def _compiled_taps(stage1: Stage1, stage2: str, kg_points: int) -> np.ndarray | 
     return np.where(long, c.start, -1).astype(np.int64)
 
 
-def _stages_python(t, z, f, taps, windows, kg_thesis_i, z1, kg0, tau_c, kr_guess, kg_scale, start, kg_points, mode,
-                   stage2):  # fmt: skip
+def _stages_python(t, z, f, taps, windows, kg_thesis_i, z1, kg0, tau_c, kr_guess, kg_scale, kg_points, mode, stage2):
     """Stages 2 and 1b to their fixed point tap by tap in Python (:func:`_stages`), on
     :class:`ClosedTap` contacts (with stage 1b's grown windows) or the sum-of-sines fits: its
     results, and 'closed' or the sine fits."""
@@ -350,24 +334,23 @@ def _stages_python(t, z, f, taps, windows, kg_thesis_i, z1, kg0, tau_c, kr_guess
     def start_sigma(tf, kg, kr):  # fit mode starts from the adhesion estimate
         return prestress_of("adhesion" if mode == "fit" else mode, tf.fc, tf.zc, z1, kg, kr)
 
-    kg, kr_i, kg_i, s0_i, rms_i, iters, converged = _stages(fits, mode, z1, kg0, tau_c, kr_guess, start_sigma, kg_scale,
-                                                            start)  # fmt: skip
+    kg, kr_i, kg_i, s0_i, rms_i, iters, converged = _stages(fits, mode, z1, kg0, tau_c, kr_guess, start_sigma, kg_scale)
     fitted = "closed" if any(isinstance(tf, ClosedTap) for tf in fits) else fits
     return kg, kr_i, kg_i, s0_i, rms_i, iters, converged, fitted
 
 
-def _stages_compiled(c, first, mode, z1, kg, tau_c, kr_guess, kg_scale: float, start: dict | None, kg_points: int):
+def _stages_compiled(c, first, mode, z1, kg, tau_c, kr_guess, kg_scale: float, kg_points: int):
     """:func:`_stages` over the contacts ``c`` (:class:`~.vetica.Contacts`) in one compiled call
     (:func:`vetica_cli.core.superposition.prestress_fixed_point`); the taps whose ``first`` sample
     is -1 are skipped."""
     from ...core.superposition import prestress_fixed_point
 
     n = len(first)
-    kg, kr, kr_i, s0_i, warm0 = _start(n, kg, kr_guess, start)
-    kg_i, rms_i = np.full(n, math.nan), np.full(n, math.nan)
+    kr = kr_guess if kr_guess is not None else 0.1 * kg
+    kr_i, s0_i, kg_i, rms_i = (np.full(n, math.nan) for _ in range(4))
     kg, iters, done = prestress_fixed_point(c.delta, c.z, c.f, c.u, first, c.stop, c.h, c.fc, c.zc, int(kg_points),
                                             MODES[mode], float(z1), float(kg), float(tau_c), float(kr), kr_i, s0_i,
-                                            bool(warm0), float(kg_scale), MAX_ITER, RTOL, KR_SCAN, KR_RTOL, kg_i,
+                                            False, float(kg_scale), MAX_ITER, RTOL, KR_SCAN, KR_RTOL, kg_i,
                                             rms_i)  # fmt: skip
     return float(kg), kr_i, kg_i, s0_i, rms_i, int(iters), bool(done)
 
@@ -375,7 +358,7 @@ def _stages_compiled(c, first, mode, z1, kg, tau_c, kr_guess, kg_scale: float, s
 def vetica_prestress(t, z, f, z1: float, kg_points: int = 10, kr_guess: float | None = None,
                      prestress: str = "adhesion", stage2: str = "closed", taps: Taps | None = None,
                      kg_window: str = "noise", kg_scale: float = 1.0, stage1: Stage1 | None = None,
-                     start: dict | None = None, lean: bool = False) -> PrestressResult:  # fmt: skip
+                     lean: bool = False) -> PrestressResult:  # fmt: skip
     """Run VETICA with the pre-stress (module docstring) on a record of consecutive taps.
 
     ``prestress``: ``adhesion``, ``creep`` or ``fit`` (the method resolves ``auto``).
@@ -385,10 +368,8 @@ def vetica_prestress(t, z, f, z1: float, kg_points: int = 10, kr_guess: float | 
     :class:`ClosedTap`; with ``fit`` the pre-stress is projected out unbounded) or 'sines'
     (the sum-of-sines fit of each contact, thesis eq. 88, and scipy's least squares).
     ``taps``: the record's taps when already located; ``stage1``: the record's taps and stage
-    1b's slopes when already measured (:func:`~.vetica.record_stage1`); ``start``: the fixed point
-    of a pass at nearby inputs (``PrestressResult.state``, with its Kg scale), where the
-    iterations of stages 1b and 2 start; ``lean``: the values and the fixed point only (no per-tap
-    values but Kr, diagnostics or warnings: the error bars' and checks' re-runs).
+    1b's slopes when already measured (:func:`~.vetica.record_stage1`); ``lean``: the values only (no per-tap values, diagnostics
+    or warnings: the error bars' and checks' re-runs).
     """
     if stage2 not in STAGE2:
         raise InputError(f"stage2 {stage2!r} not allowed; choose one of: {', '.join(STAGE2)}")
@@ -418,22 +399,19 @@ def vetica_prestress(t, z, f, z1: float, kg_points: int = 10, kr_guess: float | 
                                timing_s={"stage1": time.perf_counter() - t0, "stages_1b_2": 0.0},
                                diagnostics={"prestress": prestress}, warnings=[problem])  # fmt: skip
     t1 = time.perf_counter()
-    if start is not None and start.get("kg_scale"):  # a nearby pass's fixed point, its Kg moved as this pass's slopes are
-        start = {**start, "kg": start["kg"] * kg_scale / start["kg_scale"]}
     first = _compiled_taps(stage1, stage2, kg_points)
     if first is not None:  # uniform contacts, the thesis's stage-1b window on every tap: the fixed point compiled
         kg, kr_i, kg_i, s0_i, rms_i, iters, converged = _stages_compiled(stage1.contacts, first, prestress, z1, kg0,
-                                                                         tau_c, kr_guess, kg_scale, start, kg_points)  # fmt: skip
+                                                                         tau_c, kr_guess, kg_scale, kg_points)  # fmt: skip
         fitted = "closed"
     else:
         kg, kr_i, kg_i, s0_i, rms_i, iters, converged, fitted = _stages_python(t, z, f, taps, windows, kg_thesis_i, z1,
-                                                                               kg0, tau_c, kr_guess, kg_scale, start,
-                                                                               kg_points, prestress, stage2)  # fmt: skip
+                                                                               kg0, tau_c, kr_guess, kg_scale, kg_points,
+                                                                               prestress, stage2)  # fmt: skip
     t2 = time.perf_counter()
     if lean:
         return PrestressResult(values=sls_elements(tau_c, kg, _mean(kr_i)), per_tap={"k_r": kr_i}, taps=n_taps,
-                               timing_s={}, diagnostics={}, warnings=[],
-                               state={"kg": kg, "kr_i": kr_i, "s0_i": s0_i, "kg_scale": kg_scale})  # fmt: skip
+                               timing_s={}, diagnostics={}, warnings=[])  # fmt: skip
     warnings = []
     if not converged:
         warnings.append(f"stages 1b and 2 did not reach a fixed point in {iters} iterations")
@@ -459,21 +437,7 @@ def vetica_prestress(t, z, f, z1: float, kg_points: int = 10, kr_guess: float | 
     return PrestressResult(
         values=sls_elements(tau_c, kg, kr), per_tap=per_tap, taps=n_taps,
         timing_s={"stage1": t1 - t0, "stages_1b_2": t2 - t1}, diagnostics=diagnostics, warnings=warnings,
-        state={"kg": kg, "kr_i": kr_i, "s0_i": s0_i, "kg_scale": kg_scale},
     )  # fmt: skip
-
-
-def start_state(start) -> dict | None:
-    """Where a pass's iterations of stages 1b and 2 start: the fixed point of a pass of this
-    method at nearby inputs (:attr:`PrestressResult.state`), or the Kg and per-tap Kr of a
-    VETICA pass on the same record (:class:`~.vetica.VeticaResult`; the pre-stress from them)."""
-    if start is None:
-        return None
-    if isinstance(start, PrestressResult):
-        return start.state
-    kr_i = np.asarray(start.per_tap.get("k_r"), dtype=float)
-    kg = start.values.get("k_g", math.nan)
-    return {"kg": kg, "kr_i": kr_i, "s0_i": np.full(len(kr_i), math.nan), "kg_scale": None}  # its Kg as it is
 
 
 @register
@@ -494,17 +458,15 @@ class VeticaPrestress(TapMethod):
     references = ("thesis 3.3 (VETICA's stages), with the Maxwell arm's pre-stress at contact",)
     seconds_per_point = 0.55  # both forces, 10 periods at 0.125 ns: 0.53 CPU s measured with standard errors and checks
 
-    def tap_pass(self, record: Record, options: dict, z1: float, start: PrestressResult | None = None,
-                 lean: bool = False) -> PrestressResult:  # fmt: skip
+    def tap_pass(self, record: Record, options: dict, z1: float, lean: bool = False) -> PrestressResult:
         """:func:`vetica_prestress` on the record's taps and slopes measured once
-        (:func:`~.vetica.record_stage1`); ``start``: a pass at nearby inputs whose fixed point
-        starts this one's iterations."""
+        (:func:`~.vetica.record_stage1`)."""
         stage1 = record_stage1(record, options["kg_points"], options["kg_window"])
         return vetica_prestress(record.t, record.z, record.f, z1, kg_points=options["kg_points"],
                                 kr_guess=options["kr_guess"], prestress=self.mode(record, options)[0],
                                 stage2=options["stage2"], taps=record.taps, kg_window=options["kg_window"],
                                 kg_scale=options.get("kg_scale", 1.0), stage1=stage1,
-                                start=start_state(start), lean=lean)  # fmt: skip
+                                lean=lean)  # fmt: skip
 
     @staticmethod
     def mode(record: Record, options: dict) -> tuple[str, str]:
@@ -539,7 +501,6 @@ class VeticaPrestress(TapMethod):
                                estimates=estimates(ex.values, units, record.truth, spreads=spread),
                                model=record.model.key, info=info, diagnostics=ex.diagnostics,
                                warnings=ex.warnings + record.meta_warnings, timing_s=timing)  # fmt: skip
-        self.keep_pass(record, res, ex)
         return res
 
     def detail_lines(self, res: ExtractionResult) -> list[str]:
