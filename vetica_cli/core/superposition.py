@@ -52,7 +52,7 @@ def superpose(delta, h, tau, y, dy):
 
 @njit(cache=True)
 def _cost(delta, f, h, kg, kr, tau_c, fc, scale, sa, sb, fit_sigma, y, dy, out):
-    """``out = (S, S'/2, sigma0)`` at ``kr``; the superposition (:func:`superpose`) fused
+    """``out = (S, S'/2, sigma0, kr)`` at ``kr``; the superposition (:func:`superpose`) fused
     into the pass over the samples (``y``, ``dy`` are filled only with ``fit_sigma``)."""
     tau = tau_c * kr / kg
     n = len(delta)
@@ -98,6 +98,42 @@ def _cost(delta, f, h, kg, kr, tau_c, fc, scale, sa, sb, fit_sigma, y, dy, out):
     out[0] = s
     out[1] = slope
     out[2] = sigma
+    out[3] = kr  # where out was evaluated: a solver whose last evaluation was at its answer does not repeat it
+
+
+@njit(cache=True)
+def _scan_costs(delta, f, h, kg, krs, tau_c, fc, scale, sa, sb, costs):
+    """``costs[i]`` = the cost ``S`` of :func:`_cost` at ``krs[i]`` (a known pre-stress law), every
+    ``Kr`` advanced together through one pass over the samples (independent recursions side by
+    side: the processor overlaps them), with the same arithmetic as :func:`_cost`, so the same
+    values to the last bit."""
+    m = len(krs)
+    n = len(delta)
+    e = np.empty(m)
+    c = np.empty(m)
+    sig = np.empty(m)
+    kgr = np.empty(m)
+    p = np.ones(m)
+    yk = np.zeros(m)
+    inv = 1.0 / scale
+    for i in range(m):
+        tau = tau_c * krs[i] / kg
+        e[i] = math.exp(-h / tau)
+        c[i] = tau * (1.0 - e[i]) / h
+        sig[i] = sa + sb * krs[i]
+        kgr[i] = kg - krs[i]
+        costs[i] = 0.0
+    for k in range(n):
+        dk = delta[k]
+        fk = f[k]
+        step = dk - delta[k - 1] if k > 0 else 0.0
+        for i in range(m):
+            if k > 0:
+                yk[i] = e[i] * yk[i] + step * c[i]
+            q = 1.0 - p[i]
+            r = (fc + krs[i] * dk + kgr[i] * yk[i] + sig[i] * q - fk) * inv
+            costs[i] += r * r
+            p[i] *= e[i]
 
 
 @njit(cache=True)
@@ -185,7 +221,7 @@ def solve_kr(delta, f, h, kg, tau_c, fc, kr_guess, sa, sb, fit_sigma, n_scan, rt
     n = len(delta)
     y = np.empty(n)
     dy = np.empty(n)
-    out = np.zeros(3)
+    out = np.zeros(4)
     scale = 0.0
     for k in range(n):
         scale = max(scale, abs(f[k]))
@@ -199,6 +235,8 @@ def solve_kr(delta, f, h, kg, tau_c, fc, kr_guess, sa, sb, fit_sigma, n_scan, rt
         calls += 1
         g0 = out[1]
         step = 1e-3
+        g1 = g0
+        other = kr_guess
         for _ in range(12):
             other = kr_guess * (1.0 - step) if g0 > 0.0 else min(kr_guess * (1.0 + step), hi)
             other = max(other, lo)
@@ -220,8 +258,10 @@ def solve_kr(delta, f, h, kg, tau_c, fc, kr_guess, sa, sb, fit_sigma, n_scan, rt
         else:
             kr = -1.0
         if kr > 0.0:
-            _cost(delta, f, h, kg, kr, tau_c, fc, scale, sa, sb, fit_sigma, y, dy, out)
-            return kr, out[2], scale * math.sqrt(out[0] / n), calls + 1
+            if out[3] != kr:
+                _cost(delta, f, h, kg, kr, tau_c, fc, scale, sa, sb, fit_sigma, y, dy, out)
+                calls += 1
+            return kr, out[2], scale * math.sqrt(out[0] / n), calls
         n_scan = 16  # no bracket near the guess: scan the bounds
     if n_scan < 2:  # a warm start whose guess lies outside the bounds (Kg moved below it): scan them
         n_scan = 16
@@ -231,12 +271,21 @@ def solve_kr(delta, f, h, kg, tau_c, fc, kr_guess, sa, sb, fit_sigma, n_scan, rt
     m = len(xs)
     best = 0
     sbest = np.inf
-    for i in range(m):
-        _cost(delta, f, h, kg, xs[i], tau_c, fc, scale, sa, sb, fit_sigma, y, dy, out)
-        calls += 1
-        if out[0] < sbest:
-            sbest = out[0]
-            best = i
+    if fit_sigma:
+        for i in range(m):
+            _cost(delta, f, h, kg, xs[i], tau_c, fc, scale, sa, sb, fit_sigma, y, dy, out)
+            calls += 1
+            if out[0] < sbest:
+                sbest = out[0]
+                best = i
+    else:  # every scanned Kr in one pass over the samples
+        costs = np.empty(m)
+        _scan_costs(delta, f, h, kg, xs, tau_c, fc, scale, sa, sb, costs)
+        calls += m
+        for i in range(m):
+            if costs[i] < sbest:
+                sbest = costs[i]
+                best = i
     _cost(delta, f, h, kg, xs[best], tau_c, fc, scale, sa, sb, fit_sigma, y, dy, out)
     calls += 1
     gi = out[1]
@@ -271,6 +320,121 @@ def solve_kr(delta, f, h, kg, tau_c, fc, kr_guess, sa, sb, fit_sigma, n_scan, rt
         kr, c = _golden(delta, f, h, kg, tau_c, fc, scale, sa, sb, fit_sigma, y, dy, out,
                         xs[max(best - 1, 0)], xs[min(best + 1, m - 1)], rtol)  # fmt: skip
         calls += c
-    _cost(delta, f, h, kg, kr, tau_c, fc, scale, sa, sb, fit_sigma, y, dy, out)
-    calls += 1
+    if out[3] != kr:
+        _cost(delta, f, h, kg, kr, tau_c, fc, scale, sa, sb, fit_sigma, y, dy, out)
+        calls += 1
     return kr, out[2], scale * math.sqrt(out[0] / n), calls
+
+
+@njit(cache=True)
+def solve_taps(delta, f, start, stop, h, kg, tau_c, fc, guess, warm, sa, sb, fit_sigma, n_scan, rtol,
+               kr, s0, rms, calls):  # fmt: skip
+    """:func:`solve_kr` on every tap of a record in one call: tap ``j``'s samples are
+    ``delta[start[j]:stop[j]]``, ``f[start[j]:stop[j]]`` at the step ``h[j]``, force ``fc[j]`` at
+    its contact minimum and pre-stress law ``sa[j] + sb[j] Kr``; ``guess[j]`` (<= 0: none) is a
+    warm start where ``warm[j]``.  Taps with ``start[j] < 0`` are skipped (their outputs left as
+    they are).  Fills ``kr, s0, rms, calls``."""
+    for j in range(len(start)):
+        a = start[j]
+        if a < 0:
+            continue
+        b = stop[j]
+        out = solve_kr(delta[a:b], f[a:b], h[j], kg, tau_c, fc[j], guess[j], sa[j], sb[j], fit_sigma,
+                       0 if warm[j] else n_scan, rtol)  # fmt: skip
+        kr[j] = out[0]
+        s0[j] = out[1]
+        rms[j] = out[2]
+        calls[j] = out[3]
+
+
+@njit(cache=True)
+def _line_slope(x, y):
+    """Least-squares slope of ``y`` against ``x``."""
+    n = len(x)
+    mx = 0.0
+    my = 0.0
+    for k in range(n):
+        mx += x[k]
+        my += y[k]
+    mx /= n
+    my /= n
+    num = 0.0
+    den = 0.0
+    for k in range(n):
+        xc = x[k] - mx
+        num += xc * (y[k] - my)
+        den += xc * xc
+    return num / den
+
+
+@njit(cache=True)
+def _nanmean(v):
+    s = 0.0
+    n = 0
+    for x in v:
+        if math.isfinite(x):
+            s += x
+            n += 1
+    return s / n if n else np.nan
+
+
+@njit(cache=True)
+def prestress_fixed_point(delta, z, f, u, start, stop, h, fc, zc, kg_points, mode, z1, kg, tau_c, kr, kr_i, s0_i,
+                          warm0, kg_scale, max_iter, rtol_fp, n_scan, rtol, kg_i, rms_i):  # fmt: skip
+    """Stages 2 and 1b of VETICA with the pre-stress to their fixed point, compiled (the thesis's
+    stage-1b window of ``kg_points`` samples; :func:`vetica_cli.extraction.vetica_prestress._stages`
+    is the same loop in Python).  ``mode``: 0 adhesion, 1 creep, 2 fit.  Per tap ``j`` the contact
+    samples ``[start[j], stop[j])`` (``start[j] < 0``: skipped) of the indentation ``delta``, the tip
+    position ``z``, the force ``f`` and the time ``u`` from the contact minimum, the step ``h[j]``,
+    the force ``fc[j]`` and position ``zc[j]`` at the contact minimum.  ``kg``, ``kr``: where the
+    iterations start (``kr_i``, ``s0_i``: the per-tap start, nan where none; ``warm0``: stage 2
+    warm from the first iteration).  Fills ``kr_i, s0_i, kg_i, rms_i``; returns ``(Kg,
+    iterations, converged)``."""
+    n = len(start)
+    guess = np.empty(n)
+    warm = np.zeros(n, dtype=np.bool_)
+    sa = np.zeros(n)
+    sb = np.zeros(n)
+    calls = np.zeros(n, dtype=np.int64)
+    fit_sigma = mode == 2
+    m = kg_points + 1
+    y = np.empty(m)
+    dy = np.empty(m)
+    corr_f = np.empty(m - 1)
+    for it in range(1, max_iter + 1):
+        for j in range(n):
+            if start[j] < 0:
+                continue
+            guess[j] = kr_i[j] if math.isfinite(kr_i[j]) else kr
+            warm[j] = it > 1 or warm0
+            if mode == 2:
+                sa[j] = 0.0
+                sb[j] = 0.0
+            else:
+                sa[j] = 0.0 if mode == 1 else -fc[j]
+                sb[j] = -(zc[j] - z1) + (fc[j] / kg if mode == 0 else 0.0)
+        solve_taps(delta, f, start, stop, h, kg, tau_c, fc, guess, warm, sa, sb, fit_sigma, n_scan, rtol,
+                   kr_i, s0_i, rms_i, calls)  # fmt: skip
+        kr_new = _nanmean(kr_i)
+        tau_r = tau_c * kr_new / kg
+        for j in range(n):
+            a = start[j]
+            if a < 0:
+                continue
+            if mode == 2:
+                sig = s0_i[j]
+            else:
+                creep = -kr_new * (zc[j] - z1)
+                sig = creep - fc[j] * (1.0 - kr_new / kg) if mode == 0 else creep
+            dj = delta[a : a + m]
+            superpose(dj, u[a + 1] - u[a], tau_r, y, dy)
+            for k in range(1, m):
+                corr_f[k - 1] = f[a + k] - (sig * -math.expm1(-u[a + k] / tau_r) + (kg - kr_new) * (y[k] - dj[k]))
+            kg_i[j] = -_line_slope(z[a + 1 : a + m], corr_f) * kg_scale
+        kg_new = _nanmean(kg_i)
+        done = abs(kg_new - kg) <= rtol_fp * kg and abs(kr_new - kr) <= rtol_fp * abs(kr)
+        kg = kg_new
+        kr = kr_new
+        if done or not (math.isfinite(kg) and kg > 0 and math.isfinite(kr)):
+            return kg, it, done
+    return kg, max_iter, False

@@ -9,7 +9,9 @@ result by :func:`vetica_cli.extraction.extract_many` after the method ran).
   ``t(0.975, n-1)/1.96`` so that +-2 sigma is the 95 % interval of a mean of ``n``
   values (1.18 for nine taps).  ``Z1`` enters every creep interval alike, so its
   error does not average out over taps: the method is run twice more with Z1 moved
-  by +-2 ``sigma_Z1`` and half the larger change of each quantity is its Z1 term
+  by +-2 ``sigma_Z1`` (only the stages that move with Z1, from the record's taps measured once:
+  :meth:`~vetica_cli.extraction.methods.vetica.TapMethod.moved`) and half the larger change of
+  each quantity is its Z1 term
   (a secant, so non-linear dependences are not linearised away); ``sigma_Z1``
   = the scatter of the steady taps' contact positions (Z1 is one more contact
   position, read the same way, so it scatters as they do: detector noise, the

@@ -293,7 +293,7 @@ def declared(x) -> tuple[float, float, float] | None:
     """``(rms, white equivalent, smear in samples)`` declared for ``x`` (:func:`declare`), or None."""
     from .memo import fingerprint
 
-    if not _DECLARED:
+    if not any(arr is x for arr, _, _ in _DECLARED):  # never declared: no fingerprint to take (a sum of the array)
         return None
     key = fingerprint(x)
     for arr, k, value in _DECLARED:

@@ -43,11 +43,19 @@ def find_taps(f: np.ndarray) -> Taps:
     return Taps(t.contact.copy(), t.separation.copy(), t.peak.copy(), t.spacing, t.incomplete)
 
 
+_CYCLES = ArrayMemo(2)  # the last records' cycles (the record's check and the tap methods' checks ask)
+
+
 def oscillation_cycles(z: np.ndarray) -> int:
     """Whole oscillation cycles of the tip in ``z`` (the drive's periods as the record shows
     them, from the position alone): upward crossings of the middle of its range, with a
     hysteresis of a quarter of the range either side, so detector noise far below the
-    amplitude cannot add a crossing."""
+    amplitude cannot add a crossing.  The answer for one of the last two arrays is reused while
+    it comes back unchanged (:class:`~vetica_cli.signals.memo.ArrayMemo`)."""
+    return _CYCLES(_oscillation_cycles, z)
+
+
+def _oscillation_cycles(z: np.ndarray) -> int:
     z = np.asarray(z, dtype=float)
     if len(z) < 3:
         return 0

@@ -68,16 +68,24 @@ def log_gradients(values: dict, rel: float = 1e-6) -> dict:
     return out
 
 
+def rerun(record, method, options, z1: float | None = None, kg_scale: float | None = None) -> dict:
+    """The method's estimates with the record's Z1 at ``z1`` and/or the option ``kg_scale`` at
+    ``kg_scale``: by the method's :meth:`moved` (the tap methods re-run only the stages that move,
+    from the record's taps measured once) when it has one, else by a whole run; ``{}`` when the
+    method refuses them."""
+    try:
+        if hasattr(method, "moved"):
+            return method.moved(record, options, z1=z1, kg_scale=kg_scale)
+        rec = record if z1 is None else dataclasses.replace(record, z1=z1)
+        return method.run(rec, options if kg_scale is None else {**options, "kg_scale": kg_scale}).estimates
+    except Exception:  # noqa: BLE001 - moved inputs the method refuses: no term from that side
+        return {}
+
+
 def with_z1_moved(record, method, options, h: float) -> list[dict]:
     """The method's estimates with the record's Z1 moved by ``+h`` and ``-h`` (in that order);
     a side the method refuses gives ``{}`` (no term from it)."""
-    moved = []
-    for sign in (1.0, -1.0):
-        try:
-            moved.append(method.run(dataclasses.replace(record, z1=record.z1 + sign * h), options).estimates)
-        except Exception:  # noqa: BLE001 - a moved Z1 the method refuses: that side gives no term
-            moved.append({})
-    return moved
+    return [rerun(record, method, options, z1=record.z1 + sign * h) for sign in (1.0, -1.0)]
 
 
 def sampling_term(record, taps) -> float:
@@ -137,12 +145,7 @@ def tap_sigmas(res: ExtractionResult, record, method, options) -> tuple[dict, di
     grad_kg = {}
     if "kg_scale" in options and math.isfinite(rel["k_g"]) and rel["k_g"] > 0:
         hk = min(2.0 * rel["k_g"], 0.4)
-        moved = []
-        for sign in (1.0, -1.0):
-            try:
-                moved.append(method.run(record, {**options, "kg_scale": 1.0 + sign * hk}).estimates)
-            except Exception:  # noqa: BLE001 - a moved Kg the method refuses: that side gives no term
-                moved.append({})
+        moved = [rerun(record, method, options, kg_scale=1.0 + sign * hk) for sign in (1.0, -1.0)]
         for q, e in est.items():
             changes = [m[q].value - e.value for m in moved if q in m and m[q].value and e.value]
             if changes:

@@ -49,6 +49,15 @@ the same way (log scan, Brent on ``S'``), compiled
 ~20 ms, no scipy.  On the thesis studies the two differ by <= 1.1e-3 relative in Kr
 (k_inf, cd) in the acceptance regime and 8e-5 on scan pixels (docs/realtime.md);
 ``tau_c`` and ``Kg`` do not depend on it.
+
+One pass per record: the taps, stage 1b's slopes and the contacts as plain arrays
+(:class:`Stage1`, :class:`Contacts`) are measured once and kept on the record
+(:func:`record_stage1`); stage 2 runs over every tap in one compiled call
+(:func:`vetica_cli.core.superposition.solve_taps`, its bounds' scan one pass over the samples
+for every scanned Kr); the error bars' re-runs at a moved Z1 or Kg and the checks' comparison
+with the pre-stress variant re-run only the stages that move, values only
+(:meth:`TapMethod.moved`, :meth:`TapMethod.values_at`), each stage solved as a whole run solves
+it (tests/test_tap_pass.py).
 """
 
 from __future__ import annotations
@@ -387,17 +396,109 @@ class VeticaResult:
 
 
 def _mean(values: np.ndarray) -> float:
+    """Mean of the finite ``values`` (nan for none), as ``np.nanmean``; a few values (a pixel's
+    taps) summed in a plain loop, which is numpy's own order below eight values."""
+    if len(values) < 8:
+        total, n = 0.0, 0
+        for v in np.asarray(values, dtype=float).tolist():
+            if math.isfinite(v):
+                total += v
+                n += 1
+        return total / n if n else math.nan
     return float(np.nanmean(values)) if np.any(np.isfinite(values)) else math.nan
 
 
-def _stage1(t, z, f, z1, kg_points, taps: Taps | None = None, kg_window: str = "noise"):
-    """Taps, then stages 1a and 1b: ``(taps, tau_c per interval, Kg per tap, warnings)``."""
+@dataclass
+class Contacts:
+    """Every complete tap's contact, from its contact minimum to its separation minimum (both
+    included), as plain arrays for the compiled stages (:mod:`vetica_cli.core.superposition`):
+    the samples of all taps end to end, tap ``j``'s in ``[start[j], stop[j])``."""
+
+    delta: np.ndarray  # [m] indentation from the contact minimum, z_tip(contact) - z_tip
+    z: np.ndarray  # [m] tip position
+    f: np.ndarray  # [N] force
+    u: np.ndarray  # [s] time from the contact minimum
+    start: np.ndarray  # first sample of each tap
+    stop: np.ndarray  # one past its last
+    h: np.ndarray  # [s] each tap's constant sample step (:func:`uniform_step`), nan where it has none
+    fc: np.ndarray  # [N] force at each contact minimum
+    zc: np.ndarray  # [m] tip position there
+
+    @property
+    def samples(self) -> np.ndarray:
+        """Samples of each contact."""
+        return self.stop - self.start
+
+
+def contacts_of(t, z, f, taps: Taps) -> Contacts:
+    """The taps' contacts as :class:`Contacts`."""
+    parts, start, stop, h = [], [], [], []
+    at = 0
+    for ic, isep in zip(taps.contact, taps.separation):
+        sl = slice(int(ic), int(isep) + 1)
+        u = t[sl] - t[ic]
+        parts.append((float(z[ic]) - z[sl], z[sl], f[sl], u))
+        step = uniform_step(u)
+        start.append(at)
+        at += len(u)
+        stop.append(at)
+        h.append(math.nan if step is None else step)
+    cat = [np.concatenate([p[k] for p in parts]) if parts else np.empty(0) for k in range(4)]
+    return Contacts(delta=cat[0], z=cat[1], f=cat[2], u=cat[3], start=np.array(start, dtype=np.int64),
+                    stop=np.array(stop, dtype=np.int64), h=np.array(h, dtype=float),
+                    fc=np.array([float(f[i]) for i in taps.contact]), zc=np.array([float(z[i]) for i in taps.contact]))  # fmt: skip
+
+
+@dataclass
+class Stage1:
+    """What stages 1a and 1b read of a record that depends neither on Z1 nor on the Kg scale
+    of the error bars: the taps, stage 1b's slopes as measured (:func:`stage1b_kg`) and its
+    windows' bookkeeping.  Measured once per record and window (:func:`record_stage1`); the
+    error bars' and checks' re-runs at a moved Z1 or Kg start from it."""
+
+    taps: Taps
+    kg: np.ndarray  # [N/m] stage 1b per tap, unscaled
+    windows: dict | None  # stage 1b's windows (None: the thesis's)
+    kg_points: int
+    kg_window: str
+    contacts: Contacts | None = None  # the contacts for the compiled stage 2 (None: measured without the times)
+
+
+def measure_stage1(z, f, kg_points: int, taps: Taps | None = None, kg_window: str = "noise", t=None) -> Stage1:
+    """The taps (located on ``f`` unless given), stage 1b's slopes and, with the times ``t``, the
+    contacts; InputError for fewer than two complete taps."""
     taps = find_taps(f) if taps is None else taps
     n_taps = len(taps.contact)
     if n_taps < 2:
         raise InputError(
             f"too few taps: {n_taps} complete tap(s) in the record ({taps.incomplete} cut by its ends), need at least 2"
         )
+    kg, windows = stage1b_kg(z, f, taps, kg_points, kg_window, details=True)
+    contacts = None if t is None else contacts_of(t, z, f, taps)
+    return Stage1(taps=taps, kg=kg, windows=windows, kg_points=kg_points, kg_window=kg_window, contacts=contacts)
+
+
+def record_stage1(record: Record, kg_points: int, kg_window: str) -> Stage1:
+    """:func:`measure_stage1` of ``record``, kept on it (``record.memo``, shared by the records
+    :func:`dataclasses.replace` makes of it with another Z1) for the same force, position and
+    taps: every re-run of a tap method on the record (error bars, checks) reads it once."""
+    key = ("tap-stage1", id(record.f), kg_points, kg_window)  # a record low-passed once more (error bars) has its own
+    memo = getattr(record, "memo", None)  # None: a record-like object without one (measured every time)
+    held = None if memo is None else memo.get(key)
+    if held is not None and held[0] is record.f and held[1] is record.z and held[2] is record.taps:
+        return held[3]
+    stage1 = measure_stage1(record.z, record.f, kg_points, record.taps, kg_window, record.t)
+    if memo is not None:
+        memo[key] = (record.f, record.z, record.taps, stage1)  # the arrays held: their ids cannot be reused
+    return stage1
+
+
+def _stage1(t, z, f, z1, kg_points, taps: Taps | None = None, kg_window: str = "noise", stage1: Stage1 | None = None):
+    """Taps, then stages 1a and 1b: ``(taps, tau_c per interval, Kg per tap, warnings)``;
+    ``stage1``: the record's taps and slopes when already measured (:func:`record_stage1`)."""
+    if stage1 is None:
+        stage1 = measure_stage1(z, f, kg_points, taps, kg_window, t)
+    taps = stage1.taps
     longest = int(np.max(taps.separation - taps.contact)) - 1  # samples after the contact minimum, before separation
     if kg_points > longest:
         raise InputError(
@@ -408,7 +509,7 @@ def _stage1(t, z, f, z1, kg_points, taps: Taps | None = None, kg_window: str = "
     pk = np.diff(taps.peak)
     if len(pk) and np.ptp(pk) > 0.1 * np.median(pk):
         warnings.append("irregular tap spacing (chatter or several contacts per drive period?)")
-    return taps, stage1a_tau_c(t, z, taps, z1), stage1b_kg(z, f, taps, kg_points, kg_window), warnings
+    return taps, stage1a_tau_c(t, z, taps, z1), stage1.kg, warnings
 
 
 def _stage1_warnings(tau_c: float, kg: float, z1: float, kg_points: int) -> list[str]:
@@ -478,8 +579,35 @@ def stage2_tap(u, z, f, kg: float, tau_c: float, fc: float, kr_guess=None, solve
     return kr, fit.rms, rms, nf
 
 
-def _stage2(t, z, f, taps: Taps, kg: float, tau_c: float, kr_guess, solver: str = "closed"):
-    """Kr of every tap long enough (nan otherwise) and the fit residuals of those fitted."""
+def _stage2_compiled(c: Contacts, kg: float, tau_c: float, kr_guess):
+    """:func:`_stage2` with ``solver='closed'`` in one compiled call over the taps
+    (:func:`vetica_cli.core.superposition.solve_taps`); None when a contact has no constant step."""
+    from ...core.superposition import solve_taps
+
+    long = c.samples >= MIN_CONTACT_SAMPLES + 1  # isep - ic >= MIN_CONTACT_SAMPLES
+    if not np.all(np.isfinite(c.h[long])):
+        return None
+    n = len(c.start)
+    start = np.where(long, c.start, -1)
+    guess = np.full(n, -1.0 if kr_guess is None else float(kr_guess))
+    warm = np.zeros(n, dtype=bool)
+    kr, s0, rms = np.full(n, math.nan), np.zeros(n), np.zeros(n)
+    calls = np.zeros(n, dtype=np.int64)
+    zeros = np.zeros(n)
+    solve_taps(c.delta, c.f, start, c.stop, c.h, float(kg), float(tau_c), c.fc, guess, warm, zeros, zeros, False,
+               KR_SCAN, KR_RTOL, kr, s0, rms, calls)  # fmt: skip
+    return (list(kr), [math.nan] * int(np.sum(long)), [float(x) for x in rms[long]],
+            [int(x) for x in calls[long]])  # fmt: skip
+
+
+def _stage2(t, z, f, taps: Taps, kg: float, tau_c: float, kr_guess, solver: str = "closed",
+            contacts: Contacts | None = None):  # fmt: skip
+    """Kr of every tap long enough (nan otherwise) and the fit residuals of those fitted; with
+    the ``contacts`` (and ``solver='closed'``) in one compiled call (:func:`_stage2_compiled`)."""
+    if solver == "closed" and contacts is not None:
+        out = _stage2_compiled(contacts, kg, tau_c, kr_guess)
+        if out is not None:
+            return out
     kr_i, fit_rms, f_rms, nfev = [], [], [], []
     for ic, isep in zip(taps.contact, taps.separation):
         if isep - ic < MIN_CONTACT_SAMPLES:
@@ -505,6 +633,8 @@ def vetica(
     taps: Taps | None = None,
     kg_window: str = "noise",
     kg_scale: float = 1.0,
+    stage1: Stage1 | None = None,
+    lean: bool = False,
 ) -> VeticaResult:
     """Run VETICA stages 1a, 1b and 2 on a record of consecutive taps.
 
@@ -517,7 +647,10 @@ def vetica(
     InputError for no contact or fewer than two complete taps.  ``stage2``: 'closed'
     (:func:`stage2_tap_closed`, compiled, the default) or 'sines' (the thesis's sum-of-sines
     fit, :func:`fit_sum_of_sines` and :func:`stage2_kr`).  ``taps``: the record's taps when
-    already located (else :func:`~vetica_cli.signals.taps.find_taps` on ``f``).
+    already located (else :func:`~vetica_cli.signals.taps.find_taps` on ``f``).  ``stage1``:
+    the record's taps and stage 1b's slopes when already measured (:func:`record_stage1`);
+    ``lean``: the values and the per-tap Kr only (no other
+    per-tap values, diagnostics or warnings: the error bars' re-runs on a record already checked).
     """
     if stage2 not in STAGE2:
         raise InputError(f"stage2 {stage2!r} not allowed; choose one of: {', '.join(STAGE2)}")
@@ -527,16 +660,26 @@ def vetica(
     if kg_points < 2:
         raise InputError(f"kg_points {kg_points} not allowed; expected an integer >= 2")
     t0 = time.perf_counter()
-    taps, tau_c_i, kg_i, warnings = _stage1(t, z, f, z1, kg_points, taps, kg_window)
+    if stage1 is None:
+        stage1 = measure_stage1(z, f, kg_points, taps, kg_window, t)
+    if lean:
+        taps, tau_c_i, kg_i, warnings = stage1.taps, stage1a_tau_c(t, z, stage1.taps, z1), stage1.kg, []
+    else:
+        taps, tau_c_i, kg_i, warnings = _stage1(t, z, f, z1, kg_points, taps, kg_window, stage1)
     kg_i = kg_i * kg_scale  # the error bars move Kg to see how stage 2 follows it
     n_taps = len(taps.contact)
     t1 = time.perf_counter()
     tau_c, kg = _mean(tau_c_i), _mean(kg_i)
     warnings += _stage1_warnings(tau_c, kg, z1, kg_points)
     run2 = not (math.isnan(tau_c) or math.isnan(kg)) and kg > 0
-    kr_i, fit_rms, f_rms, nfev = _stage2(t, z, f, taps, kg, tau_c, kr_guess, stage2) if run2 else ([], [], [], [])
+    contacts = stage1.contacts
+    kr_i, fit_rms, f_rms, nfev = (_stage2(t, z, f, taps, kg, tau_c, kr_guess, stage2, contacts) if run2
+                                  else ([], [], [], []))  # fmt: skip
     t2 = time.perf_counter()
     kr_i = np.array(kr_i) if kr_i else np.full(n_taps, math.nan)
+    if lean:
+        return VeticaResult(values=sls_elements(tau_c, kg, _mean(kr_i)), per_tap={"k_r": kr_i}, taps=n_taps,
+                            z1=float(z1), timing_s={})  # fmt: skip
     if run2 and not fit_rms:
         warnings.append(f"stage 2: every contact is shorter than {MIN_CONTACT_SAMPLES} samples; Kr skipped")
     per = [sls_elements(tau_c, kg, k) for k in kr_i]
@@ -587,6 +730,27 @@ class TapMethod(ExtractionMethod):
 
         stage_dependents(res)
 
+    def moved(self, record: Record, options: dict, z1: float | None = None, kg_scale: float | None = None) -> dict:
+        """The estimates (values only) of the method re-run on ``record`` with Z1 at ``z1`` and/or the
+        option ``kg_scale`` at ``kg_scale`` (the error bars' re-runs): only the stages that move, from
+        the taps, slopes and contacts measured once (:func:`record_stage1`), with each stage solved
+        exactly as a whole run solves it (the same roots)."""
+        opts = options if kg_scale is None else {**options, "kg_scale": kg_scale}
+        return self.values_at(record, opts, record.z1 if z1 is None else z1)
+
+    def values_at(self, record: Record, options: dict, z1: float | None = None) -> dict:
+        """The estimates (values only: no spread, sigma or checks) of the method on ``record`` at
+        ``z1`` (default the record's): the checks' comparison of the two VETICA variants and the
+        error bars' re-runs (:meth:`moved`)."""
+        ex = self.tap_pass(record, options, record.z1 if z1 is None else z1, lean=True)
+        units = {k: q.unit for k, q in self.quantities(record.model).items()}
+        return estimates(ex.values, units)
+
+    def tap_pass(self, record: Record, options: dict, z1: float, lean: bool = False):
+        """The method's stages on ``record`` at ``z1`` (its own result type) from the record's taps,
+        slopes and contacts measured once; ``lean``: its values only."""
+        raise NotImplementedError  # pragma: no cover - each tap method has its own
+
 
 @register
 class Vetica(TapMethod):
@@ -609,14 +773,24 @@ class Vetica(TapMethod):
 
     compared_with = "vetica-prestress"  # the thesis's stages against the pre-stress at contact (tapchecks)
 
+    def tap_pass(self, record: Record, options: dict, z1: float, lean: bool = False) -> VeticaResult:
+        """:func:`vetica` on the record's taps and slopes measured once (:func:`record_stage1`)."""
+        stage1 = record_stage1(record, options["kg_points"], options["kg_window"])
+        return vetica(record.t, record.z, record.f, z1, kg_points=options["kg_points"],
+                      kr_guess=options["kr_guess"], stage2=options["stage2"], taps=record.taps,
+                      kg_window=options["kg_window"], kg_scale=options.get("kg_scale", 1.0), stage1=stage1,
+                      lean=lean)  # fmt: skip
+
     def run(self, record: Record, options: dict) -> ExtractionResult:
-        ex = vetica(record.t, record.z, record.f, record.z1, kg_points=options["kg_points"],
-                    kr_guess=options["kr_guess"], stage2=options["stage2"], taps=record.taps,
-                    kg_window=options["kg_window"], kg_scale=options.get("kg_scale", 1.0))  # fmt: skip
+        if options["stage2"] not in STAGE2:
+            raise InputError(f"stage2 {options['stage2']!r} not allowed; choose one of: {', '.join(STAGE2)}")
+        if options["kg_points"] < 2:
+            raise InputError(f"kg_points {options['kg_points']} not allowed; expected an integer >= 2")
+        ex = self.tap_pass(record, options, record.z1)
         units = {k: q.unit for k, q in self.quantities(record.model).items()}
         timing = {"reconstruction": record.reconstruction_s, **ex.timing_s,
                   "total": time.perf_counter() - record.t_start}  # fmt: skip
-        return ExtractionResult(
+        res = ExtractionResult(
             method=self.key,
             force=record.force,
             taps=ex.taps,
@@ -627,6 +801,7 @@ class Vetica(TapMethod):
             warnings=ex.warnings + record.meta_warnings,
             timing_s=timing,
         )
+        return res
 
     def timing_line(self, timing_s: dict) -> str:
         tm = timing_s

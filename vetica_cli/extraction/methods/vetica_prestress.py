@@ -61,20 +61,24 @@ import numpy as np
 
 from ...checks import one_of
 from ...errors import InputError
-from ...signals.taps import Taps, find_taps
+from ...signals.taps import Taps
 from ..base import Option, get, register
 from ..record import Record
 from ..result import ExtractionResult, Spread, estimates
 from .vetica import (
-    TapMethod,
+    KR_RTOL,
+    KR_SCAN,
     MIN_CONTACT_SAMPLES,
-    SineFit,
-    Superposition,
-    fit_sum_of_sines,
     STAGE2,
+    SineFit,
+    Stage1,
+    Superposition,
+    TapMethod,
+    fit_sum_of_sines,
+    measure_stage1,
+    record_stage1,
     sls_elements,
     stage1a_tau_c,
-    stage1b_kg,
     stage2_tap_closed,
     uniform_step,
 )
@@ -294,9 +298,67 @@ def _stages(fits, mode, z1, kg, tau_c, kr_guess, s_of_tap, kg_scale: float = 1.0
     return kg, kr_i, kg_i, s0_i, rms_i, MAX_ITER, False
 
 
+MODES = {"adhesion": 0, "creep": 1, "fit": 2}  # the pre-stress modes as the compiled fixed point numbers them
+
+
+def _compiled_taps(stage1: Stage1, stage2: str, kg_points: int) -> np.ndarray | None:
+    """Each tap's first contact sample for the compiled fixed point (-1: a contact too short for
+    stages 1b and 2, skipped), or None where the Python loop runs instead: the sum-of-sines stage 2,
+    a contact without a constant step, stage 1b's slopes read over windows grown from the noise, or
+    no contact long enough (the loop says so)."""
+    c = stage1.contacts
+    grown = stage1.windows is not None and not all(stage1.windows["thesis"])
+    if stage2 != "closed" or c is None or grown:
+        return None
+    long = c.samples - 1 >= max(MIN_CONTACT_SAMPLES, kg_points + 1)
+    if not np.any(long) or not np.all(np.isfinite(c.h[long])):
+        return None
+    return np.where(long, c.start, -1).astype(np.int64)
+
+
+def _stages_python(t, z, f, taps, windows, kg_thesis_i, z1, kg0, tau_c, kr_guess, kg_scale, kg_points, mode, stage2):
+    """Stages 2 and 1b to their fixed point tap by tap in Python (:func:`_stages`), on
+    :class:`ClosedTap` contacts (with stage 1b's grown windows) or the sum-of-sines fits: its
+    results, and 'closed' or the sine fits."""
+    fits = closed_taps(t, z, f, taps, kg_points) if stage2 == "closed" else []
+    if windows is not None and not all(windows["thesis"]):  # stage 1b read over windows grown from the noise
+        for j, tf in enumerate(fits):
+            if tf is not None and not windows["thesis"][j] and windows["window"][j] > 0:
+                first = max(1, int(windows["start"][j]) - int(taps.contact[j]))
+                tf.window = (first, int(windows["window"][j]), float(windows["at"][j]), float(kg_thesis_i[j]))
+    if not any(tf is not None for tf in fits):
+        fits = tap_fits(t, z, f, taps, kg_points)
+    if all(tf is None for tf in fits):
+        raise InputError(f"stage 2: every contact is shorter than {max(MIN_CONTACT_SAMPLES, kg_points + 1)} samples")
+
+    def start_sigma(tf, kg, kr):  # fit mode starts from the adhesion estimate
+        return prestress_of("adhesion" if mode == "fit" else mode, tf.fc, tf.zc, z1, kg, kr)
+
+    kg, kr_i, kg_i, s0_i, rms_i, iters, converged = _stages(fits, mode, z1, kg0, tau_c, kr_guess, start_sigma, kg_scale)
+    fitted = "closed" if any(isinstance(tf, ClosedTap) for tf in fits) else fits
+    return kg, kr_i, kg_i, s0_i, rms_i, iters, converged, fitted
+
+
+def _stages_compiled(c, first, mode, z1, kg, tau_c, kr_guess, kg_scale: float, kg_points: int):
+    """:func:`_stages` over the contacts ``c`` (:class:`~.vetica.Contacts`) in one compiled call
+    (:func:`vetica_cli.core.superposition.prestress_fixed_point`); the taps whose ``first`` sample
+    is -1 are skipped."""
+    from ...core.superposition import prestress_fixed_point
+
+    n = len(first)
+    kr = kr_guess if kr_guess is not None else 0.1 * kg
+    kr_i, s0_i, kg_i, rms_i = (np.full(n, math.nan) for _ in range(4))
+    kg, iters, done = prestress_fixed_point(c.delta, c.z, c.f, c.u, first, c.stop, c.h, c.fc, c.zc, int(kg_points),
+                                            MODES[mode], float(z1), float(kg), float(tau_c), float(kr), kr_i, s0_i,
+                                            False, float(kg_scale), MAX_ITER, RTOL, KR_SCAN, KR_RTOL, kg_i,
+                                            rms_i)  # fmt: skip
+    return float(kg), kr_i, kg_i, s0_i, rms_i, int(iters), bool(done)
+
+
 def vetica_prestress(t, z, f, z1: float, kg_points: int = 10, kr_guess: float | None = None,
                      prestress: str = "adhesion", stage2: str = "closed", taps: Taps | None = None,
-                     kg_window: str = "noise", kg_scale: float = 1.0) -> PrestressResult:  # fmt: skip
+                     kg_window: str = "noise", kg_scale: float = 1.0, stage1: Stage1 | None = None,
+                     lean: bool = False) -> PrestressResult:  # fmt: skip
     """Run VETICA with the pre-stress (module docstring) on a record of consecutive taps.
 
     ``prestress``: ``adhesion``, ``creep`` or ``fit`` (the method resolves ``auto``).
@@ -305,7 +367,9 @@ def vetica_prestress(t, z, f, z1: float, kg_points: int = 10, kr_guess: float | 
     values with a warning, as in ``vetica``.  ``stage2``: 'closed' (compiled, on the samples:
     :class:`ClosedTap`; with ``fit`` the pre-stress is projected out unbounded) or 'sines'
     (the sum-of-sines fit of each contact, thesis eq. 88, and scipy's least squares).
-    ``taps``: the record's taps when already located.
+    ``taps``: the record's taps when already located; ``stage1``: the record's taps and stage
+    1b's slopes when already measured (:func:`~.vetica.record_stage1`); ``lean``: the values only (no per-tap values, diagnostics
+    or warnings: the error bars' and checks' re-runs).
     """
     if stage2 not in STAGE2:
         raise InputError(f"stage2 {stage2!r} not allowed; choose one of: {', '.join(STAGE2)}")
@@ -313,14 +377,12 @@ def vetica_prestress(t, z, f, z1: float, kg_points: int = 10, kr_guess: float | 
         raise InputError(f"prestress {prestress!r} not allowed here; choose one of: {', '.join(PRESTRESS[1:])}")
     t, z, f = (np.asarray(a, dtype=float) for a in (t, z, f))
     t0 = time.perf_counter()
-    taps = find_taps(f) if taps is None else taps
+    if stage1 is None:
+        stage1 = measure_stage1(z, f, kg_points, taps, kg_window, t)
+    taps = stage1.taps
     n_taps = len(taps.contact)
-    if n_taps < 2:
-        raise InputError(
-            f"too few taps: {n_taps} complete tap(s) in the record ({taps.incomplete} cut by its ends), need at least 2"
-        )
     tau_c_i = stage1a_tau_c(t, z, taps, z1)
-    kg_thesis_i, windows = stage1b_kg(z, f, taps, kg_points, kg_window, details=True)
+    kg_thesis_i, windows = stage1.kg, stage1.windows
     kg_thesis_i = kg_thesis_i * kg_scale  # the error bars move the measured slopes to see how everything follows
     tau_c, kg0 = _mean(tau_c_i), _mean(kg_thesis_i)
     problem = None
@@ -337,23 +399,19 @@ def vetica_prestress(t, z, f, z1: float, kg_points: int = 10, kr_guess: float | 
                                timing_s={"stage1": time.perf_counter() - t0, "stages_1b_2": 0.0},
                                diagnostics={"prestress": prestress}, warnings=[problem])  # fmt: skip
     t1 = time.perf_counter()
-    fits = closed_taps(t, z, f, taps, kg_points) if stage2 == "closed" else []
-    if windows is not None and not all(windows["thesis"]):  # stage 1b read over windows grown from the noise
-        for j, tf in enumerate(fits):
-            if tf is not None and not windows["thesis"][j] and windows["window"][j] > 0:
-                start = max(1, int(windows["start"][j]) - int(taps.contact[j]))
-                tf.window = (start, int(windows["window"][j]), float(windows["at"][j]), float(kg_thesis_i[j]))
-    if not any(tf is not None for tf in fits):
-        fits = tap_fits(t, z, f, taps, kg_points)
-    if all(tf is None for tf in fits):
-        raise InputError(f"stage 2: every contact is shorter than {max(MIN_CONTACT_SAMPLES, kg_points + 1)} samples")
-    mode = prestress
-
-    def start_sigma(tf, kg, kr):  # fit mode starts from the adhesion estimate
-        return prestress_of("adhesion" if mode == "fit" else mode, tf.fc, tf.zc, z1, kg, kr)
-
-    kg, kr_i, kg_i, s0_i, rms_i, iters, converged = _stages(fits, mode, z1, kg0, tau_c, kr_guess, start_sigma, kg_scale)
+    first = _compiled_taps(stage1, stage2, kg_points)
+    if first is not None:  # uniform contacts, the thesis's stage-1b window on every tap: the fixed point compiled
+        kg, kr_i, kg_i, s0_i, rms_i, iters, converged = _stages_compiled(stage1.contacts, first, prestress, z1, kg0,
+                                                                         tau_c, kr_guess, kg_scale, kg_points)  # fmt: skip
+        fitted = "closed"
+    else:
+        kg, kr_i, kg_i, s0_i, rms_i, iters, converged, fitted = _stages_python(t, z, f, taps, windows, kg_thesis_i, z1,
+                                                                               kg0, tau_c, kr_guess, kg_scale, kg_points,
+                                                                               prestress, stage2)  # fmt: skip
     t2 = time.perf_counter()
+    if lean:
+        return PrestressResult(values=sls_elements(tau_c, kg, _mean(kr_i)), per_tap={"k_r": kr_i}, taps=n_taps,
+                               timing_s={}, diagnostics={}, warnings=[])  # fmt: skip
     warnings = []
     if not converged:
         warnings.append(f"stages 1b and 2 did not reach a fixed point in {iters} iterations")
@@ -365,17 +423,17 @@ def vetica_prestress(t, z, f, z1: float, kg_points: int = 10, kr_guess: float | 
     per_tap = {"tau_c": tau_c_i, "k_g": kg_i, "k_r": kr_i,
                **{k: np.array([p[k] for p in per]) for k in ("tau_r", "k0", "k_inf", "cd")}}  # fmt: skip
     diagnostics = {
-        "prestress": mode,
+        "prestress": prestress,
         "prestress_n": _mean(s0_i),
         "adhesion_n": float(-np.median(f[taps.contact])),
         "kg_stage1b_thesis": kg0,
         "iterations": iters,
         "force_fit_rms_n": float(np.nanmax(rms_i)),
-        "stage2": "closed" if any(isinstance(tf, ClosedTap) for tf in fits) else "sines",
+        "stage2": fitted if isinstance(fitted, str) else "sines",
         "contact_samples": int(np.median(taps.separation - taps.contact)),
     }
     if diagnostics["stage2"] == "sines":
-        diagnostics["sine_fit_rms_m"] = float(max(tf.fit.rms for tf in fits if tf is not None))
+        diagnostics["sine_fit_rms_m"] = float(max(tf.fit.rms for tf in fitted if tf is not None))
     return PrestressResult(
         values=sls_elements(tau_c, kg, kr), per_tap=per_tap, taps=n_taps,
         timing_s={"stage1": t1 - t0, "stages_1b_2": t2 - t1}, diagnostics=diagnostics, warnings=warnings,
@@ -400,7 +458,19 @@ class VeticaPrestress(TapMethod):
     references = ("thesis 3.3 (VETICA's stages), with the Maxwell arm's pre-stress at contact",)
     seconds_per_point = 0.55  # both forces, 10 periods at 0.125 ns: 0.53 CPU s measured with standard errors and checks
 
-    def run(self, record: Record, options: dict) -> ExtractionResult:
+    def tap_pass(self, record: Record, options: dict, z1: float, lean: bool = False) -> PrestressResult:
+        """:func:`vetica_prestress` on the record's taps and slopes measured once
+        (:func:`~.vetica.record_stage1`)."""
+        stage1 = record_stage1(record, options["kg_points"], options["kg_window"])
+        return vetica_prestress(record.t, record.z, record.f, z1, kg_points=options["kg_points"],
+                                kr_guess=options["kr_guess"], prestress=self.mode(record, options)[0],
+                                stage2=options["stage2"], taps=record.taps, kg_window=options["kg_window"],
+                                kg_scale=options.get("kg_scale", 1.0), stage1=stage1,
+                                lean=lean)  # fmt: skip
+
+    @staticmethod
+    def mode(record: Record, options: dict) -> tuple[str, str]:
+        """The pre-stress mode the option resolves to on this record, and how it was chosen."""
         mode = options["prestress"]
         if mode == "auto":  # the record's knowledge of the pull; unknown: the method's premise, it does
             mode = "creep" if record.vdw_on_surface is False else "adhesion"
@@ -410,10 +480,15 @@ class VeticaPrestress(TapMethod):
             source = f"auto: {mode} ({why})"
         else:
             source = mode
-        ex = vetica_prestress(record.t, record.z, record.f, record.z1, kg_points=options["kg_points"],
-                              kr_guess=options["kr_guess"], prestress=mode, stage2=options["stage2"],
-                              taps=record.taps, kg_window=options["kg_window"],
-                              kg_scale=options.get("kg_scale", 1.0))  # fmt: skip
+        return mode, source
+
+    def run(self, record: Record, options: dict) -> ExtractionResult:
+        mode, source = self.mode(record, options)
+        if options["stage2"] not in STAGE2:
+            raise InputError(f"stage2 {options['stage2']!r} not allowed; choose one of: {', '.join(STAGE2)}")
+        if mode not in PRESTRESS[1:]:
+            raise InputError(f"prestress {mode!r} not allowed here; choose one of: {', '.join(PRESTRESS[1:])}")
+        ex = self.tap_pass(record, options, record.z1)
         units = {k: q.unit for k, q in self.quantities(record.model).items()}
         timing = {
             "reconstruction": record.reconstruction_s,
@@ -422,10 +497,11 @@ class VeticaPrestress(TapMethod):
         }
         spread = {k: Spread.of(v) for k, v in ex.per_tap.items()}
         info = {**record.info, "prestress": source}
-        return ExtractionResult(method=self.key, force=record.force, taps=ex.taps,
-                                estimates=estimates(ex.values, units, record.truth, spreads=spread),
-                                model=record.model.key, info=info, diagnostics=ex.diagnostics,
-                                warnings=ex.warnings + record.meta_warnings, timing_s=timing)  # fmt: skip
+        res = ExtractionResult(method=self.key, force=record.force, taps=ex.taps,
+                               estimates=estimates(ex.values, units, record.truth, spreads=spread),
+                               model=record.model.key, info=info, diagnostics=ex.diagnostics,
+                               warnings=ex.warnings + record.meta_warnings, timing_s=timing)  # fmt: skip
+        return res
 
     def detail_lines(self, res: ExtractionResult) -> list[str]:
         d = res.diagnostics or {}

@@ -1,0 +1,65 @@
+"""The tap methods' estimates on a few scan-pixel records, written as the reference the compiled
+pass is tested against (tests/test_tap_pass.py, ``tests/data/tap_pass_reference.json``).
+
+The records are the extraction bench's pixels (:data:`vetica_cli.bench.PIXEL`: 4 drive periods at
+1 ns) of the stiff (worked example) and soft SLS surfaces (:data:`vetica_cli.bench.SURFACES`),
+noise-free and at 300 K (``numerics.temperature=300``); each is extracted with ``vetica`` and
+``vetica-prestress`` from the true and the reconstructed force, with error bars and checks.  The
+committed file was written by the Python path before the compiled pass (git ad8146c), run as
+
+    git archive ad8146c vetica_cli | tar -x -C /tmp/old
+    PYTHONPATH=/tmp/old python scripts/tap_pass_reference.py tests/data/tap_pass_reference.json
+
+The file holds ``{"records": {name: config overrides}, "estimates": {name: {"force/method": {quantity:
+[value, relative sigma, identifiable]}}}}`` (None where the method gives none).
+"""
+
+from __future__ import annotations
+
+import json
+import sys
+
+RECORDS = {"stiff": {}, "soft": "soft", "stiff 300 K": {"numerics.temperature": 300.0},
+           "soft 300 K": ("soft", {"numerics.temperature": 300.0})}  # fmt: skip
+METHODS = ("vetica", "vetica-prestress")
+FORCES = ("true", "reconstructed")
+
+
+def overrides(spec) -> dict:
+    """The config overrides of one of :data:`RECORDS`."""
+    from vetica_cli.bench import PIXEL, SURFACES
+
+    if spec == "soft":
+        return {**PIXEL, **SURFACES["soft"]}
+    if isinstance(spec, tuple):
+        return {**PIXEL, **SURFACES[spec[0]], **spec[1]}
+    return {**PIXEL, **spec}
+
+
+def estimates(over: dict) -> dict:
+    """``{"force/method": {quantity: [value, sigma, identifiable]}}`` of the record the config
+    overrides ``over`` simulate."""
+    from vetica_cli.extraction import extract
+    from vetica_cli.simulation.config import load
+    from vetica_cli.simulation.simulate import simulate
+
+    run = simulate(load(None, over))
+    df, meta = run.frame(), run.metadata()
+    out = {}
+    for force in FORCES:
+        for method in METHODS:
+            res = extract(df, meta, force=force, method=method)
+            out[f"{force}/{method}"] = {q: [e.value, e.sigma, e.identifiable] for q, e in res.estimates.items()}
+    return out
+
+
+def main(path: str) -> None:
+    records = {name: overrides(spec) for name, spec in RECORDS.items()}
+    table = {"records": records, "estimates": {name: estimates(over) for name, over in records.items()}}
+    with open(path, "w") as fh:
+        json.dump(table, fh, indent=1, allow_nan=True)
+        fh.write("\n")
+
+
+if __name__ == "__main__":
+    main(sys.argv[1])
