@@ -5,7 +5,7 @@ runs stage 2 over every tap in one compiled call and the pre-stress fixed point 
 compiled, and the error bars and checks re-run only the stages that move with Z1 or Kg.  References:
 
 * ``tests/data/tap_pass_reference.json``: the estimates, relative sigmas and flags of the Python
-  path before the compiled pass (git ad8146c; ``scripts/tap_pass_reference.py`` says how it was
+  path before the compiled pass (git ad810cf; ``scripts/tap_pass_reference.py`` says how it was
   written) on the extraction bench's pixel records (4 periods at 1 ns; stiff and soft SLS,
   noise-free and at 300 K; true and reconstructed force);
 * the same functions on the same record with the Python loops (a stage 1 measured without the
