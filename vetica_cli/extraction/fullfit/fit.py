@@ -159,7 +159,6 @@ def solve(vec: FitVector, x0, max_nfev=60, xtol=1e-10, scanned=()) -> dict:
         "theta": theta,
         "s0": s0_fit if s0_fit is not None else model.z1_offset(theta, tangents=False)[0],
         "s0_ref": vec.s0_ref,
-        "s0_z1": model.z1_offset(theta, tangents=False)[0] if model.z1 is not None else None,
         "residual": res,
         "cost": float(res @ res),
         "xd0": model.window_start_xd,
