@@ -91,9 +91,11 @@ def band_record(record, step: float):
     h = (record.t[-1] - record.t[0]) / (len(record.t) - 1)
 
     def lowpass(x):
-        spec = np.fft.rfft(x)
+        from ..signals.spectral import irfft, rfft  # numpy's, or scipy's for an awkward length
+
+        spec = rfft(x)
         spec[np.fft.rfftfreq(len(x), h) > fc2] = 0.0
-        return np.fft.irfft(spec, len(x))
+        return irfft(spec, len(x))
 
     f2 = lowpass(record.f)
     drive = (record.info.get("noise") or {}).get("drive_hz")
