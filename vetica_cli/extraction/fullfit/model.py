@@ -39,9 +39,11 @@ class SampledRecord:
     def __init__(self, z, f, z_ref, near_stride, far_stride, block, near_gap, ndir=NDIR):
         self.z = np.ascontiguousarray(z, dtype=float)
         n = len(self.z)
-        idx = np.arange(n)
         near = (self.z - z_ref) < near_gap
-        want = np.where(near, idx % near_stride == 0, (idx + 1) % far_stride == 0)
+        every_near, every_far = np.zeros(n, bool), np.zeros(n, bool)  # sample i % stride == 0 (far: (i+1) % stride)
+        every_near[::near_stride] = True
+        every_far[far_stride - 1 :: far_stride] = True
+        want = np.where(near, every_near, every_far)
         nblock = n // block
         near_blocks = near[: nblock * block].reshape(nblock, block).any(axis=1)
         self.coarse_ok = (~near_blocks).astype(np.uint8)
