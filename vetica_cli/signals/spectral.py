@@ -131,7 +131,8 @@ def bernoulli_correction(jumps: np.ndarray, n: int, h: float) -> tuple[np.ndarra
     return b, b1, b2
 
 
-CACHE_SAMPLES = 1 << 16  # windows up to this length keep their Bernoulli polynomials and paddle gain
+# windows up to this length keep their Bernoulli polynomials and paddle gain (a scan pixel's 4 periods at 1 ns: 80000)
+CACHE_SAMPLES = 1 << 17
 FFT_RADICES = (2, 3, 5, 7, 11)  # prime factors numpy's FFT has fast passes for
 
 
