@@ -344,10 +344,14 @@ class FullFit(ExtractionMethod):
         start_sls, source = starting_point(t, z, f, z_ref, taps, opts["kg_points"], _sls_start(opts["start"]))
         t_start_done = time.perf_counter()
 
+        made = []  # the models share the approach record and its passes where they can (SurfaceFit's shared)
+
         def make(n, arms, pinned=False):
-            return SurfaceFit(z[:n], f[:n], h, z1, record.approach, a0, radius, vdw,
-                              fit_offset=opts["fit_offset"] and not pinned, near_stride=opts["near_stride"],
-                              far_stride=opts["far_stride"], substeps=substeps, n_arms=arms, z_ref=z_ref)  # fmt: skip
+            made.append(SurfaceFit(z[:n], f[:n], h, z1, record.approach, a0, radius, vdw,
+                                   fit_offset=opts["fit_offset"] and not pinned, near_stride=opts["near_stride"],
+                                   far_stride=opts["far_stride"], substeps=substeps, n_arms=arms, z_ref=z_ref,
+                                   shared=next((m for m in made if m.n_arms == arms), None)))  # fmt: skip
+            return made[-1]
 
         bounds = {**surface.fit_bounds, "hamaker": HAMAKER_BOUNDS}
         given = opts["start"]
