@@ -100,7 +100,7 @@ Choices (see the module functions for details):
   Gauss-Newton step on the other parameters at each cd picks the start; a start
   that fits to 5 % of the peak force after its own step has its dashpot's regime
   right, and only the grid's cd within two decades of it are tried (the same pick
-  on every record measured, in a third of the model passes).
+  on every record measured, with about half the model passes on a scan pixel).
 * **Uncertainty.**  ``cov = s^2 (J^T J)^-1`` with ``s^2`` the residual
   variance, J in log-parameters (square roots of the diagonal = relative
   1-sigma), with ``Xd0`` counted as unknown (conservative: it does not lean
