@@ -70,6 +70,23 @@ def test_tangent_linear_kernel_matches_finite_differences(substeps):
         assert np.linalg.norm(fd - jac[:, j]) <= 1e-5 * np.linalg.norm(jac[:, j]), j
 
 
+@pytest.mark.parametrize("substeps", [1, 5])
+def test_kernel_without_the_start_state_direction_is_the_same_kernel(substeps):
+    """A record whose start state is known (the approach, from an undeformed surface) skips the
+    Xd0 direction (``dir0 = 1``): the force and every other column, bit for bit."""
+    z, h = _taps()
+    n = len(z)
+    want, ok = np.ones(n, np.uint8), np.zeros(n // 16, np.uint8)
+    out = []
+    for dir0 in (0, 1):
+        f, j = np.empty(n), np.empty((n, NDIR))
+        surface_force(z, 0.0, KINF, K0, CD, HR6, A0, True, h, 16, ok, want, 5e-9, substeps, 1e-9, 0.0, False, NDIR,
+                      f, j, dir0)  # fmt: skip
+        out.append((f, j[:, 1:]))
+    np.testing.assert_array_equal(out[0][0], out[1][0])
+    np.testing.assert_array_equal(out[0][1], out[1][1])
+
+
 def _run_arms(z, h, p, xd0, ndir=0, s0=0.0, substeps=1, vdw=True, block=16):
     """The N-arm kernel on ``z``: ``p = (k_inf, k_1, cd_1, ..., H R/6)``."""
     n, na = len(z), len(xd0)

@@ -178,7 +178,8 @@ class SurfaceFit:
             empty_f, empty_j = np.empty(0), np.empty((0, self.ndir))
             for _ in range(6):
                 xd1, _, _, dxd1, *_ = self._kernel(self.za1, self._za1_ok, self._za1_want, empty_f, empty_j, s0,
-                                                   theta, np.zeros(n), False, self.ndir if tangents else n + 1)  # fmt: skip
+                                                   theta, np.zeros(n), False, self.ndir if tangents else n + 1,
+                                                   known_start=True)  # fmt: skip
                 g = self.z1 - self.a0 - (k @ xd1 + fa_sep) * inv - s0  # Newton on s0 = z1 - a0 - X1(s0)
                 s0 -= g / (-(k @ dxd1[:, n]) * inv - 1.0)
                 if abs(g) < 1e-17:
@@ -192,16 +193,18 @@ class SurfaceFit:
 
     # ---- the kernel
 
-    def _kernel(self, z, coarse_ok, want, out_f, out_j, s0, theta, xd0, contact0, ndir):
+    def _kernel(self, z, coarse_ok, want, out_f, out_j, s0, theta, xd0, contact0, ndir, known_start=False):
         """One pass of the prescribed-trajectory kernel (the SLS's scalar kernel for one arm,
-        the N-arm kernel otherwise).  Returns ``(xd (N,), x, contact, dxd (N, D), written, ...)``."""
+        the N-arm kernel otherwise).  Returns ``(xd (N,), x, contact, dxd (N, D), written, ...)``.
+        ``known_start``: the caller reads no derivative along the start state ``Xd0`` (the SLS
+        kernel then skips that direction; its columns are left unwritten)."""
         k_inf, k, cd, hr6 = self.split(theta)
         sub_gap = self._sub_gap(k_inf + float(np.sum(k)), hr6)
         if self.n_arms == 1:
             xd, x, contact, dxd, *rest = surface_force(
                 z, s0, k_inf, float(k[0]), float(cd[0]), hr6, self.a0, self.vdw, self.h,
                 self.block, coarse_ok, want, FAR_GAP, self.substeps, sub_gap,
-                float(xd0[0]), contact0, ndir, out_f, out_j,
+                float(xd0[0]), contact0, ndir, out_f, out_j, 1 if known_start else 0,
             )  # fmt: skip
             return np.array([xd]), x, contact, dxd[None, :], *rest
         co = self._coefficients(theta, ndir > self.n_arms + 1)
@@ -220,9 +223,10 @@ class SurfaceFit:
             self._coef[key] = arm_coefficients(k_inf, k, cd, hr6, self.a0, self.vdw, steps, tangents)
         return self._coef[key]
 
-    def _pass(self, rec, s0, theta, xd0, contact0, ndir):
+    def _pass(self, rec, s0, theta, xd0, contact0, ndir, known_start=False):
         self.passes += 1
-        return self._kernel(rec.z, rec.coarse_ok, rec.want, rec.out_f, rec.out_j, s0, theta, xd0, contact0, ndir)
+        return self._kernel(rec.z, rec.coarse_ok, rec.want, rec.out_f, rec.out_j, s0, theta, xd0, contact0, ndir,
+                            known_start)  # fmt: skip
 
     def _sub_gap(self, kg, hr6):
         """Gap [m] below which the surface is updated ``substeps`` times per sample: where
@@ -379,7 +383,7 @@ class SurfaceFit:
         hit = self._approach_memo.get(key)
         if hit is None:
             a = self.approach
-            _, _, _, _, ka, *_ = self._pass(a, s0, theta, np.zeros(self.n_arms), False, ndir)
+            _, _, _, _, ka, *_ = self._pass(a, s0, theta, np.zeros(self.n_arms), False, ndir, known_start=True)
             hit = (a.out_f[:ka].copy(), a.out_j[:ka, :ndir].copy())
             if len(self._approach_memo) >= APPROACH_MEMO:
                 self._approach_memo.pop(next(iter(self._approach_memo)))
