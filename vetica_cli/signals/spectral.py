@@ -134,6 +134,7 @@ def bernoulli_correction(jumps: np.ndarray, n: int, h: float) -> tuple[np.ndarra
 # windows up to this length keep their Bernoulli polynomials and paddle gain (a scan pixel's 4 periods at 1 ns: 80000)
 CACHE_SAMPLES = 1 << 17
 FFT_RADICES = (2, 3, 5, 7, 11)  # prime factors numpy's FFT has fast passes for
+SCIPY_FFT_MIN = 1024  # awkward lengths from which scipy's FFT is faster (below, its call costs more than it saves)
 
 
 def _smooth(n: int) -> bool:
@@ -145,10 +146,11 @@ def _smooth(n: int) -> bool:
 
 
 def rfft(x: np.ndarray) -> np.ndarray:
-    """``numpy.fft.rfft(x)``; a length with a large prime factor (an approach segment of
-    3 x 10813 samples: 8 ms against 0.3 ms at a nearby length) goes to ``scipy.fft``, the same
-    transform 2-4x faster there (imported only then)."""
-    if _smooth(len(x)):
+    """``numpy.fft.rfft(x)``; a length of ``SCIPY_FFT_MIN`` or more with a large prime factor (an
+    approach segment of 3 x 10813 samples: 8 ms against 0.3 ms at a nearby length) goes to
+    ``scipy.fft``, the same transform (the same pocketfft: equal bits on 407 lengths tried) 2-4x
+    faster there (imported only then)."""
+    if len(x) < SCIPY_FFT_MIN or _smooth(len(x)):
         return np.fft.rfft(x)
     import scipy.fft
 
@@ -156,8 +158,8 @@ def rfft(x: np.ndarray) -> np.ndarray:
 
 
 def irfft(spec: np.ndarray, n: int) -> np.ndarray:
-    """``numpy.fft.irfft(spec, n)`` (:func:`rfft`: scipy's for an awkward ``n``)."""
-    if _smooth(n):
+    """``numpy.fft.irfft(spec, n)`` (:func:`rfft`: scipy's for a long awkward ``n``)."""
+    if n < SCIPY_FFT_MIN or _smooth(n):
         return np.fft.irfft(spec, n)
     import scipy.fft
 
