@@ -70,6 +70,23 @@ def test_tangent_linear_kernel_matches_finite_differences(substeps):
         assert np.linalg.norm(fd - jac[:, j]) <= 1e-5 * np.linalg.norm(jac[:, j]), j
 
 
+@pytest.mark.parametrize("substeps", [1, 5])
+def test_kernel_without_the_start_state_direction_is_the_same_kernel(substeps):
+    """A record whose start state is known (the approach, from an undeformed surface) skips the
+    Xd0 direction (``dir0 = 1``): the force and every other column, bit for bit."""
+    z, h = _taps()
+    n = len(z)
+    want, ok = np.ones(n, np.uint8), np.zeros(n // 16, np.uint8)
+    out = []
+    for dir0 in (0, 1):
+        f, j = np.empty(n), np.empty((n, NDIR))
+        surface_force(z, 0.0, KINF, K0, CD, HR6, A0, True, h, 16, ok, want, 5e-9, substeps, 1e-9, 0.0, False, NDIR,
+                      f, j, dir0)  # fmt: skip
+        out.append((f, j[:, 1:]))
+    np.testing.assert_array_equal(out[0][0], out[1][0])
+    np.testing.assert_array_equal(out[0][1], out[1][1])
+
+
 def _run_arms(z, h, p, xd0, ndir=0, s0=0.0, substeps=1, vdw=True, block=16):
     """The N-arm kernel on ``z``: ``p = (k_inf, k_1, cd_1, ..., H R/6)``."""
     n, na = len(z), len(xd0)
@@ -204,6 +221,64 @@ def test_offset_of_the_tip_coordinate_only_moves_the_surface_height(worked):
         assert b.value(name) == pytest.approx(a.value(name), rel=1e-4), name
     ha, hb = a.info["fit"]["surface_height_m"], b.info["fit"]["surface_height_m"]
     assert hb - ha == pytest.approx(3e-9, abs=1e-12)
+
+
+def test_a_good_start_scans_only_its_neighbours_and_picks_what_the_whole_scan_picks(worked, monkeypatch):
+    """VETICA's start on the worked example fits to 3 % of the peak force after its Gauss-Newton
+    step (under GOOD_START_RMS): the cd scan then tries only the grid's cd within two decades of
+    it, and the fit must return what it returns after the whole scan, to 1e-9 (the same pick:
+    the same arithmetic), with fewer model passes."""
+    from vetica_cli.extraction.fullfit import fit as fullfit_fit
+
+    df, meta = worked
+    short = extract(df, meta, force="true", method="full")
+    monkeypatch.setattr(fullfit_fit, "GOOD_START_RMS", 0.0)
+    whole = extract(df, meta, force="true", method="full")
+    for name in ("k0", "k_inf", "cd"):
+        assert short.value(name) == pytest.approx(whole.value(name), rel=1e-9), name
+        assert short.estimates[name].sigma == pytest.approx(whole.estimates[name].sigma, rel=1e-6), name
+    assert short.info["fit"]["model_passes"] < whole.info["fit"]["model_passes"]
+
+
+def test_models_of_one_record_share_the_approach_passes(worked):
+    """A model of the whole window built after one of its first period (the fit's stages) takes
+    the first's approach record and its last passes: its force and Jacobian at the first's last
+    point are those of a model built alone, bit for bit, with one kernel pass fewer."""
+    df, _ = worked
+    st, ap = segment(df, "steady"), segment(df, "approach")
+    t, z, f = st["t"].to_numpy(), st["z_tip"].to_numpy(), st["f_ts"].to_numpy()
+    za, fa = ap["z_tip"].to_numpy(), ap["f_ts"].to_numpy()
+    i1 = first_contact_minimum(fa)
+    h = (t[-1] - t[0]) / (len(t) - 1)
+    approach = (za, fa, i1)
+
+    def make(n, shared=None):
+        return SurfaceFit(z[:n], f[:n], h, za[i1], approach, A0, 10e-9, True, substeps=5, shared=shared)
+
+    theta, s0 = np.array([KINF, K0, CD, HR6]), 1e-12
+    sub = make(len(z) // 10)
+    sub.evaluate(theta, s0, ndir=5)
+    whole, alone = make(len(z), shared=sub), make(len(z))
+    fw, jw = whole.evaluate(theta, s0, ndir=5)
+    fs, js = alone.evaluate(theta, s0, ndir=5)
+    assert whole.approach is sub.approach
+    np.testing.assert_array_equal(fw, fs)
+    np.testing.assert_array_equal(jw, js)
+    assert whole.passes == alone.passes - 1
+
+
+def test_residual_samples_every_stride():
+    """The samples a residual is taken at: every ``near_stride``-th sample (index divisible by
+    it) where the tip is within the near gap of the reference, every ``far_stride``-th
+    (index + 1 divisible by it) elsewhere."""
+    from vetica_cli.extraction.fullfit.model import SampledRecord
+
+    z, _ = _taps(n=5000, mean=8e-9, amp=6e-9)
+    rec = SampledRecord(z, np.zeros(len(z)), 0.0, 4, 64, 16, 5e-9)
+    i = np.arange(len(z))
+    expected = np.where(z < 5e-9, i % 4 == 0, (i + 1) % 64 == 0)
+    assert 0 < expected.sum() < len(z) and (z < 5e-9).any() and (z >= 5e-9).any()
+    np.testing.assert_array_equal(rec.idx, np.flatnonzero(expected))
 
 
 @pytest.mark.parametrize("kw, fragment", [({"force": "model"}, "force"), ({"state": "steady"}, "state")])

@@ -149,3 +149,16 @@ def test_reconstruction_when_the_period_is_not_a_whole_number_of_samples():
     err = reconstruction_error(rec.f, s[:, 5])
     assert err["rms_pct"] < 1e-3
     assert err["max_pct"] < 0.1
+
+
+@pytest.mark.parametrize("n", [32439, 32440, 4096, 1001])
+def test_awkward_lengths_give_the_same_transform(n):
+    """A window whose length has a large prime factor (3 x 10813, 8 x 5 x 811) is transformed
+    by scipy's FFT instead of numpy's: the same DFT, held against numpy's to 1e-13 of the
+    spectrum's (the signal's) largest value, both ways."""
+    from vetica_cli.signals.spectral import irfft, rfft
+
+    x = np.random.default_rng(n).standard_normal(n)
+    spec = np.fft.rfft(x)
+    assert np.max(np.abs(rfft(x) - spec)) < 1e-13 * np.max(np.abs(spec))
+    assert np.max(np.abs(irfft(spec, n) - x)) < 1e-13 * np.max(np.abs(x))

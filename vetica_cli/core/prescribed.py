@@ -123,13 +123,13 @@ def coefficient_tangents(k_inf, k0, cd, hr6, a0, vdw_on_surface, dt):
 
 
 @njit(cache=True, inline="always", fastmath={"contract"}, error_model="numpy")
-def _noncontact(d, xd, fa, hr6, ihr6, c, dc, ndir, dxd, dx, dfa, ds0, dlnhr6):
+def _noncontact(d, xd, fa, hr6, ihr6, c, dc, dir0, ndir, dxd, dx, dfa, ds0, dlnhr6):
     """One non-contact update (:func:`.sls.noncontact_update`) at gap ``d`` with the
     coefficients ``c`` of its step, and its tangent: ``dfa``, ``dx``, ``dxd`` updated
     in place (``dx`` enters as the derivative of the previous surface position)."""
     alpha, beta, gamma, ec = c[C_ALPHA], c[C_BETA], c[C_GAMMA], c[C_EC]
     fa, x, xd_new = noncontact_update(d, xd, fa, hr6, ihr6, alpha, beta, gamma, ec)
-    for j in range(ndir):
+    for j in range(dir0, ndir):
         dfa[j] = fa * dlnhr6[j] + 2.0 * fa / d * (ds0[j] + dx[j])  # d = z - s0 - X_prev
         dx[j] = dc[C_ALPHA, j] * xd + alpha * dxd[j] + dc[C_BETA, j] * fa + beta * dfa[j]
         dxd[j] = dc[C_GAMMA, j] * fa + gamma * dfa[j] + dc[C_EC, j] * xd + ec * dxd[j]
@@ -137,21 +137,21 @@ def _noncontact(d, xd, fa, hr6, ihr6, c, dc, ndir, dxd, dx, dfa, ds0, dlnhr6):
 
 
 @njit(cache=True, inline="always", fastmath={"contract"}, error_model="numpy")
-def _contact(xc, xd, c, dc, ndir, dxd, dx, dfa, ds0):
+def _contact(xc, xd, c, dc, dir0, ndir, dxd, dx, dfa, ds0):
     """One contact update (:func:`.sls.contact_update`) with the surface at ``xc``
     and its tangent; ``dfa`` receives ``d(F_sls + fa_c)``.  On separation
     (``F_sls > sep_thr``) the surface is released (:func:`.sls.released_position`)
     and ``dfa`` becomes ``d Fa(a0)``.  Returns ``(fts, f_sls, x, xd, separated)``."""
     kc, k0er, er = c[C_KC], c[C_K0ER], c[C_ER]
     f_sls, xd_new = contact_update(xc, xd, kc, k0er, er)
-    for j in range(ndir):
+    for j in range(dir0, ndir):
         dfa[j] = dc[C_KC, j] * xc - kc * ds0[j] - dc[C_K0ER, j] * xd - k0er * dxd[j] + dc[C_FAC, j]
         dxd[j] = -dc[C_ER, j] * xc - (1.0 - er) * ds0[j] + dc[C_ER, j] * xd + er * dxd[j]
         dx[j] = -ds0[j]
     if f_sls > c[C_SEP]:
         k0, fa_sep, inv_kg = c[C_K0], c[C_FASEP], c[C_INVKG]
         x = released_position(xd_new, fa_sep, k0, inv_kg)
-        for j in range(ndir):
+        for j in range(dir0, ndir):
             dx[j] = (dc[C_K0, j] * xd_new + k0 * dxd[j] + dc[C_FASEP, j]) * inv_kg + (k0 * xd_new + fa_sep) * dc[
                 C_INVKG, j
             ]
@@ -164,7 +164,7 @@ def _contact(xc, xd, c, dc, ndir, dxd, dx, dfa, ds0):
 def surface_force(
     z, s0, k_inf, k0, cd, hr6, a0, vdw_on_surface, h,
     block, coarse_ok, want, far_gap, substeps, sub_gap,
-    xd0, contact0, ndir, out_f, out_jac,
+    xd0, contact0, ndir, out_f, out_jac, dir0=0,
 ):  # fmt: skip
     """Tip-sample force of the SLS surface under the prescribed tip positions ``z``.
 
@@ -183,7 +183,9 @@ def surface_force(
     so the simulator's own step ``dt = h/substeps`` reproduces it;
     ``xd0`` the dashpot position before the first sample [m] and ``contact0``
     whether the tip is then in contact; ``ndir`` the number of leading
-    ``DIRECTIONS`` to differentiate along (0 = value only).
+    ``DIRECTIONS`` to differentiate along (0 = value only), from ``dir0`` on (a record
+    whose start state is known, e.g. the approach from an undeformed surface, needs no
+    ``Xd0`` direction: ``dir0 = 1``; the columns below ``dir0`` are not written).
 
     Writes ``out_f[k]`` = Fts [N] at the k-th wanted sample and
     ``out_jac[k, j]`` = dFts/d(direction j), j < ndir.  Returns ``(xd, x,
@@ -236,7 +238,7 @@ def surface_force(
     while i < n:
         b = i // block
         if i % block == 0:  # flush decayed derivatives before they turn subnormal (slow arithmetic)
-            for j in range(ndir):
+            for j in range(dir0, ndir):
                 if abs(dxd[j]) < 1e-250:
                     dxd[j] = 0.0
                 if abs(dx[j]) < 1e-250:
@@ -246,11 +248,11 @@ def surface_force(
             i_end = i + block - 1
             d = z[i_end] - s0 - x
             if z[i] - s0 - x > far_gap and d > far_gap:
-                fa, x, xd = _noncontact(d, xd, fa, hr6, ihr6, cb, dcb, ndir, dxd, dx, dfa, ds0, dlnhr6)
+                fa, x, xd = _noncontact(d, xd, fa, hr6, ihr6, cb, dcb, dir0, ndir, dxd, dx, dfa, ds0, dlnhr6)
                 coarse_steps += 1
                 if want[i_end]:
                     out_f[k] = -fa
-                    for j in range(ndir):
+                    for j in range(dir0, ndir):
                         out_jac[k, j] = -dfa[j]
                     k += 1
                 i = i_end + 1
@@ -271,31 +273,31 @@ def surface_force(
                 if not contact:
                     d = zm - x
                     if d > a0:
-                        fa, x, xd = _noncontact(d, xd, fa, hr6, ihr6, cs, dcs, ndir, dxd, dx, dfa, ds0, dlnhr6)
+                        fa, x, xd = _noncontact(d, xd, fa, hr6, ihr6, cs, dcs, dir0, ndir, dxd, dx, dfa, ds0, dlnhr6)
                         fts = -fa
                         continue
                     contact = True
                     contacts += 1
-                fts, _, x, xd, sep = _contact(zm - a0, xd, cs, dcs, ndir, dxd, dx, dfa, ds0)
+                fts, _, x, xd, sep = _contact(zm - a0, xd, cs, dcs, dir0, ndir, dxd, dx, dfa, ds0)
                 if sep:
                     contact = False
                     separations += 1
                     fa = cs[C_FA0]
         elif not contact and zz - x > a0:
-            fa, x, xd = _noncontact(zz - x, xd, fa, hr6, ihr6, cf, dcf, ndir, dxd, dx, dfa, ds0, dlnhr6)
+            fa, x, xd = _noncontact(zz - x, xd, fa, hr6, ihr6, cf, dcf, dir0, ndir, dxd, dx, dfa, ds0, dlnhr6)
             fts = -fa
         else:
             if not contact:
                 contact = True
                 contacts += 1
-            fts, _, x, xd, sep = _contact(zz - a0, xd, cf, dcf, ndir, dxd, dx, dfa, ds0)
+            fts, _, x, xd, sep = _contact(zz - a0, xd, cf, dcf, dir0, ndir, dxd, dx, dfa, ds0)
             if sep:
                 contact = False
                 separations += 1
                 fa = cf[C_FA0]
         if want[i]:
             out_f[k] = fts
-            for j in range(ndir):
+            for j in range(dir0, ndir):
                 out_jac[k, j] = -dfa[j]
             k += 1
         i += 1

@@ -81,11 +81,13 @@ def lowpass(x, h: float, fc: float, periodic: bool = True) -> np.ndarray:
     """``x`` (sampled every ``h`` [s]) without its content above ``fc`` [Hz].  ``periodic=False``
     (an approach segment, whose ends differ): filtered with its mirror image appended, so the
     segment's end does not wrap onto its start (it made the start look in contact)."""
+    from ..signals.spectral import irfft, rfft  # numpy's, or scipy's for an awkward length
+
     x = np.asarray(x, float)
     y = x if periodic else np.concatenate([x, x[::-1]])
-    spec = np.fft.rfft(y)
+    spec = rfft(y)
     spec[np.fft.rfftfreq(len(y), h) > fc] = 0.0
-    return np.fft.irfft(spec, len(y))[: len(x)]
+    return irfft(spec, len(y))[: len(x)]
 
 
 def band_record(record, step: float):

@@ -97,7 +97,10 @@ Choices (see the module functions for details):
   one, else ``k0 = 0.9 Kg``, ``k_inf = 0.1 Kg`` from the loading slope; a
   start whose Kg is more than a decade off that slope is rescaled onto it.
   Then a scan of cd over 1e-10 .. 1e2 kg/s (every two decades) with one
-  Gauss-Newton step on the other parameters at each cd picks the start.
+  Gauss-Newton step on the other parameters at each cd picks the start; a start
+  that fits to 5 % of the peak force after its own step has its dashpot's regime
+  right, and only the grid's cd within two decades of it are tried (the same pick
+  on every record measured, with about half the model passes on a scan pixel).
 * **Uncertainty.**  ``cov = s^2 (J^T J)^-1`` with ``s^2`` the residual
   variance, J in log-parameters (square roots of the diagonal = relative
   1-sigma), with ``Xd0`` counted as unknown (conservative: it does not lean

@@ -372,10 +372,14 @@ class FullFit(ExtractionMethod):
         start_sls, source = starting_point(t, z, f, z_ref, taps, opts["kg_points"], _sls_start(opts["start"]))
         t_start_done = time.perf_counter()
 
+        made = []  # the models share the approach record and its passes where they can (SurfaceFit's shared)
+
         def make(n, arms, pinned=False):
-            return SurfaceFit(z[:n], f[:n], h, z1, record.approach, a0, radius, vdw,
-                              fit_offset=opts["fit_offset"] and not pinned, near_stride=opts["near_stride"],
-                              far_stride=opts["far_stride"], substeps=substeps, n_arms=arms, z_ref=z_ref)  # fmt: skip
+            made.append(SurfaceFit(z[:n], f[:n], h, z1, record.approach, a0, radius, vdw,
+                                   fit_offset=opts["fit_offset"] and not pinned, near_stride=opts["near_stride"],
+                                   far_stride=opts["far_stride"], substeps=substeps, n_arms=arms, z_ref=z_ref,
+                                   shared=next((m for m in made if m.n_arms == arms), None)))  # fmt: skip
+            return made[-1]
 
         bounds = {**surface.fit_bounds, "hamaker": HAMAKER_BOUNDS}
         given = opts["start"]
@@ -630,7 +634,9 @@ def _fit_info(model, stages, cov, unc_periodic, opts, perm) -> dict:
         "surface_height_sigma_m": finite_or_none(s0_sigma),
         "uncertainty_periodic_state": {k: finite_or_none(v) for k, v in unc_periodic.items()},
         "state": "free" if any(nm.startswith("xd0") for nm in names) else "periodic",
-        "surface_height_from_z1_m": finite_or_none(fit.get("s0_z1")),
+        # the height eq. 84 gives at the fitted parameters (Newton over the approach: the final stage only)
+        "surface_height_from_z1_m": finite_or_none(model.z1_offset(fit["theta"], tangents=False)[0])
+        if model.z1 is not None else None,
         "surface_height_source": model.offset_source,
         "xd0_m": float(xd0[0]) if n == 1 else [float(v) for v in xd0],
         "xd0_sigma_m": xd0_sigma[0] if n == 1 else xd0_sigma,

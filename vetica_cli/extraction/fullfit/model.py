@@ -23,6 +23,7 @@ from ...core.prescribed import NDIR, arm_coefficients, arms_force, surface_force
 NEAR_GAP = 5e-9  # [m] residuals densely (and fine steps) where the measured tip is within this of Z1
 FAR_GAP = 5e-9  # [m] model gap above which blocks are advanced in one exact step
 FROZEN = 1e-12  # 1 - dXd_end/dXd0 below which the dashpot counts as frozen over the window
+APPROACH_MEMO = 2  # approach passes a record's models keep (SurfaceFit._approach_pass)
 LINEAR_XD0 = 1e-4  # periodic-state Newton steps worth less than this of the peak force: applied to first order
 
 
@@ -39,9 +40,11 @@ class SampledRecord:
     def __init__(self, z, f, z_ref, near_stride, far_stride, block, near_gap, ndir=NDIR):
         self.z = np.ascontiguousarray(z, dtype=float)
         n = len(self.z)
-        idx = np.arange(n)
         near = (self.z - z_ref) < near_gap
-        want = np.where(near, idx % near_stride == 0, (idx + 1) % far_stride == 0)
+        every_near, every_far = np.zeros(n, bool), np.zeros(n, bool)  # sample i % stride == 0 (far: (i+1) % stride)
+        every_near[::near_stride] = True
+        every_far[far_stride - 1 :: far_stride] = True
+        want = np.where(near, every_near, every_far)
         nblock = n // block
         near_blocks = near[: nblock * block].reshape(nblock, block).any(axis=1)
         self.coarse_ok = (~near_blocks).astype(np.uint8)
@@ -71,7 +74,7 @@ class SurfaceFit:
 
     def __init__(self, z, f, h, z1, approach, a0, tip_radius, vdw_on_surface, fit_offset=True,
                  near_stride=4, far_stride=256, block=16, near_gap=NEAR_GAP, substeps=1, n_arms=1,
-                 z_ref=None):  # fmt: skip
+                 z_ref=None, shared=None):  # fmt: skip
         self.h = float(h)
         self.substeps = max(1, int(substeps))
         self.z1 = None if z1 is None else float(z1)
@@ -88,7 +91,17 @@ class SurfaceFit:
         self.approach = None
         self.za1 = None  # approach tip positions before the first-contact minimum
         fit_offset = bool(fit_offset) or self.z1 is None
-        if approach is not None and self.z1 is not None:
+        # what the approach's passes depend on besides (theta, s0, directions): a model of the same
+        # record with the same key (another stage's) shares its approach and its passes (_approach_pass)
+        self._approach_key = (id(approach), self.z1, self.z_ref, near_stride, far_stride, self.block, near_gap,
+                              self.n_arms, fit_offset, self.h, self.substeps, self.a0, self.vdw)  # fmt: skip
+        self._approach_memo = {}
+        if shared is not None and shared._approach_key == self._approach_key:
+            self.za1, self.approach = shared.za1, shared.approach
+            if self.za1 is not None:
+                self._za1_want, self._za1_ok = shared._za1_want, shared._za1_ok
+            self._approach_memo = shared._approach_memo
+        elif approach is not None and self.z1 is not None:
             za, fa, i1 = approach
             self.za1 = np.ascontiguousarray(za[:i1], dtype=float)
             self._za1_want = np.zeros(len(self.za1), np.uint8)
@@ -165,7 +178,8 @@ class SurfaceFit:
             empty_f, empty_j = np.empty(0), np.empty((0, self.ndir))
             for _ in range(6):
                 xd1, _, _, dxd1, *_ = self._kernel(self.za1, self._za1_ok, self._za1_want, empty_f, empty_j, s0,
-                                                   theta, np.zeros(n), False, self.ndir if tangents else n + 1)  # fmt: skip
+                                                   theta, np.zeros(n), False, self.ndir if tangents else n + 1,
+                                                   known_start=True)  # fmt: skip
                 g = self.z1 - self.a0 - (k @ xd1 + fa_sep) * inv - s0  # Newton on s0 = z1 - a0 - X1(s0)
                 s0 -= g / (-(k @ dxd1[:, n]) * inv - 1.0)
                 if abs(g) < 1e-17:
@@ -179,16 +193,18 @@ class SurfaceFit:
 
     # ---- the kernel
 
-    def _kernel(self, z, coarse_ok, want, out_f, out_j, s0, theta, xd0, contact0, ndir):
+    def _kernel(self, z, coarse_ok, want, out_f, out_j, s0, theta, xd0, contact0, ndir, known_start=False):
         """One pass of the prescribed-trajectory kernel (the SLS's scalar kernel for one arm,
-        the N-arm kernel otherwise).  Returns ``(xd (N,), x, contact, dxd (N, D), written, ...)``."""
+        the N-arm kernel otherwise).  Returns ``(xd (N,), x, contact, dxd (N, D), written, ...)``.
+        ``known_start``: the caller reads no derivative along the start state ``Xd0`` (the SLS
+        kernel then skips that direction; its columns are left unwritten)."""
         k_inf, k, cd, hr6 = self.split(theta)
         sub_gap = self._sub_gap(k_inf + float(np.sum(k)), hr6)
         if self.n_arms == 1:
             xd, x, contact, dxd, *rest = surface_force(
                 z, s0, k_inf, float(k[0]), float(cd[0]), hr6, self.a0, self.vdw, self.h,
                 self.block, coarse_ok, want, FAR_GAP, self.substeps, sub_gap,
-                float(xd0[0]), contact0, ndir, out_f, out_j,
+                float(xd0[0]), contact0, ndir, out_f, out_j, 1 if known_start else 0,
             )  # fmt: skip
             return np.array([xd]), x, contact, dxd[None, :], *rest
         co = self._coefficients(theta, ndir > self.n_arms + 1)
@@ -207,9 +223,10 @@ class SurfaceFit:
             self._coef[key] = arm_coefficients(k_inf, k, cd, hr6, self.a0, self.vdw, steps, tangents)
         return self._coef[key]
 
-    def _pass(self, rec, s0, theta, xd0, contact0, ndir):
+    def _pass(self, rec, s0, theta, xd0, contact0, ndir, known_start=False):
         self.passes += 1
-        return self._kernel(rec.z, rec.coarse_ok, rec.want, rec.out_f, rec.out_j, s0, theta, xd0, contact0, ndir)
+        return self._kernel(rec.z, rec.coarse_ok, rec.want, rec.out_f, rec.out_j, s0, theta, xd0, contact0, ndir,
+                            known_start)  # fmt: skip
 
     def _sub_gap(self, kg, hr6):
         """Gap [m] below which the surface is updated ``substeps`` times per sample: where
@@ -357,17 +374,32 @@ class SurfaceFit:
 
     def _with_approach(self, f, jac, theta, s0, ds0, ndir):
         """Append the approach record's force (surface undeformed at its start) and derivatives."""
-        a = self.approach
         n, p = self.n_arms, self.n_params
-        _, _, _, _, ka, *_ = self._pass(a, s0, theta, np.zeros(n), False, ndir)
-        f = np.concatenate([f, a.out_f[:ka]])
+        fa, out_j = self._approach_pass(theta, s0, ndir)
+        ka = len(fa)
+        f = np.concatenate([f, fa])
         if ndir > 0:
             nth = min(p + 1, ndir - n - 1)
             ja = np.zeros((ka, self.ndir))
-            ja[:, :nth] = a.out_j[:ka, n + 1 : n + 1 + nth]
+            ja[:, :nth] = out_j[:, n + 1 : n + 1 + nth]
             if ds0 is None:
-                ja[:, p + 1] = a.out_j[:ka, n]
+                ja[:, p + 1] = out_j[:, n]
             else:
-                ja[:, :nth] += np.outer(a.out_j[:ka, n], ds0[n + 1 : n + 1 + nth])
+                ja[:, :nth] += np.outer(out_j[:, n], ds0[n + 1 : n + 1 + nth])
             jac = np.vstack([jac, ja])
         return f, jac
+
+    def _approach_pass(self, theta, s0, ndir):
+        """The approach record's force and kernel derivatives (surface undeformed at its start,
+        so they depend on ``theta, s0`` alone): the last few are kept, shared by the models of
+        one record (a stage starts where the one before ended: the same approach pass)."""
+        key = (np.asarray(theta, float).tobytes(), float(s0), ndir)
+        hit = self._approach_memo.get(key)
+        if hit is None:
+            a = self.approach
+            _, _, _, _, ka, *_ = self._pass(a, s0, theta, np.zeros(self.n_arms), False, ndir, known_start=True)
+            hit = (a.out_f[:ka].copy(), a.out_j[:ka, :ndir].copy())
+            if len(self._approach_memo) >= APPROACH_MEMO:
+                self._approach_memo.pop(next(iter(self._approach_memo)))
+            self._approach_memo[key] = hit
+        return hit
