@@ -24,6 +24,7 @@ from vetica_cli.extraction import extract, get
 from vetica_cli.extraction.record import build_record
 from vetica_cli.extraction.vetica import measure_stage1, vetica
 from vetica_cli.extraction.vetica_prestress import vetica_prestress
+from vetica_cli.extraction.methods.tapchecks import STAGE2
 
 REFERENCE = Path(__file__).parent / "data" / "tap_pass_reference.json"
 RTOL = 1e-3  # the compiled pass's agreement with the Python path, relative
@@ -58,7 +59,10 @@ def test_tap_methods_equal_the_python_path_on_pixel_records(reference, name):
                 assert e.value is None, where
                 continue
             assert e.value == pytest.approx(value, rel=RTOL), where
-            assert e.identifiable == identifiable, where
+            if e.identifiable != identifiable:  # since the reference: a flagged stage's dependents judged by its
+                # error times their gradient (tapchecks.stage_dependents); only such a flag may have gone
+                stage_flagged = any(res.estimates[s].identifiable is False for s in ("tau_c", "k_g"))
+                assert identifiable is False and q in STAGE2 and stage_flagged, where
             if sigma is not None and math.isfinite(sigma) and sigma > SIGMA_FLOOR:
                 assert e.sigma == pytest.approx(sigma, rel=RTOL), where
             elif sigma is not None and not math.isfinite(sigma):

@@ -168,7 +168,11 @@ def tap_sigmas(res: ExtractionResult, record, method, options) -> tuple[dict, di
         if not math.isfinite(s_z1):
             sig[q] = math.inf
     info = {"source": "spread over taps (standard error of the tap means, t-scaled), Z1 term by reruns with Z1 "
-                      "moved by +-2 sigma", "z1_sigma_m": s_z1}  # fmt: skip
+                      "moved by +-2 sigma", "z1_sigma_m": s_z1,
+            # d ln q / d ln tau_c (through Z1, Kr's refit included) and d ln q / d ln Kg: how far a stage's error
+            # reaches the quantities computed from it (tapchecks.stage_dependents)
+            "gradient": {"tau_c": {q: gz / g_tau for q, gz in grad_z1.items() if g_tau and math.isfinite(gz / g_tau)},
+                         "k_g": {q: g for q, g in grad_kg.items() if math.isfinite(g)}}}  # fmt: skip
     return sig, info
 
 
