@@ -168,7 +168,7 @@ def simulate(
     """
     from .report import run_summary
     from .simulation.config import parse_set
-    from .simulation.simulate import simulate_file
+    from .simulation.command import simulate_file
 
     notice = None if quiet else (lambda line: typer.echo(line, err=True))  # said only when kernels will compile
     run = simulate_file(config, output, parse_set(set_), notice=notice, yes=yes)
