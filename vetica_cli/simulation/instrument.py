@@ -13,7 +13,6 @@ import math
 
 import numpy as np
 
-from ..core import tapping
 from .config import Config, from_dict
 
 # numerics keys that act after the kernel
@@ -64,6 +63,8 @@ def apply_instrument(run, cfg: Config) -> None:
     n = cfg.numerics
     if not (n.position_noise or n.force_noise or n.detector_bandwidth or n.adc_resolution or n.detector_noise_density):
         return
+    from ..core import tapping  # the kernel module (numba): not imported by the dry runs that plan noise
+
     rng = np.random.default_rng(n.noise_seed)
     ic, ip, it, ib, iff = (tapping.COLUMNS.index(c) for c in ("z_cantilever", "z_paddle", "z_tip", "z_base", "f_ts"))
     # the detector's own white noise enters before its bandwidth: one-sided density d over the sampled
