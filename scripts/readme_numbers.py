@@ -4,7 +4,7 @@
     python scripts/readme_numbers.py --tests    # also time the whole test suite (minutes to tens of minutes)
     python scripts/readme_numbers.py --repeat 5 # more repeats of the short measurements
 
-What it runs, each in a fresh process exactly as a user types it (``python -m vetica_cli.cli``
+What it runs, each in a fresh process exactly as a user types it (``python -m vetica_cli``
 is the ``vetica`` command):
 
 * **main job, cold**: ``vetica sweep configs/dashpot.yaml`` with an empty numba cache (a new
@@ -38,7 +38,7 @@ import time
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parent.parent
-VETICA = [sys.executable, "-m", "vetica_cli.cli"]
+VETICA = [sys.executable, "-m", "vetica_cli"]
 # runs a command and prints its peak resident memory [kB] (of that command alone)
 PEAK = ("import resource, subprocess, sys; subprocess.run(sys.argv[1:], stdout=subprocess.DEVNULL); "
         "print(resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss)")
