@@ -38,16 +38,19 @@ def noise_free(cfg: Config) -> Config:
 def _lowpass(x: np.ndarray, fc: float, ts: float, periodic: bool) -> np.ndarray:
     """One-pole (RC) low-pass ``y_n = a y_(n-1) + (1 - a) x_n``, ``a = exp(-2 pi fc ts)``:
     a detector of bandwidth ``fc`` [Hz] sampled every ``ts`` [s].  A periodic window
-    is filtered twice and the second pass kept (steady state of the filter)."""
-    from scipy.signal import lfilter
+    is filtered twice and the second pass kept (steady state of the filter).  Compiled
+    (:func:`vetica_cli.core.detector.one_pole`: scipy.signal's ``lfilter`` to the bit, without
+    importing scipy.signal and with it scipy.stats)."""
+    from ..core.detector import one_pole
 
     a = math.exp(-2.0 * math.pi * fc * ts)
-    b, den = [1.0 - a], [1.0, -a]
-    if periodic:
-        y, zf = lfilter(b, den, x, zi=[a * x[-1]])
-        y, _ = lfilter(b, den, x, zi=zf)
+    x = np.ascontiguousarray(x, dtype=float)
+    y = np.empty_like(x)
+    if not len(x):
         return y
-    y, _ = lfilter(b, den, x, zi=[a * x[0]]) if len(x) else (x, None)
+    last = one_pole(x, a, x[-1] if periodic else x[0], y)
+    if periodic:
+        one_pole(x, a, last, y)
     return y
 
 
