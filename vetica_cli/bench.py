@@ -14,6 +14,10 @@ Each as wall time (``time.perf_counter``) and CPU time (``time.process_time``) o
 runs: on a shared machine the wall time carries the other processes' load, the CPU time much
 less of it.
 
+And what a process pays before it simulates (:func:`startup_line`, in fresh interpreters): the
+CPU time of importing numpy, the command line, numba, numba's first-call initialisation (its
+registries, which import scipy.linalg for BLAS) and the simulation's kernel modules.
+
 Extraction (:func:`run_extraction_bench`): a scan pixel's record -- 4 drive periods at 1 ns,
 the force reconstructed from the paddle signal -- of the worked example (stiff) and of the
 blend's soft domains (k_inf 2, k0 32, cd 3e-4 kg/s); per method, CPU milliseconds per
@@ -156,6 +160,47 @@ def run_extraction_bench(methods: tuple | None = None, repeat: int = 20, overrid
     return "\n".join(lines)
 
 
+# times each stage of a fresh process's start-up (CPU s), as the console script meets them; prints JSON
+STARTUP_CODE = """
+import json, time
+from vetica_cli.batch.launch import cap_blas_threads
+cap_blas_threads()
+out, c = {}, time.process_time()
+def lap(name):
+    global c
+    out[name] = time.process_time() - c
+    c = time.process_time()
+import numpy
+lap("numpy")
+import vetica_cli.cli
+lap("command line")
+import numba
+lap("numba import")
+from numba.core.registry import cpu_target
+cpu_target.target_context.refresh()
+lap("numba initialisation")
+import vetica_cli.simulation.simulate
+lap("simulation modules")
+print(json.dumps(out))
+"""
+
+
+def startup_line(repeat: int = 3) -> str:
+    """One line: the CPU seconds of a fresh process's start-up stages (:data:`STARTUP_CODE`),
+    medians of ``repeat`` interpreters."""
+    import json
+    import subprocess
+    import sys
+
+    runs = []
+    for _ in range(repeat):
+        res = subprocess.run([sys.executable, "-c", STARTUP_CODE], capture_output=True, text=True, check=True)
+        runs.append(json.loads(res.stdout.strip().splitlines()[-1]))
+    med = {k: statistics.median(r[k] for r in runs) for k in runs[0]}
+    return (f"start-up of a process, CPU s (medians of {repeat} fresh interpreters): "
+            + ", ".join(f"{k} {v:.3f}" for k, v in med.items()) + f"; total {sum(med.values()):.3f}")  # fmt: skip
+
+
 def _timed_simulate(cfg) -> tuple[float, float, dict]:
     """``(wall s, CPU s, kernel timing_s)`` of one ``simulate(cfg)`` call."""
     t0, c0 = time.perf_counter(), time.process_time()
@@ -197,4 +242,5 @@ def run_bench(overrides: dict | None = None, repeat: int = 3) -> str:
     lines.append(f"hybrid vs verlet: {v[1] / h[1]:.1f}x per drive period, {v[4] / h[4]:.1f}x per point in wall time; "
                  f"{v[2] / h[2]:.1f}x, {v[5] / h[5]:.1f}x in CPU time ({np.round(h[3] / steps * 100, 1)} % of a period "
                  "in fine steps)")  # fmt: skip
+    lines.append(startup_line(min(repeat, 3)))
     return "\n".join(lines)
