@@ -123,7 +123,7 @@ def test_the_api_caps_at_the_environments_threads(monkeypatch):
 
 
 def test_the_detector_low_pass_is_lfilter_to_the_bit_without_scipy_stats():
-    """The detector's one-pole low-pass (vetica_cli.simulation.instrument._lowpass) gives
+    """The detector's one-pole low-pass (vetica_cli.simulation.instrument.detector_lowpass) gives
     scipy.signal.lfilter's numbers exactly (reference: lfilter([1 - a], [1, -a], x, zi=...)),
     and filtering imports neither scipy.signal nor, through it, scipy.stats."""
     import math
@@ -131,7 +131,7 @@ def test_the_detector_low_pass_is_lfilter_to_the_bit_without_scipy_stats():
     import numpy as np
     from scipy.signal import lfilter
 
-    from vetica_cli.simulation.instrument import _lowpass
+    from vetica_cli.simulation.instrument import detector_lowpass
 
     x = np.random.default_rng(3).normal(size=5001) * 1e-9 + 1e-8 * np.sin(0.01 * np.arange(5001))
     fc, ts = 5e6, 2e-9
@@ -139,8 +139,8 @@ def test_the_detector_low_pass_is_lfilter_to_the_bit_without_scipy_stats():
     once, _ = lfilter([1.0 - a], [1.0, -a], x, zi=[a * x[0]])
     _, zf = lfilter([1.0 - a], [1.0, -a], x, zi=[a * x[-1]])
     twice, _ = lfilter([1.0 - a], [1.0, -a], x, zi=zf)
-    assert np.array_equal(_lowpass(x, fc, ts, False), once) and np.array_equal(_lowpass(x, fc, ts, True), twice)
-    out = fresh("import json, sys, numpy as np; from vetica_cli.simulation.instrument import _lowpass; "
-                "_lowpass(np.ones(10), 5e6, 2e-9, True); "
+    assert np.array_equal(detector_lowpass(x, fc, ts, False), once) and np.array_equal(detector_lowpass(x, fc, ts, True), twice)
+    out = fresh("import json, sys, numpy as np; from vetica_cli.simulation.instrument import detector_lowpass; "
+                "detector_lowpass(np.ones(10), 5e6, 2e-9, True); "
                 "print(json.dumps([m for m in ('scipy.signal', 'scipy.stats') if m in sys.modules]))")  # fmt: skip
     assert out == []

@@ -35,7 +35,7 @@ def noise_free(cfg: Config) -> Config:
     return from_dict(d)
 
 
-def _lowpass(x: np.ndarray, fc: float, ts: float, periodic: bool) -> np.ndarray:
+def detector_lowpass(x: np.ndarray, fc: float, ts: float, periodic: bool) -> np.ndarray:
     """One-pole (RC) low-pass ``y_n = a y_(n-1) + (1 - a) x_n``, ``a = exp(-2 pi fc ts)``:
     a detector of bandwidth ``fc`` [Hz] sampled every ``ts`` [s].  A periodic window
     is filtered twice and the second pass kept (steady state of the filter).  Compiled
@@ -81,7 +81,7 @@ def apply_instrument(run, cfg: Config) -> None:
             if density_rms:
                 arr[:, i] += dens_rng.normal(0.0, density_rms, len(arr))
             if n.detector_bandwidth:
-                arr[:, i] = _lowpass(arr[:, i], n.detector_bandwidth, n.print_step, periodic)
+                arr[:, i] = detector_lowpass(arr[:, i], n.detector_bandwidth, n.print_step, periodic)
             if n.position_noise:
                 arr[:, i] += rng.normal(0.0, n.position_noise, len(arr))
             if n.adc_resolution:
