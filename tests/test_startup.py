@@ -51,7 +51,8 @@ def loaded_after(argv: list[str], tmp_path: Path) -> dict:
 def test_importing_the_command_line_loads_no_heavy_module():
     """The CLI module (every command's options and help, the methods' registry) imports numpy,
     typer and the package's light modules only."""
-    out = fresh(f"import json, sys; import vetica_cli.cli; print(json.dumps([m for m in {HEAVY!r} if m in sys.modules]))")
+    out = fresh(f"import json, sys; import vetica_cli.cli; "
+                f"print(json.dumps([m for m in {HEAVY!r} if m in sys.modules]))")
     assert out == []
 
 
@@ -139,7 +140,8 @@ def test_the_detector_low_pass_is_lfilter_to_the_bit_without_scipy_stats():
     once, _ = lfilter([1.0 - a], [1.0, -a], x, zi=[a * x[0]])
     _, zf = lfilter([1.0 - a], [1.0, -a], x, zi=[a * x[-1]])
     twice, _ = lfilter([1.0 - a], [1.0, -a], x, zi=zf)
-    assert np.array_equal(detector_lowpass(x, fc, ts, False), once) and np.array_equal(detector_lowpass(x, fc, ts, True), twice)
+    assert np.array_equal(detector_lowpass(x, fc, ts, False), once)
+    assert np.array_equal(detector_lowpass(x, fc, ts, True), twice)
     out = fresh("import json, sys, numpy as np; from vetica_cli.simulation.instrument import detector_lowpass; "
                 "detector_lowpass(np.ones(10), 5e6, 2e-9, True); "
                 "print(json.dumps([m for m in ('scipy.signal', 'scipy.stats') if m in sys.modules]))")  # fmt: skip
