@@ -22,7 +22,8 @@ COMPILE_S = 55.0
 # the job (a simulate, an extract per method, on the CLI).  An SLS or Wiechert simulation compiles tapping
 # and expm, a hertz one mdr too (SurfaceModel.kernel_modules); thermal noise adds thermal and prescribed;
 # a detector of finite bandwidth its low-pass (detector); an extraction its method's
-# (ExtractionMethod.kernel_modules: vetica superposition, full prescribed, sls, superposition) and, for a force reconstructed in the tap windows, paddle (extraction_modules).
+# (ExtractionMethod.kernel_modules: vetica superposition, full prescribed, sls, superposition) and,
+# for a force reconstructed in the tap windows, paddle (extraction_modules).
 THERMAL_MODULES = ("thermal", "prescribed")
 DETECTOR_MODULES = ("detector",)  # a detector of finite bandwidth (numerics.detector_bandwidth): its low-pass
 
