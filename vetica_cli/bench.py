@@ -191,10 +191,15 @@ def startup_line(repeat: int = 3) -> str:
     import json
     import subprocess
     import sys
+    from pathlib import Path
 
+    root = str(Path(__file__).resolve().parent.parent)  # this package, whatever the interpreter's path says
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join(p for p in (root, os.environ.get("PYTHONPATH")) if p)}
     runs = []
     for _ in range(repeat):
-        res = subprocess.run([sys.executable, "-c", STARTUP_CODE], capture_output=True, text=True, check=True)
+        res = subprocess.run([sys.executable, "-c", STARTUP_CODE], capture_output=True, text=True, env=env)
+        if res.returncode != 0:
+            return f"start-up of a process: not measured ({(res.stderr.strip().splitlines() or ['?'])[-1][:200]})"
         runs.append(json.loads(res.stdout.strip().splitlines()[-1]))
     med = {k: statistics.median(r[k] for r in runs) for k in runs[0]}
     return (f"start-up of a process, CPU s (medians of {repeat} fresh interpreters): "
