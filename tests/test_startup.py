@@ -65,6 +65,7 @@ def test_importing_the_command_line_loads_no_heavy_module():
     ["advise", "--k-inf", "4", "--k0", "64", "--cd", "-1"],  # refused before the study
     ["bench", "--set", "surface.k_inf=1e20"],  # refused before the bench
     ["fit", "missing-folder", "--tip-radius", "5e-6"],  # refused before any fit
+    ["extract", "missing.parquet"],  # refused before the table is read
 ])  # fmt: skip
 def test_commands_that_compute_nothing_load_no_heavy_module(argv, tmp_path):
     out = loaded_after(argv, tmp_path)

@@ -238,11 +238,11 @@ def read_table(path: str | Path, columns: tuple | None = None) -> tuple[pd.DataF
 
     Raises InputError with one line for a missing, unreadable or corrupt file.
     """
-    import pyarrow.parquet as pq
-
     p = check_input_file(path, "Parquet or CSV file")
     if p.suffix.lower() == ".csv":
         return read_csv(p), {}
+    import pyarrow.parquet as pq  # here: a missing file is refused without loading pyarrow
+
     meta = read_meta(p)
     try:
         if columns is not None:
