@@ -105,7 +105,7 @@ def study_rows(name: str, k: int) -> list[dict]:
 
 def scan_rows(tmp: Path) -> list[dict]:
     out_path = tmp / "scan_edge.parquet"
-    subprocess.run([sys.executable, "-m", "vetica_cli.cli", "scan", str(ROOT / "configs" / "scan_edge.yaml"),
+    subprocess.run([sys.executable, "-m", "vetica_cli", "scan", str(ROOT / "configs" / "scan_edge.yaml"),
                     "--set", "scan.pixel_time=2.0e-3", "--set", "scan.steady=transient", "--set",
                     "scan.methods=[vetica]", "-j", "1", "-o", str(out_path)], check=True, cwd=ROOT,
                    stdout=subprocess.DEVNULL)  # fmt: skip

@@ -54,7 +54,7 @@ def table(name: str) -> Path:
 
 
 def vetica(*args: str) -> None:
-    subprocess.run([sys.executable, "-m", "vetica_cli.cli", *args], check=True, cwd=ROOT)
+    subprocess.run([sys.executable, "-m", "vetica_cli", *args], check=True, cwd=ROOT)
 
 
 def run_study(name: str) -> float:

@@ -75,3 +75,5 @@ def test_the_notice_asks_only_for_the_modules_the_job_compiles(tmp_path, monkeyp
     assert "mdr" in hertz and jit.compile_notice(hertz) is not None
     thermal = jit.simulation_modules(load(None, {"numerics.temperature": 300}))
     assert {"thermal", "prescribed"} <= thermal
+    lab = jit.simulation_modules(load(None, {"numerics.instrument": "lab"}))
+    assert {"thermal", "prescribed", "detector"} <= lab and "detector" not in thermal

@@ -138,7 +138,7 @@ FAST = {
         says("ns/fine step", "extraction per pixel record")),
     "vetica bench --repeat 3 --set surface.cd=1e-4": (
         "vetica bench --repeat 1 --part simulation --set surface.cd=1e-4 --set numerics.dt=0.05e-9 "
-        "--set numerics.print_step=1e-9", says("hybrid vs verlet")),
+        "--set numerics.print_step=1e-9", says("hybrid vs verlet", "in CPU time")),
     "vetica simulate configs/wiechert.yaml -o w.parquet": (
         f"vetica simulate configs/wiechert.yaml {CHEAP} -o w.parquet", columns("w.parquet", "x_dashpot_1", "x_dashpot_2")),
     "vetica extract w.parquet --method full": ("vetica extract w.parquet --method full", says("k_1", "cd_1", "k_2", "cd_2")),

@@ -274,7 +274,7 @@ def test_residual_samples_every_stride():
     from vetica_cli.extraction.fullfit.model import SampledRecord
 
     z, _ = _taps(n=5000, mean=8e-9, amp=6e-9)
-    rec = SampledRecord(z, np.zeros(len(z)), 0.0, 4, 64, 16, 5e-9)
+    rec = SampledRecord(z, np.zeros(len(z)), 0.0, 4, 64, 16, 5e-9, ndir=6)
     i = np.arange(len(z))
     expected = np.where(z < 5e-9, i % 4 == 0, (i + 1) % 64 == 0)
     assert 0 < expected.sum() < len(z) and (z < 5e-9).any() and (z >= 5e-9).any()

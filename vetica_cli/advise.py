@@ -42,9 +42,9 @@ import copy
 import math
 import time
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
 
 import numpy as np
-import pandas as pd
 
 from . import surfaces
 from .checks import CONFIRM_ITEMS, confirm_cost, finite, limit
@@ -55,11 +55,13 @@ from .extraction.material import ContactModel, contact_model, stiffness
 from .simulation.config import from_dict, load
 from .simulation.cost import kernel_seconds
 from .simulation.jit import compile_notice, simulation_modules
-from .simulation.simulate import simulate
 from .batch.launch import make_launcher
 from .batch.progress import Progress
 from .rows.plan import group
 from .rows.schema import ACCEPT_ERR_PCT
+
+if TYPE_CHECKING:  # pandas and the simulator (numba) load with the study: a refused input loads neither
+    import pandas as pd
 
 F2_RATIO = 15.0  # f2 = 15 f1 (thesis 4.5.1)
 MAX_REPLICAS = 50  # --replicas: noisy records per setting
@@ -192,6 +194,8 @@ def advise_task(item: dict) -> list[dict]:
     """Simulate the settings of one planned task (they share one simulation) and extract each
     with every method: one row per setting (module level: joblib pickles it).  Never
     raises: errors become rows with status 'failed'."""
+    from .simulation.simulate import simulate
+
     cfgs, methods, force = item["configs"], item["methods"], item["force"]
     if item.get("replicas", 1) > 1:
         return [replicated_row(cfg_d, methods, force, item["replicas"]) for cfg_d in cfgs]
@@ -442,6 +446,8 @@ def advise(material: Material, overrides: dict | None = None, knobs: dict | None
 
     with make_launcher("loky", jobs) as launcher, bar:
         launcher.launch(advise_task, items, on_result)
+    import pandas as pd  # here: an input refused before the study loads no pandas
+
     table = pd.DataFrame([r for rs in rows for r in rs])
     return Advice(material=material, methods=methods, force=force, knobs=values, table=table,
                   base={k: v for k, v in base.items() if k != "surface"}, wall_s=time.perf_counter() - t0, jobs=jobs,

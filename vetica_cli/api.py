@@ -2,8 +2,10 @@
 
 Each function is the one the command calls, with the same checks and errors (an
 :class:`~vetica_cli.errors.InputError` or :class:`~vetica_cli.errors.ConfigError` with a
-one-line message), and runs with BLAS and OpenMP capped at ``threads`` threads (one by
-default, as in the commands' workers: :func:`vetica_cli.batch.launch.one_thread`).  Without
+one-line message), and runs with BLAS and OpenMP capped at ``threads`` threads (by default
+the threads the environment sets, ``OPENBLAS_NUM_THREADS``, ``MKL_NUM_THREADS`` or
+``OMP_NUM_THREADS``, else one, as in the commands and their workers:
+:func:`vetica_cli.batch.launch.one_thread`).  Without
 the cap a notebook's BLAS starts a thread per core for the small least-squares problems of
 the fits and spends several times the CPU for the same numbers.
 
@@ -24,11 +26,12 @@ from .batch.launch import one_thread
 
 
 def capped(fn):
-    """Run ``fn`` under :func:`one_thread` with its ``threads`` keyword (default 1)."""
+    """Run ``fn`` under :func:`one_thread` with its ``threads`` keyword (default None: the
+    environment's setting, else 1)."""
 
     @functools.wraps(fn)
-    def wrapper(*args, threads: int = 1, **kwargs):
-        if isinstance(threads, bool) or not isinstance(threads, int) or threads < 1:
+    def wrapper(*args, threads: int | None = None, **kwargs):
+        if threads is not None and (isinstance(threads, bool) or not isinstance(threads, int) or threads < 1):
             from .errors import InputError
 
             raise InputError(f"threads={threads!r} is not allowed; expected an integer >= 1")

@@ -168,7 +168,7 @@ def simulate(
     """
     from .report import run_summary
     from .simulation.config import parse_set
-    from .simulation.simulate import simulate_file
+    from .simulation.command import simulate_file
 
     notice = None if quiet else (lambda line: typer.echo(line, err=True))  # said only when kernels will compile
     run = simulate_file(config, output, parse_set(set_), notice=notice, yes=yes)
@@ -554,7 +554,6 @@ def advise(
     import json
 
     from .extraction.material import parse_contact
-    from .plots.advise import write_advice_figure
     from .simulation.config import parse_set
     from .advise import advice_json, contact_for, format_advice, material_from
     from .advise import advise as run_advice
@@ -578,6 +577,8 @@ def advise(
         check_output_file(table, "--table", ".parquet")
     adv = run_advice(material, overrides, knobs, [m.strip() for m in methods.split(",") if m.strip()], force, jobs,
                      progress=not (quiet or json_out), yes=yes, replicas=replicas)  # fmt: skip
+    from .plots.advise import write_advice_figure  # matplotlib and pandas: after the inputs and the study
+
     figure = write_advice_figure(adv, output)
     if table is not None:
         try:

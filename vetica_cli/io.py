@@ -23,13 +23,12 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 import numpy as np
-import pyarrow as pa
-import pyarrow.parquet as pq
 
 from .errors import InputError
 
-if TYPE_CHECKING:
+if TYPE_CHECKING:  # pyarrow is imported where a table is read or written: commands that do not, start without it
     import pandas as pd
+    import pyarrow as pa
 
 META_KEY = b"vetica"
 
@@ -167,6 +166,8 @@ def write_text(path: str | Path, text: str) -> Path:
 
 def write_table(df: pd.DataFrame, path: str | Path, meta: dict) -> Path:
     """Write ``df`` to ``path`` atomically with ``meta`` as JSON metadata."""
+    import pyarrow as pa
+
     return write_arrow(pa.Table.from_pandas(df, preserve_index=False), path, meta)
 
 
@@ -176,6 +177,9 @@ def write_arrow(table: pa.Table, path: str | Path, meta: dict) -> Path:
     Only text and categorical columns are dictionary-encoded: Parquet's default tries a
     dictionary on every column, which for a run's 1.9 M distinct floats doubles the write
     and makes the read five times slower (measured on the worked example, 110 MB)."""
+    import pyarrow as pa
+    import pyarrow.parquet as pq
+
     md = dict(table.schema.metadata or {})
     md[META_KEY] = json.dumps(meta, default=_json_default, allow_nan=False).encode()
     table = table.replace_schema_metadata(md)
@@ -188,6 +192,8 @@ def write_arrow(table: pa.Table, path: str | Path, meta: dict) -> Path:
 
 def read_meta(path: str | Path) -> dict:
     """The ``vetica`` metadata of a Parquet file ({} if absent)."""
+    import pyarrow.parquet as pq
+
     try:
         md = pq.read_schema(path).metadata or {}
     except Exception as exc:  # pyarrow raises several types for corrupt files
@@ -235,6 +241,8 @@ def read_table(path: str | Path, columns: tuple | None = None) -> tuple[pd.DataF
     p = check_input_file(path, "Parquet or CSV file")
     if p.suffix.lower() == ".csv":
         return read_csv(p), {}
+    import pyarrow.parquet as pq  # here: a missing file is refused without loading pyarrow
+
     meta = read_meta(p)
     try:
         if columns is not None:
@@ -279,6 +287,7 @@ def segments_table(names: list[str], parts: list, labels: list[str]) -> pa.Table
     ``(n_i, len(names))``), one chunk per part, plus a dictionary column ``segment`` naming
     each sample's part by ``labels``.  Built from the arrays' buffers: a contiguous column is
     not copied, and pyarrow does not import pandas (``pa.array`` does, for 0.3 s)."""
+    import pyarrow as pa
 
     def column(arr, typ):
         arr = np.ascontiguousarray(arr)

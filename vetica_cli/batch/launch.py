@@ -57,16 +57,44 @@ def jobs_warning(jobs: int) -> str | None:
     return f"warning: --jobs {jobs} is more than the {n} cores here; the workers will share them" if jobs > n else None
 
 
+BLAS_VARS = ("OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS", "OMP_NUM_THREADS")  # what BLAS and OpenMP read at load
+
+
+def user_threads() -> int | None:
+    """The BLAS/OpenMP threads the environment asks for (the first of :data:`BLAS_VARS` set to a
+    positive integer; the user's own setting, or the cap :func:`cap_blas_threads` put there), None
+    when none is set."""
+    for var in BLAS_VARS:
+        try:
+            n = int(os.environ.get(var, ""))
+        except ValueError:
+            continue
+        if n >= 1:
+            return n
+    return None
+
+
+def cap_blas_threads() -> None:
+    """One BLAS/OpenMP thread for this process and its children, unless the user set any of
+    :data:`BLAS_VARS` (then their setting stands, whole).  Effective only before numpy loads
+    BLAS (the command line calls it first): OpenBLAS then starts no thread pool, whose threads
+    cost ~0.1 CPU-s of every process here without computing anything, and the fits' small
+    least-squares problems run on one thread as in the workers (:func:`one_thread`)."""
+    if not any(var in os.environ for var in BLAS_VARS):
+        for var in BLAS_VARS:
+            os.environ[var] = "1"
+
+
 @contextmanager
-def one_thread(threads: int = 1):
+def one_thread(threads: int | None = None):
     """While the block runs, the BLAS and OpenMP pools loaded in this process use ``threads``
-    threads (threadpoolctl); restored afterwards.  A process's BLAS starts as many threads as
-    there are cores: a serial fit on them spent 5.6-22x the CPU for the same table.  (numba's own
-    pool is left alone: no kernel here is parallel, and starting the pool to size it would fix
-    its size for the process.)"""
+    threads (threadpoolctl; None: the environment's :func:`user_threads`, else 1); restored
+    afterwards.  A process's BLAS starts as many threads as there are cores: a serial fit on
+    them spent 5.6-22x the CPU for the same table.  (numba's own pool is left alone: no kernel
+    here is parallel, and starting the pool to size it would fix its size for the process.)"""
     from threadpoolctl import threadpool_limits
 
-    with threadpool_limits(limits=threads):
+    with threadpool_limits(limits=threads or user_threads() or 1):
         yield
 
 
@@ -176,9 +204,9 @@ class Launcher(ABC):
 
 
 class SerialLauncher(Launcher):
-    """In this process, in order, with BLAS and OpenMP capped at one thread (:func:`one_thread`)
-    as in a worker (the environment variables of :func:`cap_threads` come too late for a
-    process whose BLAS is loaded)."""
+    """In this process, in order, with BLAS and OpenMP capped at one thread (:func:`one_thread`:
+    or the threads the user set in the environment) as in a worker (the environment variables
+    of :func:`cap_threads` come too late for a process whose BLAS is loaded)."""
 
     def launch(self, fn, args, on_result) -> None:
         with one_thread():

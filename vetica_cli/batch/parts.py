@@ -20,11 +20,13 @@ import hashlib
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
-
-import pandas as pd
+from typing import TYPE_CHECKING
 
 from ..errors import InputError
 from ..io import read_table, write_table
+
+if TYPE_CHECKING:  # pandas is imported with the first part read or written: a dry run starts without it
+    import pandas as pd
 
 PACKAGE = Path(__file__).resolve().parent.parent
 
@@ -96,7 +98,7 @@ STALE = "stale (made by other code, or for another setting of its job)"
 FOREIGN = "foreign (not a job of this batch: an older config or another batch)"
 DISCARDED = "discarded (--no-resume)"
 
-Check = Callable[[pd.DataFrame, dict, object], str]  # (frame, metadata, expected) -> '' or a reason
+Check = Callable[["pd.DataFrame", dict, object], str]  # (frame, metadata, expected) -> '' or a reason
 
 
 def read_part(path: Path, key: str, fingerprint: str, expected=None, check: Check | None = None

@@ -26,9 +26,7 @@ from collections.abc import Callable
 from contextlib import contextmanager
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
-
-import pandas as pd
+from typing import TYPE_CHECKING, Any
 
 from ..errors import InputError
 from ..io import check_output_file
@@ -36,6 +34,9 @@ from .launch import Launcher, LokyLauncher, SerialLauncher, make_launcher, remov
 from .lock import lock_path, output_lock
 from .parts import Check, parts_dir, remove_parts, scan_parts, write_part
 from .progress import Progress
+
+if TYPE_CHECKING:  # pandas is imported with the first part: a dry run starts without it
+    import pandas as pd
 
 DEFAULT_FOLDER = Path("sweeps")  # where a batch writes without -o (git-ignored: never a committed table)
 

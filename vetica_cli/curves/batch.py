@@ -223,8 +223,6 @@ def fit_files(paths, tip_radius, output: str | Path = "fit.parquet", figures: st
     batch stops there with an InputError naming the refusals (nothing written).  Ctrl-C,
     SIGTERM or SIGHUP raise :class:`vetica_cli.batch.run.BatchInterrupted` with the persisted
     curves; run again, only the missing curves are fitted.  ``log(line)`` gets notes."""
-    import pandas as pd
-
     t_start = time.perf_counter()
     log = log or (lambda line: None)
     check_options(tip_radius, nu, height, criterion, window, modulus, points, jobs)
@@ -239,6 +237,8 @@ def fit_files(paths, tip_radius, output: str | Path = "fit.parquet", figures: st
     if not curves:
         first = refused[0]
         raise InputError(f"no curve to fit: {len(refused)} file(s) or curve(s) refused, e.g. {first.label}: {first.error}")
+    import pandas as pd  # here: options and inputs refused before load no pandas
+
     opts = {"tip_radius": float(tip_radius), "nu": float(nu), "criterion": criterion, "window": window,
             "modulus": modulus, "points": int(points)}  # fmt: skip
     jobs_list = []

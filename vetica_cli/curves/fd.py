@@ -36,10 +36,16 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from scipy.optimize import least_squares
 
 from .fit import CurveError, baseline, tau_starts
-from .ting import T0, hertz_constant, powerlaw_weights, prony_weights, ting_force
+
+
+def kernels():
+    """:mod:`.ting` (numba, scipy.special), imported at the first fit: a refused input loads neither."""
+    from . import ting
+
+    return ting
+
 
 MODULI = ("power-law", "maxwell")
 DEFAULT_POINTS = 400  # grid points of a fit (binned): 0.3 ms per model evaluation, within 1e-4 of the closed form
@@ -91,7 +97,7 @@ class FDProblem:
         if np.any(seg == 1):  # a dwell: the elastic fit takes the approach segment only
             self.approach &= grid <= t[int(np.nonzero(seg == 0)[0][-1])] + 0.5 * step
         self.k = curve.spring_constant
-        self.c = hertz_constant(tip_radius, nu)
+        self.c = kernels().hertz_constant(tip_radius, nu)
         self.noise = noise
         self.contact0 = float(h[i_c])
         self.window = float(t_end - t_start)
@@ -113,16 +119,18 @@ class FDProblem:
         return self.c * e * np.clip(self.indentation(contact), 0.0, None) ** 1.5
 
     def powerlaw(self, contact: float, e0: float, beta: float) -> np.ndarray:
-        u = powerlaw_weights(self.t.size, self.step, e0, beta, T0)
-        return ting_force(self.indentation(contact), u, self.c)[0]
+        u = kernels().powerlaw_weights(self.t.size, self.step, e0, beta, kernels().T0)
+        return kernels().ting_force(self.indentation(contact), u, self.c)[0]
 
     def maxwell(self, contact: float, e_inf: float, e, tau) -> np.ndarray:
-        u = prony_weights(self.t.size, self.step, e_inf, np.ascontiguousarray(e, float),
+        u = kernels().prony_weights(self.t.size, self.step, e_inf, np.ascontiguousarray(e, float),
                           np.ascontiguousarray(tau, float))  # fmt: skip
-        return ting_force(self.indentation(contact), u, self.c)[0]
+        return kernels().ting_force(self.indentation(contact), u, self.c)[0]
 
 
 def _solve(resid, x0, lo, hi, max_nfev: int):
+    from scipy.optimize import least_squares  # here: a refused input loads no scipy.optimize
+
     x0 = np.clip(np.asarray(x0, float), lo + 1e-9 * (hi - lo), hi - 1e-9 * (hi - lo))
     return least_squares(resid, x0, bounds=(lo, hi), method="trf", x_scale="jac", max_nfev=max_nfev)
 
@@ -184,7 +192,7 @@ def fit_powerlaw(prob: FDProblem, hertz: dict) -> dict:
 
     best = None
     for beta0 in (0.1, 0.5):
-        e0 = math.log(max(t_load / T0, 1e-12) ** beta0)  # E(t_load) ~ e_hertz
+        e0 = math.log(max(t_load / kernels().T0, 1e-12) ** beta0)  # E(t_load) ~ e_hertz
         res = _solve(resid, [x_c0, e0, beta0], lo, hi, 200)
         if best is None or res.cost < best.cost:
             best = res

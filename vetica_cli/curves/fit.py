@@ -33,9 +33,14 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from scipy.optimize import least_squares
 
-from .leeradok import force_and_gradient, force_from_p, hertz_constant
+
+def kernels():
+    """:mod:`.leeradok` (numba), imported at the first fit: a refused input loads no numba."""
+    from . import leeradok
+
+    return leeradok
+
 
 ARM_COUNTS = (1, 2, 3)
 WINDOWS = ("all", "dwell")  # residuals over approach and dwell, or over the dwell only (the approach as loading history)
@@ -98,7 +103,7 @@ class Problem:
         self.segment = curve.segment[i0:]
         self.mask = np.ones(self.t.size, bool) if window == "all" else self.segment == 1
         self.k = curve.spring_constant
-        self.c = hertz_constant(tip_radius, nu)
+        self.c = kernels().hertz_constant(tip_radius, nu)
         self.noise = noise
         self.contact_fixed = contact
         self.contact0 = float(curve.height[i_c]) if contact is None else float(contact)
@@ -131,13 +136,14 @@ class Problem:
 
     def model(self, contact, e_inf, e, tau) -> np.ndarray:
         p = np.clip(self.indentation(contact), 0.0, None) ** 1.5
-        return force_from_p(self.t, p, e_inf, np.ascontiguousarray(e, float), np.ascontiguousarray(tau, float), self.c)
+        e, tau = np.ascontiguousarray(e, float), np.ascontiguousarray(tau, float)
+        return kernels().force_from_p(self.t, p, e_inf, e, tau, self.c)
 
     def jacobian(self, x, n: int) -> np.ndarray:
         """∂residual/∂x from the kernel's exact derivatives (chain rule to the log parameters)."""
         contact, e_inf, e, tau = self.unpack(x, n)
         d = np.clip(self.indentation(contact), 0.0, None)
-        _, g = force_and_gradient(self.t, d**1.5, 1.5 * np.sqrt(d), e_inf, np.ascontiguousarray(e, float),
+        _, g = kernels().force_and_gradient(self.t, d**1.5, 1.5 * np.sqrt(d), e_inf, np.ascontiguousarray(e, float),
                                   np.ascontiguousarray(tau, float), self.c)  # fmt: skip
         g = g[self.mask]
         cols = ([g[:, :1] * 1e-6] if self.contact_fixed is None else []) + [
@@ -178,6 +184,8 @@ def tau_starts(n: int, dwell: float, previous=None) -> list:
 
 def fit_arms(prob: Problem, n: int, previous=None) -> dict:
     """Best least-squares fit with ``n`` arms over several starts (CurveError if none converges)."""
+    from scipy.optimize import least_squares  # here: a refused input loads no scipy.optimize
+
     lo, hi = prob.bounds(n)
     best = None
     for taus in tau_starts(n, prob.dwell, previous):

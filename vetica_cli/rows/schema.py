@@ -18,14 +18,18 @@ apart, what the column means (``descriptions``): :func:`column_meta`.
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import numpy as np
-import pandas as pd
 
 from .. import surfaces
 from ..extraction import METHODS
 from ..extraction.material import CONTACT_UNITS, MATERIAL_UNITS, contact_metadata, contact_model, moduli
 from ..simulation.observables import OBSERVABLE_UNITS
 from .replicas import replica_columns, replica_meta
+
+if TYPE_CHECKING:  # pandas is imported where the table is built: a dry run starts without it
+    import pandas as pd
 
 ACCEPT_ERR_PCT = 30.0  # [%] tau_c error below which a point is accepted (thesis fig. 52; study.acceptance)
 # row status: ok = steady record, every reported quantity estimated; no_estimate = steady record, the
@@ -192,6 +196,8 @@ def material_columns(table: pd.DataFrame, cms: dict, models=None) -> pd.DataFram
     :func:`vetica_cli.extraction.material.moduli`): from the record's peak force and penetration
     and the row's ``k_g, k_r, tau_r`` (estimates and theory values).  ``cms``: point key (the
     ``point`` column) -> its contact model."""
+    import pandas as pd
+
     out = {c: np.full(len(table), np.nan) for c in material_columns_of(models)}
 
     def col(name):

@@ -14,15 +14,34 @@ import math
 import time
 from collections.abc import Callable
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 from ..extraction import DEFAULT_METHOD, METHODS, ExtractionResult, extract
 from ..simulation.config import Config, from_dict
 from ..simulation.instrument import noise_free
-from ..simulation.simulate import Run, replica_set, simulate
 from .plan import point_run
 from .extract import point_sources
 from .replicas import replica_columns, summarise
 from .schema import MATERIAL_INPUTS, OBSERVABLES, sigma_names
+
+if TYPE_CHECKING:
+    from ..simulation.simulate import Run
+
+
+def simulate(cfg: Config) -> Run:
+    """:func:`vetica_cli.simulation.simulate.simulate`, imported at the first point: a dry run
+    plans the tasks without loading numba and the kernels."""
+    from ..simulation.simulate import simulate as run
+
+    return run(cfg)
+
+
+def replica_set(cfg: Config, n: int) -> tuple:
+    """:func:`vetica_cli.simulation.simulate.replica_set`, imported at the first point."""
+    from ..simulation.simulate import replica_set as made
+
+    return made(cfg, n)
+
 
 Item = tuple  # (point key, resolved config dict, extract.method, extract.force)
 Rows = list  # of dicts keyed by schema.result_columns()

@@ -31,8 +31,7 @@ import math
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
-
-import pandas as pd
+from typing import TYPE_CHECKING
 
 from .. import __version__
 from ..batch.launch import Launcher, check_launcher_options
@@ -47,12 +46,14 @@ from ..batch.progress import duration
 from ..extraction import extraction_modules
 from ..extraction import get as get_method
 from ..extraction.base import record_cost_scale
-from .analysis import summary_markdown
 from .config import ScanConfig, dump, load_scan
-from .line import LineItem, LineTask
-from .pixel import reference_base
 from .sample import paint, surface_key
 from .table import assemble, column_units, columns
+
+if TYPE_CHECKING:  # pandas and the lines' simulation (numba) are imported by the scan itself: a dry run starts without them
+    import pandas as pd
+
+    from .line import LineItem, LineTask
 
 SCAN_ROOTS = ("scan/line.py", "scan/table.py")  # the code that computes a line's rows (its import closure)
 # The dry run's costs, measured on the committed scans (results/scans: blend 64 x 64 and edge, 2 workers on
@@ -101,6 +102,8 @@ def line_key(cfg: ScanConfig, smap, steady: str, pixel_time: float, iy: int, zb_
 
 
 def _items(cfg: ScanConfig, smap, zb_ref: float) -> list[LineItem]:
+    from .line import LineItem
+
     return [LineItem(line_key(cfg, smap, p.steady, p.pixel_time, iy, zb_ref), cfg.resolved, p.steady, p.pixel_time,
                      iy, zb_ref)
             for p in cfg.scan.passes() for iy in range(cfg.scan.raster.ny)]  # fmt: skip
@@ -130,6 +133,10 @@ def run_scan(cfg: ScanConfig, output: str | Path, jobs: int = 2, backend: str = 
     a given launcher is not closed here); ``keep_parts`` keeps ``<output>.parts/`` after
     success; ``log(line)`` receives notes.  Raises :class:`ScanInterrupted` on Ctrl-C,
     SIGTERM or SIGHUP (under :func:`vetica_cli.batch.run.signals_as_interrupt`)."""
+    from .analysis import summary_markdown
+    from .line import LineTask
+    from .pixel import reference_base
+
     t_start = time.perf_counter()
     output = check_scan_output(output)
     smap = paint(cfg.sample, cfg.scan.raster)
@@ -139,6 +146,8 @@ def run_scan(cfg: ScanConfig, output: str | Path, jobs: int = 2, backend: str = 
     fp = code_fingerprint(SCAN_ROOTS)
 
     def split(job: Job, res) -> list:
+        import pandas as pd
+
         it = job.arg
         meta = {"iy": it.iy, "steady": it.steady, "pixel_time": None if math.isnan(it.pixel_time) else it.pixel_time,
                 "wall_s": res.wall_s}  # fmt: skip
@@ -206,6 +215,8 @@ def scan_meta(cfg: ScanConfig, smap, zb_ref: float, zb_stop: str) -> dict:
 
 def summary(res: ScanResult) -> str:
     """What the scan did, and its measures."""
+    from .analysis import summary_markdown
+
     t = res.table
     px = t.drop_duplicates(subset=["steady", "pixel_time", "iy", "ix"])
     by_status = t["status"].value_counts().to_dict()

@@ -11,11 +11,14 @@ the run observables -- ``amplitude``, ``phase_deg``, ``e_diss_ev``, ``peak_force
 
 from __future__ import annotations
 
-import pandas as pd
+from typing import TYPE_CHECKING
 
 from .. import surfaces
 from ..rows.schema import column_meta, result_columns, split_unit, units_metadata
 from .config import ScanConfig
+
+if TYPE_CHECKING:  # pandas is imported where the table is assembled: a dry run starts without it
+    import pandas as pd
 
 PIXEL_COLUMNS = ("steady", "pixel_time", "ix", "iy", "x", "y", "domain", "height_true", "topography")
 PIXEL_UNITS = {
@@ -68,6 +71,8 @@ def column_units(cfg: ScanConfig) -> dict:
 def assemble(cfg: ScanConfig, frames: list[pd.DataFrame]) -> pd.DataFrame:
     """One table from the lines' rows (``frames`` in pass order, then line order): typed columns,
     rows by pass, line, pixel along x, then method and force source as the lines wrote them."""
+    import pandas as pd
+
     cols = columns(cfg)
     table = pd.concat([f.reindex(columns=cols) for f in frames], ignore_index=True)
     for c in ("ix", "iy", "domain", "taps"):

@@ -13,7 +13,6 @@ import math
 
 import numpy as np
 
-from ..core import tapping
 from .config import Config, from_dict
 
 # numerics keys that act after the kernel
@@ -36,19 +35,22 @@ def noise_free(cfg: Config) -> Config:
     return from_dict(d)
 
 
-def _lowpass(x: np.ndarray, fc: float, ts: float, periodic: bool) -> np.ndarray:
+def detector_lowpass(x: np.ndarray, fc: float, ts: float, periodic: bool) -> np.ndarray:
     """One-pole (RC) low-pass ``y_n = a y_(n-1) + (1 - a) x_n``, ``a = exp(-2 pi fc ts)``:
     a detector of bandwidth ``fc`` [Hz] sampled every ``ts`` [s].  A periodic window
-    is filtered twice and the second pass kept (steady state of the filter)."""
-    from scipy.signal import lfilter
+    is filtered twice and the second pass kept (steady state of the filter).  Compiled
+    (:func:`vetica_cli.core.detector.one_pole`: scipy.signal's ``lfilter`` to the bit, without
+    importing scipy.signal and with it scipy.stats)."""
+    from ..core.detector import one_pole
 
     a = math.exp(-2.0 * math.pi * fc * ts)
-    b, den = [1.0 - a], [1.0, -a]
-    if periodic:
-        y, zf = lfilter(b, den, x, zi=[a * x[-1]])
-        y, _ = lfilter(b, den, x, zi=zf)
+    x = np.ascontiguousarray(x, dtype=float)
+    y = np.empty_like(x)
+    if not len(x):
         return y
-    y, _ = lfilter(b, den, x, zi=[a * x[0]]) if len(x) else (x, None)
+    last = one_pole(x, a, x[-1] if periodic else x[0], y)
+    if periodic:
+        one_pole(x, a, last, y)
     return y
 
 
@@ -64,6 +66,8 @@ def apply_instrument(run, cfg: Config) -> None:
     n = cfg.numerics
     if not (n.position_noise or n.force_noise or n.detector_bandwidth or n.adc_resolution or n.detector_noise_density):
         return
+    from ..core import tapping  # the kernel module (numba): not imported by the dry runs that plan noise
+
     rng = np.random.default_rng(n.noise_seed)
     ic, ip, it, ib, iff = (tapping.COLUMNS.index(c) for c in ("z_cantilever", "z_paddle", "z_tip", "z_base", "f_ts"))
     # the detector's own white noise enters before its bandwidth: one-sided density d over the sampled
@@ -77,7 +81,7 @@ def apply_instrument(run, cfg: Config) -> None:
             if density_rms:
                 arr[:, i] += dens_rng.normal(0.0, density_rms, len(arr))
             if n.detector_bandwidth:
-                arr[:, i] = _lowpass(arr[:, i], n.detector_bandwidth, n.print_step, periodic)
+                arr[:, i] = detector_lowpass(arr[:, i], n.detector_bandwidth, n.print_step, periodic)
             if n.position_noise:
                 arr[:, i] += rng.normal(0.0, n.position_noise, len(arr))
             if n.adc_resolution:

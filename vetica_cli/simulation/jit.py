@@ -21,15 +21,21 @@ COMPILE_S = 55.0
 # The cached core modules a job compiles, measured: the indexes an empty NUMBA_CACHE_DIR holds after
 # the job (a simulate, an extract per method, on the CLI).  An SLS or Wiechert simulation compiles tapping
 # and expm, a hertz one mdr too (SurfaceModel.kernel_modules); thermal noise adds thermal and prescribed;
-# an extraction its method's (ExtractionMethod.kernel_modules: vetica superposition, full prescribed, sls,
-# superposition) and, for a force reconstructed in the tap windows, paddle (extraction_modules).
+# a detector of finite bandwidth its low-pass (detector); an extraction its method's
+# (ExtractionMethod.kernel_modules: vetica superposition, full prescribed, sls, superposition) and,
+# for a force reconstructed in the tap windows, paddle (extraction_modules).
 THERMAL_MODULES = ("thermal", "prescribed")
+DETECTOR_MODULES = ("detector",)  # a detector of finite bandwidth (numerics.detector_bandwidth): its low-pass
 
 
 def simulation_modules(cfg) -> set[str]:
     """The cached core modules a simulation of the resolved config ``cfg`` compiles."""
     mods = set(cfg.surface.surface_model.kernel_modules)
-    return mods | set(THERMAL_MODULES) if cfg.numerics.temperature > 0 else mods
+    if cfg.numerics.temperature > 0:
+        mods |= set(THERMAL_MODULES)
+    if cfg.numerics.detector_bandwidth > 0:
+        mods |= set(DETECTOR_MODULES)
+    return mods
 
 
 def cached_modules() -> list[Path]:

@@ -11,7 +11,6 @@ import math
 import numpy as np
 
 from ..constants import EV
-from ..core import tapping
 from ..errors import InputError
 from ..signals.taps import find_taps, first_contact_minimum
 
@@ -88,6 +87,8 @@ def tap_deviations(t, z_tip, f_ts, info: dict, period: float) -> dict:
 
 def compute_observables(run, cfg, d) -> None:
     """Fill ``run.observables``, ``run.energy`` and ``run.warnings``."""
+    from ..core import tapping  # the kernel module (numba): the tables' schemas import this module's units
+
     s = run.steady
     col = {name: s[:, i] for i, name in enumerate(tapping.COLUMNS[:-1])}
     info = run.info

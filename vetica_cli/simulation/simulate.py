@@ -48,7 +48,7 @@ import numpy as np
 
 from .. import __version__
 from ..core import engine, session, tapping
-from ..io import check_output_file, segments_table, write_run
+from ..io import segments_table
 from .config import Config, load
 from .instrument import apply_instrument
 from .observables import compute_observables
@@ -391,25 +391,3 @@ def _noise_free(cfg: Config):
     compute_observables(run, cfg, d)  # from the noise-free signals
     run.warnings = rr.warnings + run.warnings
     return run, kern, (rr.window.states[0] if kern is not None else None), d
-
-
-def simulate_file(config=None, output="run.parquet", overrides: dict | None = None, notice=None,
-                  yes: bool = False) -> Run:  # fmt: skip
-    """``vetica simulate``: load a one-point YAML config (None = the defaults) with dotted
-    ``overrides``, simulate it and write the run to ``output`` (Parquet with metadata).
-    The config, the output path and the estimated cost (past the threshold every command
-    asks past it needs ``yes``) are checked before the simulation starts; ``notice(line)``
-    is called then when numba will compile the kernels this simulation needs (warm: not)."""
-    from ..checks import confirm_cost
-    from .cost import simulation_seconds
-    from .jit import compile_notice, simulation_modules
-
-    cfg = load(config, overrides)
-    check_output_file(output)
-    confirm_cost("this simulation", simulation_seconds(cfg), yes)
-    line = compile_notice(simulation_modules(cfg)) if notice is not None else None
-    if line:
-        notice(line)
-    run = simulate(cfg)
-    write_run(run, output)
-    return run

@@ -12,12 +12,15 @@ One definition for ``vetica sweep`` (printed, and stored in the table's metadata
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
-import pandas as pd
 
 from .. import surfaces
 from ..rows.schema import ACCEPT_ERR_PCT  # [%] tau_c error below which a point is accepted (thesis fig. 52)
+
+if TYPE_CHECKING:  # the tables are pandas frames; a dry run starts without pandas
+    import pandas as pd
 
 
 def acceptance_keys(model=None) -> tuple[str, str, str] | None:

@@ -38,8 +38,8 @@ from __future__ import annotations
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import TYPE_CHECKING
 
-import pandas as pd
 import yaml
 
 from .. import __version__
@@ -70,6 +70,9 @@ from .acceptance import ACCEPT_ERR_PCT, acceptance_regime, format_acceptance
 from .cost import Cost, dry_run_text, duration, grid_cost, study_core_seconds, wall_estimate
 from .grid import Study, load_grid
 from .table import assemble, column_meta_of, rows_frame, study_material_metadata
+
+if TYPE_CHECKING:  # pandas is imported where a table is built: a dry run starts without it
+    import pandas as pd
 
 # the modules whose import closure computes a point's rows: the point task (simulation and
 # extraction), the print-step policy that shares simulations, and the points and their keys

@@ -4,13 +4,16 @@ contact model; and the units of its columns for the metadata."""
 
 from __future__ import annotations
 
-import pandas as pd
+from typing import TYPE_CHECKING
 
 from ..extraction import SOURCES
 from ..extraction.material import contact_model
 from ..rows.extract import EXTRACT_KEYS
 from ..rows.schema import column_meta, material_columns, material_metadata, models_of, result_columns
 from .grid import Point, Study
+
+if TYPE_CHECKING:  # pandas is imported where a frame is built: a dry run starts without it
+    import pandas as pd
 
 
 def study_models(study: Study):
@@ -25,6 +28,8 @@ def study_methods(study: Study) -> list[str]:
 
 def rows_frame(point: Point, rows: list[dict]) -> pd.DataFrame:
     """A point's rows as a frame with the columns of its surface model."""
+    import pandas as pd
+
     return pd.DataFrame(rows, columns=result_columns([point.config.surface.surface_model], [point.method],
                                                      point.replicas))
 
@@ -56,6 +61,8 @@ def study_material_metadata(study: Study) -> dict:
 def assemble(study: Study, done: dict) -> pd.DataFrame:
     """The tidy table from the points' rows (``done``: point key -> frame): points in grid
     order, 'true' before 'reconstructed', the swept keys after the point key."""
+    import pandas as pd
+
     columns = result_columns(study_models(study), study_methods(study), study.replicas)
     frames = []
     for p in study.points:

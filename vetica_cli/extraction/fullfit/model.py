@@ -18,7 +18,13 @@ import math
 
 import numpy as np
 
-from ...core.prescribed import NDIR, arm_coefficients, arms_force, surface_force
+
+def kernels():
+    """:mod:`vetica_cli.core.prescribed`, imported at the first pass: importing the method loads no numba."""
+    from ...core import prescribed
+
+    return prescribed
+
 
 NEAR_GAP = 5e-9  # [m] residuals densely (and fine steps) where the measured tip is within this of Z1
 FAR_GAP = 5e-9  # [m] model gap above which blocks are advanced in one exact step
@@ -37,7 +43,7 @@ class SampledRecord:
     enters the residuals, the blocks that may be stepped coarsely, and the
     measured force at the wanted samples."""
 
-    def __init__(self, z, f, z_ref, near_stride, far_stride, block, near_gap, ndir=NDIR):
+    def __init__(self, z, f, z_ref, near_stride, far_stride, block, near_gap, ndir):
         self.z = np.ascontiguousarray(z, dtype=float)
         n = len(self.z)
         near = (self.z - z_ref) < near_gap
@@ -201,14 +207,14 @@ class SurfaceFit:
         k_inf, k, cd, hr6 = self.split(theta)
         sub_gap = self._sub_gap(k_inf + float(np.sum(k)), hr6)
         if self.n_arms == 1:
-            xd, x, contact, dxd, *rest = surface_force(
+            xd, x, contact, dxd, *rest = kernels().surface_force(
                 z, s0, k_inf, float(k[0]), float(cd[0]), hr6, self.a0, self.vdw, self.h,
                 self.block, coarse_ok, want, FAR_GAP, self.substeps, sub_gap,
                 float(xd0[0]), contact0, ndir, out_f, out_j, 1 if known_start else 0,
             )  # fmt: skip
             return np.array([xd]), x, contact, dxd[None, :], *rest
         co = self._coefficients(theta, ndir > self.n_arms + 1)
-        return arms_force(
+        return kernels().arms_force(
             z, s0, self.a0, self.block, coarse_ok, want, FAR_GAP, self.substeps, sub_gap,
             np.asarray(xd0, float), contact0, ndir, *co, out_f, out_j,
         )  # fmt: skip
@@ -220,7 +226,7 @@ class SurfaceFit:
                 self._coef.clear()
             k_inf, k, cd, hr6 = self.split(theta)
             steps = (self.h, self.h * self.block, self.h / self.substeps)
-            self._coef[key] = arm_coefficients(k_inf, k, cd, hr6, self.a0, self.vdw, steps, tangents)
+            self._coef[key] = kernels().arm_coefficients(k_inf, k, cd, hr6, self.a0, self.vdw, steps, tangents)
         return self._coef[key]
 
     def _pass(self, rec, s0, theta, xd0, contact0, ndir, known_start=False):
