@@ -7,10 +7,12 @@ against the cost of writing it to memory.  CPU time (``time.process_time``), med
   -- and the point to its proven periodic state (approach + solve);
 * per recorded sample: one drive period from the solved orbit recorded at the print step as the
   recorded window records it (energy integrals on) divided by its samples, beside the same
-  period unrecorded (the free ladder of long exact steps) and recorded into a small ring buffer
-  that stays in the cache (the recording's stepping and bookkeeping without the memory traffic);
-* memory floor: writing the same number of samples' columns into a fresh column-major buffer
-  (first touch of the pages included) and into a buffer already touched.
+  recording without the energy integrals, the same period unrecorded (the free ladder of long
+  exact steps) and recorded into a small ring buffer that stays in the cache (the recording's
+  stepping and bookkeeping without the memory traffic);
+* memory floor: writing a recorded window's samples (every column) into a fresh column-major
+  buffer as the window allocates it (zeroed pages, first touch included) and into a buffer
+  already touched, per sample.
 
 Run it against another checkout (``PYTHONPATH=/path/to/it``) for a before/after; ``--json``
 prints one line of the numbers for a driver that alternates checkouts.
@@ -81,6 +83,12 @@ def measure(repeat: int, overrides: dict) -> dict:
         kern.advance_raw(s, kern.nt, 0.0, buf, rec, True, kern.new_outputs())
         return buf
 
+    def no_energy():
+        s = s0.copy()
+        buf = engine.record_buffer(n_samples, kern.n_rec)
+        rec = T.new_recorder(stride=kern.setup.stride, origin=int(s[T.S_IDX]), ring=False, active=True)
+        kern.advance_raw(s, kern.nt, 0.0, buf, rec, False, kern.new_outputs())
+
     def unrecorded():
         s = s0.copy()
         kern.advance_raw(s, kern.nt, 0.0, kern._nobuf, T.new_recorder(), False, kern.new_outputs())
@@ -90,28 +98,30 @@ def measure(repeat: int, overrides: dict) -> dict:
     def cached():
         s = s0.copy()
         rec = T.new_recorder(stride=kern.setup.stride, origin=int(s[T.S_IDX]), ring=True, active=True)
+        rec[T.R_REP], rec[T.R_LEFT] = 1, 1 << 62  # a ring that never closes (it would after its first contact)
         kern.advance_raw(s, kern.nt, 0.0, small, rec, True, kern.new_outputs())
 
     ncol = 7 + kern.n_rec
+    n_window = cfg.numerics.record_cycles * n_samples
 
     def floor_fresh():
-        b = np.empty((n_samples, ncol), order="F")
+        b = engine.record_buffer(n_window, kern.n_rec)
         for j in range(ncol):
             b[:, j] = 1.0
         return b
 
-    warm = np.empty((n_samples, ncol), order="F")
+    warm = engine.record_buffer(n_window, kern.n_rec)
 
     def floor_warm():
         for j in range(ncol):
             warm[:, j] = 1.0
 
-    for fn in (recorded, unrecorded, cached, floor_fresh, floor_warm):
+    for fn in (recorded, no_energy, unrecorded, cached, floor_fresh, floor_warm):
         fn()
     # alternate the measured functions so a load change hits them alike
-    times = {f.__name__: [] for f in (recorded, unrecorded, cached, floor_fresh, floor_warm)}
+    times = {f.__name__: [] for f in (recorded, no_energy, unrecorded, cached, floor_fresh, floor_warm)}
     for _ in range(repeat):
-        for f in (recorded, unrecorded, cached, floor_fresh, floor_warm):
+        for f in (recorded, no_energy, unrecorded, cached, floor_fresh, floor_warm):
             times[f.__name__].append(cpu(f, 1))
     t = {k: statistics.median(v) for k, v in times.items()}
     ns = 1e9 / n_samples
@@ -125,11 +135,13 @@ def measure(repeat: int, overrides: dict) -> dict:
         "point_ms": 1e3 * med["total"],
         "recorded_period_ms": 1e3 * t["recorded"],
         "unrecorded_period_ms": 1e3 * t["unrecorded"],
+        "no_energy_period_ms": 1e3 * t["no_energy"],
+        "ns_per_sample_no_energy": ns * t["no_energy"],
         "cached_period_ms": 1e3 * t["cached"],
         "ns_per_sample": ns * t["recorded"],
         "ns_per_sample_cached": ns * t["cached"],
-        "floor_fresh_ns": ns * t["floor_fresh"],
-        "floor_warm_ns": ns * t["floor_warm"],
+        "floor_fresh_ns": 1e9 * t["floor_fresh"] / n_window,
+        "floor_warm_ns": 1e9 * t["floor_warm"] / n_window,
         "periods_evaluated": run.info["periods_evaluated"],
     }
 
@@ -162,7 +174,8 @@ def main(argv=None) -> None:
           f"total {r['point_ms']:.1f} ms ({r['periods_evaluated']} periods evaluated)")  # fmt: skip
     print(f"one period from the orbit: recorded {r['recorded_period_ms']:.2f} ms, unrecorded "
           f"{r['unrecorded_period_ms']:.2f} ms, into a cached ring {r['cached_period_ms']:.2f} ms")
-    print(f"per recorded sample: {r['ns_per_sample']:.1f} ns (into a cached ring {r['ns_per_sample_cached']:.1f} ns); "
+    print(f"per recorded sample: {r['ns_per_sample']:.1f} ns (into a cached ring {r['ns_per_sample_cached']:.1f} ns, "
+          f"without the energy integrals {r['ns_per_sample_no_energy']:.1f} ns); "
           f"memory floor {r['floor_fresh_ns']:.1f} ns fresh buffer, {r['floor_warm_ns']:.1f} ns touched")
 
 
