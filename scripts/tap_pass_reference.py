@@ -5,7 +5,8 @@ The records are the extraction bench's pixels (:data:`vetica_cli.bench.PIXEL`: 4
 1 ns) of the stiff (worked example) and soft SLS surfaces (:data:`vetica_cli.bench.SURFACES`),
 noise-free and at 300 K (``numerics.temperature=300``); each is extracted with ``vetica`` and
 ``vetica-prestress`` from the true and the reconstructed force, with error bars and checks.  The
-committed file was written by the Python path before the compiled pass (git ad810cf: the Python path with the band term read on the fit's surface), run as
+committed file was written by the Python path before the compiled pass (git ad810cf: the Python path with the band term read on the fit's surface; its error bars' tau_c term
+then edited as in this version's ``tapsigmas``, the larger of its two propagations), run as
 
     git archive ad810cf vetica_cli | tar -x -C /tmp/old
     PYTHONPATH=/tmp/old python scripts/tap_pass_reference.py tests/data/tap_pass_reference.json
