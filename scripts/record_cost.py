@@ -30,13 +30,10 @@ import types
 
 
 def cpu(fn, repeat: int) -> float:
-    """Median CPU seconds of ``fn()`` over ``repeat`` calls."""
-    out = []
-    for _ in range(repeat):
-        t0 = time.process_time()
-        fn()
-        out.append(time.process_time() - t0)
-    return statistics.median(out)
+    """Median CPU seconds of ``fn()`` over ``repeat`` calls (:func:`vetica_cli.bench.cpu_ms`)."""
+    from vetica_cli.bench import cpu_ms
+
+    return cpu_ms(fn, repeat) / 1e3
 
 
 def parse_sets(items) -> dict:

@@ -19,13 +19,7 @@ import statistics
 import time
 
 
-def cpu_ms(fn, repeat: int) -> float:
-    out = []
-    for _ in range(repeat):
-        t0 = time.process_time()
-        fn()
-        out.append(time.process_time() - t0)
-    return 1e3 * statistics.median(out)
+from vetica_cli.bench import cpu_ms  # median CPU ms of fn() over repeat calls
 
 
 def main(argv=None) -> None:

@@ -113,7 +113,7 @@ def check_bench(overrides: dict | None, repeat: int, part: str = "all", yes: boo
     confirm_cost(f"this bench ({repeat} timed runs after a warm-up)", seconds, yes)
 
 
-def _cpu_ms(fn, repeat: int) -> float:
+def cpu_ms(fn, repeat: int) -> float:
     """Median CPU time of ``fn()`` over ``repeat`` calls [ms]."""
     out = []
     for _ in range(repeat):
@@ -145,17 +145,17 @@ def run_extraction_bench(methods: tuple | None = None, repeat: int = 20, overrid
             opts = m.options({})
             for _ in range(2):
                 extract(df, meta, force="reconstructed", method=key)
-            total = _cpu_ms(lambda: extract(df, meta, force="reconstructed", method=key), n)
+            total = cpu_ms(lambda: extract(df, meta, force="reconstructed", method=key), n)
             kw = {"need_approach": m.needs_approach, "need_z1": m.needs_z1, "tap_windows": m.tap_windows,
                   "uniform": key if m.uniform_sampling else None}  # fmt: skip
             record = build_record(df, meta, "reconstructed", **kw)
-            rec_ms = _cpu_ms(lambda: build_record(df, meta, "reconstructed", **kw), n)
-            meth_ms = _cpu_ms(lambda: m.run(record, opts), n)
+            rec_ms = cpu_ms(lambda: build_record(df, meta, "reconstructed", **kw), n)
+            meth_ms = cpu_ms(lambda: m.run(record, opts), n)
             extra = ""
             if "stage2" in opts:
                 o2 = {**opts, "stage2": "sines"}
                 m.run(record, o2)
-                extra = f"{_cpu_ms(lambda: m.run(record, o2), max(3, repeat // 5)):8.1f}"
+                extra = f"{cpu_ms(lambda: m.run(record, o2), max(3, repeat // 5)):8.1f}"
             lines.append(f"{name:<6} {key:<17} {total:8.2f} {rec_ms:8.2f} {meth_ms:8.2f}   {extra}")
     return "\n".join(lines)
 
