@@ -244,7 +244,7 @@ def test_recording_far_steps_start_the_attraction_from_its_extrapolation_and_lan
         n_end = kern.nt // 2
         buf = engine.record_buffer(n_end // kern.setup.stride + 1, 1)
         rec = tapping.new_recorder(stride=kern.setup.stride, active=True)
-        tapping._far(s, n_end, 0.0, p, a, lr, lemr, lgr, buf, rec, o, True, rec_mode)
+        tapping.far_steps(s, n_end, 0.0, p, a, lr, lemr, lgr, buf, rec, o, True, rec_mode)
         out.append((s, buf[: rec[tapping.R_POS]]))
     (s0, b0), (s1, b1) = out
     assert len(b0) == len(b1) == n_end // kern.setup.stride  # half a period of far steps, all recorded

@@ -407,7 +407,7 @@ def _centre_u(c, urow, lam, h):
 
 @njit(cache=True, fastmath={"contract"}, error_model="numpy")
 def _far(s, n_end, zb_step, p, g, w, xpos, q, arm, vec, vi, lam, sm, urow, lad, buf, r, o, energy, rec_mode, el_off):
-    """:func:`.tapping._far` with the MDR surface: every element is free, so nothing of the
+    """:func:`.tapping.far_steps` with the MDR surface: every element is free, so nothing of the
     surface is stepped (the elements catch up exactly at the end); the gap is to the
     centre element's free position, known in closed form at any time."""
     n_arms = arm.shape[1]

@@ -434,7 +434,7 @@ EPS_STEP = 0.05  # far step <= EPS_STEP * gap / |tip speed|: the attraction chan
 
 
 @njit(cache=True, fastmath={"contract"}, error_model="numpy")
-def _far(s, n_end, zb_step, p, a, lad, lemi, lg, buf, r, o, energy, rec_mode):
+def far_steps(s, n_end, zb_step, p, a, lad, lemi, lg, buf, r, o, energy, rec_mode):
     """Long exact steps from ``s`` while the gap stays above ``d_switch``.
 
     The step length is the longest ladder entry not above
@@ -592,9 +592,9 @@ def advance(s, n_steps, zb_step, p, a, emi, lad, lemi, lg, lad_rec, lemi_rec, lg
             use_far = z_tip - x > p[P_DSW]
         if use_far:
             if recording:
-                moved = _far(s, n_end, zb_step, p, a, lad_rec, lemi_rec, lg_rec, buf, r, o, energy, True)
+                moved = far_steps(s, n_end, zb_step, p, a, lad_rec, lemi_rec, lg_rec, buf, r, o, energy, True)
             else:
-                moved = _far(s, n_end, zb_step, p, a, lad, lemi, lg, buf, r, o, energy, False)
+                moved = far_steps(s, n_end, zb_step, p, a, lad, lemi, lg, buf, r, o, energy, False)
             if int(s[S_IDX]) >= n_end:
                 break
             if moved and recording and r[R_ACTIVE] == 0:
