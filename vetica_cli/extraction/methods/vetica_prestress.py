@@ -106,16 +106,27 @@ class TapFit:
     fit: SineFit
 
 
+def stage2_windows(t, taps: Taps, kg_points: int):
+    """Per tap, ``(contact index, slice from the contact to the separation minimum, time from the
+    contact [s])``, or None for a contact shorter than the stage-2 minimum or ``kg_points``: the
+    windows :func:`tap_fits` and :func:`closed_taps` read."""
+    for ic, isep in zip(taps.contact, taps.separation):
+        if isep - ic < max(MIN_CONTACT_SAMPLES, kg_points + 1):
+            yield None
+            continue
+        sl = slice(ic, isep + 1)
+        yield ic, sl, t[sl] - t[ic]
+
+
 def tap_fits(t, z, f, taps: Taps, kg_points: int) -> list[TapFit | None]:
     """The sum-of-sines fit (thesis eq. 88) of each tap's contact and what stages 1b and 2
     need of it; None for a contact shorter than the stage-2 minimum or ``kg_points``."""
     out = []
-    for ic, isep in zip(taps.contact, taps.separation):
-        if isep - ic < max(MIN_CONTACT_SAMPLES, kg_points + 1):
+    for w in stage2_windows(t, taps, kg_points):
+        if w is None:
             out.append(None)
             continue
-        sl = slice(ic, isep + 1)
-        u = t[sl] - t[ic]
+        ic, sl, u = w
         fit = fit_sum_of_sines(u, z[sl])
         step = max(1, len(u) // MAX_STAGE2_POINTS)
         a, b = 1, 1 + kg_points
@@ -187,12 +198,11 @@ def closed_taps(t, z, f, taps: Taps, kg_points: int) -> list[ClosedTap | None]:
     """Each tap's contact samples for the compiled stage 2; None as :func:`tap_fits`, and all
     None when a contact is not sampled at a constant step (the caller then fits sines)."""
     out = []
-    for ic, isep in zip(taps.contact, taps.separation):
-        if isep - ic < max(MIN_CONTACT_SAMPLES, kg_points + 1):
+    for w in stage2_windows(t, taps, kg_points):
+        if w is None:
             out.append(None)
             continue
-        sl = slice(ic, isep + 1)
-        u = t[sl] - t[ic]
+        ic, sl, u = w
         if uniform_step(u) is None:
             return [None] * len(taps.contact)
         out.append(ClosedTap(u=u, z=z[sl], f=f[sl], kg_points=kg_points, fc=float(f[ic]), zc=float(z[ic])))
