@@ -171,9 +171,8 @@ def check(res: ExtractionResult, record, options: dict | None = None, method=Non
         if e.value is not None and e.sigma is not None and not (e.sigma <= REL_LIMIT):
             if e.identifiable is not False:
                 flag(res, [q], f"relative 1-sigma {e.sigma:.3g} > {REL_LIMIT:g}: not determined by the record")
+    res.info = {**res.info, "sanity": info}  # the checks' numbers (the dependents' judgement reads them)
     if method is not None:
-        res.info = {**res.info, "sanity": info}  # the checks' numbers, for the dependents' judgement
         method.flag_dependents(res)
     info["flags"] = res.info.pop("sanity_flags", {})
-    res.info = {**res.info, "sanity": info}
     return res
