@@ -132,7 +132,25 @@ def _relative(a: dict, b: dict) -> dict:
     return out
 
 
-def model_band(res: ExtractionResult, record, method, options) -> dict | None:
+def _narrower_runs(record, method, options):
+    """``run(step)``: ``(the record low-passed once more at fc/step, the method's estimates on
+    it)``, or None when that band loses the approach's first contact or the method refuses it;
+    each step computed once."""
+    done = {}
+
+    def run(step):
+        if step not in done:
+            rec2 = band_record(record, step)
+            try:
+                done[step] = None if rec2 is None else (rec2, method.run(rec2, options).estimates)
+            except Exception:  # noqa: BLE001 - the narrower band is refused
+                done[step] = None
+        return done[step]
+
+    return run
+
+
+def model_band(res: ExtractionResult, record, method, options, narrower=None) -> dict | None:
     """The band term read on the referee's fitted surface (:mod:`.referee`): its force through
     the whole band at every sample of the record (and of the approach), and the same low-passed
     as the record's force was (``fc``) and once more (``fc/sqrt(2)``); the method on each.  The
@@ -145,10 +163,13 @@ def model_band(res: ExtractionResult, record, method, options) -> dict | None:
     record's step, the whole bias).  None
     when the method has no referee, the fit kept no forward model, its ``k_g`` is flagged (a
     model that does not reproduce the record predicts nothing), or a band loses the approach's
-    first contact."""
+    first contact.  ``narrower``: :func:`band_term`'s runs of the method on the record low-passed
+    once more (each computed once for both terms)."""
     from ..signals import noise as nz
     from ..signals.taps import first_contact_minimum
     from .referee import fit_on
+
+    narrower = narrower or _narrower_runs(record, method, options)
 
     est, fwd = fit_on(record, method.band_model or method.referee)
     kg = est.get("k_g") if est else None
@@ -160,8 +181,6 @@ def model_band(res: ExtractionResult, record, method, options) -> dict | None:
     fs = fwd.steady(record.z)
     from_approach = record.approach is not None and str(record.info.get("z1_source", "")).startswith("approach")
     fa = fwd.approach(record.approach[0]) if from_approach else None
-
-    rec2 = band_record(record, BAND_STEPS[0])
 
     def model_record(cut, noise):  # the whole band without noise (as the answer it is compared with), or a band
         f2 = fs.copy() if cut is None else lowpass(fs, h, cut)
@@ -180,11 +199,12 @@ def model_band(res: ExtractionResult, record, method, options) -> dict | None:
     except Exception:  # noqa: BLE001 - the model's records are refused (or lose the first contact): no model term
         return None
     bias, d_model, d_rec = _relative(low, whole), {}, {}
-    if rec2 is not None:
+    step = narrower(BAND_STEPS[0])
+    if step is not None:
+        rec2, alt = step
         try:
-            d_rec = _relative(method.run(rec2, options).estimates, res.estimates)
             lower = method.run(model_record(rec2.info["cutoff_hz"], nz.declared(rec2.f)), options).estimates
-            d_model = _relative(lower, low)
+            d_rec, d_model = _relative(alt, res.estimates), _relative(lower, low)
         except Exception:  # noqa: BLE001 - the narrower band is refused: the correction's error unmeasured
             d_rec, d_model = {}, {}
     # the step's disagreement, extrapolated from fc/sqrt(2) .. fc to the whole band as Richardson's slowest
@@ -224,19 +244,17 @@ def band_term(res: ExtractionResult, record, method, options) -> dict:
     d = nz.declared(record.f)
     if d is None or d[2] <= 1.5 or not record.info.get("cutoff_hz"):
         return {}
+    narrower = _narrower_runs(record, method, options)
     if getattr(method, "band_model", None) or getattr(method, "referee", None):
-        out = model_band(res, record, method, options)
+        out = model_band(res, record, method, options, narrower)
         if out is not None:
             return out
     alts = []
     for step in BAND_STEPS:
-        rec2 = band_record(record, step)
-        if rec2 is None:
+        got = narrower(step)
+        if got is None:  # the narrower band loses the first contact, or the method refuses it: the steps before stand
             break
-        try:
-            alts.append(method.run(rec2, options).estimates)
-        except Exception:  # noqa: BLE001 - the narrower band is refused: the steps before it stand
-            break
+        alts.append(got[1])
     if not alts:
         return {}
     out = {}
