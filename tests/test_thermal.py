@@ -61,16 +61,24 @@ def test_free_probe_spectrum_matches_the_lorentzian(free_runs):
         assert ratio.mean() == pytest.approx(1.0, abs=rtol)
 
 
-def test_noisy_kernel_at_negligible_temperature_reproduces_the_orbit():
+@pytest.mark.parametrize("surface", [{}, {"surface.k_inf": 2.0, "surface.k0": 10.0, "surface.cd": 1.5e-5}],
+                         ids=["worked-example", "snapping-5to1"])
+def test_noisy_kernel_at_negligible_temperature_reproduces_the_orbit(surface):
     """The noisy recording kernel (plain Verlet) started on the noise-free orbit stays on it:
-    at 1e-9 K (thermal RMS 4e-17 m) its periods match the orbit's within 1 pm in z_tip and
-    1 % of the peak force in f_ts (contact onsets can differ by one fine step)."""
-    ov = {"numerics.record_cycles": 2, "numerics.dt": 0.05e-9, "numerics.print_step": 0.5e-9}
+    at 1e-9 K (thermal RMS 4e-17 m) its periods match the orbit's within 0.1 pm in z_tip and
+    1e-4 of the peak force in f_ts (measured: 2.4e-15 m and 4.6e-6; what is left is the probe's
+    plain Verlet against the fine kernel's exact probe map).  Both kernels pull the surface by
+    the same rule -- the attraction at the gap to the last step's surface -- so a surface soft
+    enough to snap to the tip (Kg = 10 N/m: the pull's gain reaches 1 at 0.43 nm > a0) snaps at
+    the same tip height in both; the previous rule of the noisy kernel (four fixed-point
+    iterations from the unpulled surface each step) snapped 45 pm lower on such a surface, 4.7 %
+    of the peak force off the orbit at the snap, and biased the whole-cycle fit of its records."""
+    ov = {"numerics.record_cycles": 2, "numerics.dt": 0.05e-9, "numerics.print_step": 0.5e-9, **surface}
     a = simulate(load(None, ov)).steady
     b = simulate(load(None, {**ov, "numerics.temperature": 1e-9})).steady
     assert a.shape == b.shape
-    assert np.abs(a[:, IT] - b[:, IT]).max() < 1e-12
-    assert np.abs(a[:, IF] - b[:, IF]).max() < 0.01 * np.abs(a[:, IF]).max()
+    assert np.abs(a[:, IT] - b[:, IT]).max() < 1e-13
+    assert np.abs(a[:, IF] - b[:, IF]).max() < 1e-4 * np.abs(a[:, IF]).max()
 
 
 def test_thermal_noise_is_seeded_and_the_default_is_none():

@@ -212,6 +212,12 @@ class ExtractionMethod(ABC):
     band_model: ClassVar[str | None] = None  # a method whose fitted surface measures the band's bias (default: referee)
     compared_with: ClassVar[str | None] = None  # a variant whose difference flags this one's quantities
 
+    def continuation(self, res: ExtractionResult) -> dict:
+        """Options that start a re-run of this method on a slightly changed copy of the record (the
+        band term's narrower bands) from its answer ``res``, so the re-run measures how that answer
+        moves rather than finding another one.  Default: none (a method without a start)."""
+        return {}
+
     def checks(self, res: ExtractionResult, record: Record, options: dict, info: dict) -> None:
         """The method's own identifiability and sanity checks (the hook of
         :func:`vetica_cli.extraction.sanity.check`, run before the generic ones): flag what the

@@ -349,7 +349,10 @@ def z1_estimate(z: np.ndarray, f: np.ndarray, a0: float, pull: bool, kg_points: 
     by the adhesion ``Fa(a0)`` as contact starts, against its glassy (instantaneous)
     stiffness: ``Z1 = a0 + Fa(a0)/Kg``, with ``Fa(a0) = -Fc`` the force at the contact
     minima of the record and ``Kg`` their initial contact slope (stage 1b, eq. 86,
-    ``kg_points`` samples), medians over the taps.  The creep of the surface during a
+    ``kg_points`` samples), medians over the taps.  A surface soft enough to snap to the tip
+    (the pull's gain ``2 Fa(d)/(d Kg)`` reaching 1 at a gap ``d* > a0``) is stretched to the tip
+    at contact, ``-Fc = Kg (Z1 - a0)``: the same formula holds with the measured ``-Fc``
+    (which is then not ``Fa(a0)``).  The creep of the surface during a
     slow first approach (which a recorded approach includes) is not in this estimate.
     """
     if not pull:

@@ -90,13 +90,26 @@ def lowpass(x, h: float, fc: float, periodic: bool = True) -> np.ndarray:
     return irfft(spec, len(y))[: len(x)]
 
 
+WELL_SMEARS = 10  # the narrower band's first-contact well is looked for within this many smears of the record's
+
+
+def well_in_band(fa2: np.ndarray, i1: int, h: float, fc: float) -> int:
+    """Index of the approach's first-contact well in its force ``fa2`` low-passed at ``fc``: the
+    minimum within :data:`WELL_SMEARS` smears (``1/(2 fc)``) of the record's own well ``i1``.  A
+    low-pass moves the well by about a smear; looked for afresh over the whole approach, a
+    narrower band's noise or its edge put it 127 nm above the surface on a 300 K record (the fit
+    on that band then failed, and read as a band bias of 230 %)."""
+    half = max(16, int(math.ceil(WELL_SMEARS / (2.0 * fc * h))))
+    lo, hi = max(int(i1) - half, 0), min(int(i1) + half + 1, len(fa2))
+    return lo + int(np.argmin(fa2[lo:hi]))
+
+
 def band_record(record, step: float):
     """The record with its force low-passed once more, at ``fc / step`` (and its approach,
     and Z1 when it came from the approach, re-read on the approach's force low-passed the same
     way); None when the force is not band-limited (no declared low-pass below the Nyquist
     frequency) or the narrower band loses the approach's first contact."""
     from ..signals import noise as nz
-    from ..signals.taps import first_contact_minimum
 
     d = nz.declared(record.f)
     fc = record.info.get("cutoff_hz")
@@ -112,12 +125,9 @@ def band_record(record, step: float):
         nz.declare(f2, choice.noise_rms, choice.white_equivalent, choice.spectrum.nyquist / fc2)
     changes = {"f": f2, "taps": None, "info": {**record.info, "cutoff_hz": fc2}}
     if record.approach is not None and str(record.info.get("z1_source", "")).startswith("approach"):
-        za, fa, _ = record.approach
+        za, fa, i0 = record.approach
         fa2 = lowpass(fa, h, fc2, periodic=False)
-        try:
-            i1 = first_contact_minimum(fa2, choice.noise_rms if choice is not None else 0.0)
-        except Exception:  # noqa: BLE001 - the narrower band loses the first contact: no band term
-            return None
+        i1 = well_in_band(fa2, i0, h, fc2)
         changes.update(approach=(za, fa2, i1), z1=float(za[i1]))
     return dataclasses.replace(record, **changes)
 
@@ -132,11 +142,15 @@ def _relative(a: dict, b: dict) -> dict:
     return out
 
 
-def _narrower_runs(record, method, options):
+def _narrower_runs(record, method, options, res=None):
     """``run(step)``: ``(the record low-passed once more at fc/step, the method's estimates on
     it)``, or None when that band loses the approach's first contact or the method refuses it;
-    each step computed once."""
+    each step computed once, started from ``res`` where the method has a start
+    (:meth:`~vetica_cli.extraction.base.ExtractionMethod.continuation`)."""
     done = {}
+    more = method.continuation(res) if res is not None else {}
+    if more:
+        options = method.options({**options, **more})
 
     def run(step):
         if step not in done:
@@ -188,9 +202,9 @@ def model_band(res: ExtractionResult, record, method, options, narrower=None) ->
             nz.declare(f2, *noise)
         changes = {"f": f2, "taps": None, "memo": {}, "info": {**record.info, "cutoff_hz": cut}}
         if from_approach:
-            za = record.approach[0]
+            za, _, i0 = record.approach
             fa2 = fa.copy() if cut is None else lowpass(fa, h, cut, periodic=False)
-            i1 = first_contact_minimum(fa2, noise[0] if noise is not None else 0.0)
+            i1 = first_contact_minimum(fa2) if cut is None else well_in_band(fa2, i0, h, cut)
             changes.update(approach=(za, fa2, i1), z1=float(za[i1]))
         return dataclasses.replace(record, **changes)
 
@@ -244,7 +258,7 @@ def band_term(res: ExtractionResult, record, method, options) -> dict:
     d = nz.declared(record.f)
     if d is None or d[2] <= 1.5 or not record.info.get("cutoff_hz"):
         return {}
-    narrower = _narrower_runs(record, method, options)
+    narrower = _narrower_runs(record, method, options, res)
     if getattr(method, "band_model", None) or getattr(method, "referee", None):
         out = model_band(res, record, method, options, narrower)
         if out is not None:

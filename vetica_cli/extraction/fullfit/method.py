@@ -273,6 +273,19 @@ class FullFit(ExtractionMethod):
     # (reconstructed), measured while the other core was busy
     seconds_per_point = 1.8  # both forces, 10 periods at 0.125 ns: 1.76 CPU s measured
 
+    def continuation(self, res: ExtractionResult) -> dict:
+        """Start from the fitted surface, without the cd scan: a snapping surface's samples at
+        the jump to contact make the least squares rugged, and a narrower band's fit from
+        VETICA's start could land in another valley and read as a band bias of 100s of %."""
+        keys = ("k_inf", "k0", "cd")
+        values = {k: res.estimates[k].value for k in keys if k in res.estimates}
+        if len(values) < len(keys) or any(v is None or not v > 0 for v in values.values()):
+            return {}
+        fit = res.info.get("fit") or {}
+        if list(fit.get("parameters") or [])[:3] != list(keys):  # the SLS's fit only (one arm, not the sphere's)
+            return {}
+        return {"start": values, "scan": False}
+
     def sigmas(self, res: ExtractionResult, record: Record, options: dict) -> tuple[dict, dict]:
         """The fit's own sigma, computed in :meth:`run`; where the fit freed the surface height
         from an eq.-84 Z1 (a record without an approach tap), plus in quadrature **the height

@@ -157,12 +157,25 @@ class SurfaceFit:
 
     def initial_offset(self, theta) -> float:
         """Starting surface height [m]: from Z1 (:meth:`z1_offset`) when known, else the
-        reference tip height at contact less ``a0`` and the pulled-up relaxed surface."""
+        reference tip height at contact less the relaxed surface's lift (:meth:`_contact_lift`)."""
         if self.z1 is not None:
             return self.z1_offset(theta, tangents=False)[0]
-        k_inf, k, _, hr6 = self.split(theta)
-        fa_sep = hr6 / self.a0**2 if self.vdw else 0.0
-        return self.z_ref - self.a0 - fa_sep / (k_inf + float(np.sum(k)))
+        _, inv, fa_sep, _, dinv, dfasep = self._stiffness_tangents(theta)
+        return self.z_ref - self._contact_lift(inv, fa_sep, dinv, dfasep)[0]
+
+    def _contact_lift(self, inv, fa_sep, dinv, dfasep):
+        """Tip height above the surface's rest position at the first contact, less the arms'
+        share: ``d_c + Fa(d_c)/Kg`` [m] and its derivatives.  The pulled surface meets the
+        tip at the gap ``d_c = a0`` (``a0 + Fa(a0)/Kg``, eq. 84's lift) unless the pull's
+        feedback gain ``2 Fa(d)/(d Kg)`` reaches 1 first: then no equilibrium is left below
+        ``d* = (2 H R/(6 Kg))^(1/3)`` and the surface snaps to the tip from there,
+        ``d* + Fa(d*)/Kg = 1.5 d*`` (the simulator's rule: contact when the gap to the
+        surface, pulled at the last step's gap, reaches a0)."""
+        if fa_sep <= 0.0 or 2.0 * fa_sep * inv <= self.a0:
+            return self.a0 + fa_sep * inv, dfasep * inv + fa_sep * dinv
+        d_star = (2.0 * fa_sep * self.a0**2 * inv) ** (1.0 / 3.0)
+        # d ln d* = (d ln(HR/6) + d ln(1/Kg))/3; d ln(HR/6) = dFa_sep/Fa_sep
+        return 1.5 * d_star, 0.5 * d_star * (dfasep / fa_sep + dinv / inv)
 
     def z1_offset(self, theta, tangents=True):
         """Surface height from Z1: ``s0 = Z1 - a0 - X1`` [m] and ``ds0/d(direction)``.
@@ -175,7 +188,8 @@ class SurfaceFit:
         """
         n = self.n_arms
         k, inv, fa_sep, dk, dinv, dfasep = self._stiffness_tangents(theta)
-        s0 = self.z1 - self.a0 - fa_sep * inv
+        lift, dlift = self._contact_lift(inv, fa_sep, dinv, dfasep)
+        s0 = self.z1 - lift
         xd1 = np.zeros(n)
         dxd1 = np.zeros((n, self.ndir))
         if self.za1 is not None and len(self.za1) > 1 and self.vdw:
@@ -186,13 +200,13 @@ class SurfaceFit:
                 xd1, _, _, dxd1, *_ = self._kernel(self.za1, self._za1_ok, self._za1_want, empty_f, empty_j, s0,
                                                    theta, np.zeros(n), False, self.ndir if tangents else n + 1,
                                                    known_start=True)  # fmt: skip
-                g = self.z1 - self.a0 - (k @ xd1 + fa_sep) * inv - s0  # Newton on s0 = z1 - a0 - X1(s0)
+                g = self.z1 - lift - (k @ xd1) * inv - s0  # Newton on s0 = z1 - a0 - X1(s0)
                 s0 -= g / (-(k @ dxd1[:, n]) * inv - 1.0)
                 if abs(g) < 1e-17:
                     break
             self._s0 = s0
         # dX1 along each direction at fixed s0, then ds0 = -dX1/(1 + dX1/ds0)
-        dx1 = (xd1 @ dk + k @ dxd1 + dfasep) * inv + (k @ xd1 + fa_sep) * dinv
+        dx1 = (xd1 @ dk + k @ dxd1) * inv + (k @ xd1) * dinv + dlift
         ds0 = -dx1 / (1.0 + dx1[n])
         ds0[: n + 1] = 0.0
         return s0, ds0
