@@ -21,6 +21,8 @@ HAMAKER_BOUNDS = (1e-24, 1e-14)  # [J] fit range of the Hamaker constant (fit_ha
 OFFSET_UNIT = 1e-10  # [m] unit of the surface height in the fit vector
 OFFSET_RANGE = 5e-9  # [m] the fitted surface height stays within this of its reference (Z1 or the start)
 XD0_RANGE = 1e-6  # [m] bound of a fitted dashpot start position
+LEVERAGE_MAX = 0.5  # a residual row deciding more than half a fitted direction alone is left out (solve)
+LEVERAGE_ROUNDS = 3
 
 
 class FitVector:
@@ -150,19 +152,47 @@ def fit_surface(
     return solve(vec, x0, max_nfev, xtol, scanned)
 
 
+def leverage(jac) -> np.ndarray:
+    """Each residual row's leverage ``h_i = J_i (J^T J)^+ J_i^T`` (normalised columns): the share of
+    a fitted direction that row decides alone (they sum to the number of directions)."""
+    norm = np.sqrt(np.sum(jac**2, axis=0))
+    norm[norm == 0] = 1.0
+    jn = jac / norm
+    return np.sum((jn @ np.linalg.pinv(jn.T @ jn)) * jn, axis=1)
+
+
 def solve(vec: FitVector, x0, max_nfev=60, xtol=1e-10, scanned=()) -> dict:
-    """Least squares from ``x0`` on the fit vector ``vec`` (:func:`fit_surface`)."""
+    """Least squares from ``x0`` on the fit vector ``vec`` (:func:`fit_surface`).  A steady
+    residual row whose leverage exceeds :data:`LEVERAGE_MAX` (with the window's start state
+    among the unknowns) is left out with its neighbours and the fit resumed, up to
+    :data:`LEVERAGE_ROUNDS` times: one sample that decides a direction of the fit is one where
+    the force's sensitivity to the surface diverges -- the pull's gain reaching 1 as a soft
+    surface snaps to the tip or springs back from it -- where a linear error bar means nothing
+    (on stripped 300 K records of a 5:1 surface, Kg 8.7 N/m, such rows had leverage 0.93-1.00
+    and the tap-robust 1-sigma read 36-165 % on answers within 0.5 % of the truth; a surface
+    that does not snap: at most 0.18, on the 1,554 rows of one period)."""
     from scipy.optimize import least_squares  # lazy: the CLI starts without scipy.optimize
 
     model = vec.model
-    sol = least_squares(
-        lambda x: vec.evaluate(x)[0], x0, jac=lambda x: vec.evaluate(x)[1], bounds=(vec.lo, vec.hi), method="trf",
-        x_scale="jac", xtol=xtol, ftol=1e-12, gtol=1e-12, max_nfev=max_nfev,
-    )  # fmt: skip
-    res, jac, jac_xd0 = vec.evaluate(sol.x)
+    dropped = []
+    for _ in range(LEVERAGE_ROUNDS + 1):
+        sol = least_squares(
+            lambda x: vec.evaluate(x)[0], x0, jac=lambda x: vec.evaluate(x)[1], bounds=(vec.lo, vec.hi),
+            method="trf", x_scale="jac", xtol=xtol, ftol=1e-12, gtol=1e-12, max_nfev=max_nfev,
+        )  # fmt: skip
+        res, jac, jac_xd0 = vec.evaluate(sol.x)
+        # Jacobian with the window's start state as unknowns too (already so when it is fitted)
+        jac_free = jac if vec.free else np.column_stack([jac, jac_xd0])
+        rows = np.flatnonzero(leverage(jac_free) > LEVERAGE_MAX)
+        if not len(rows) or len(dropped) >= LEVERAGE_ROUNDS:
+            break
+        gone = model.drop_rows(rows)
+        if not len(gone):
+            break
+        dropped.append([int(i) for i in gone])
+        vec._cache.clear()
+        x0 = sol.x
     theta, s0_fit, _ = vec.unpack(sol.x)
-    # Jacobian with the window's start state as unknowns too (already so when it is fitted)
-    jac_free = jac if vec.free else np.column_stack([jac, jac_xd0])
     return {
         "names": vec.names,
         "x": sol.x,
@@ -182,4 +212,5 @@ def solve(vec: FitVector, x0, max_nfev=60, xtol=1e-10, scanned=()) -> dict:
         "status": int(sol.status),
         "message": str(sol.message),
         "scan": [(c, float(math.exp(x[2]))) for c, x in scanned],
+        "dropped": dropped,
     }
