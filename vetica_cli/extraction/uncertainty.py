@@ -88,15 +88,23 @@ def lowpass(x, h: float, fc: float, periodic: bool = True, spectrum=None) -> np.
     x = np.asarray(x, float)
     if spectrum is None or spectrum.x is not x or spectrum.periodic != bool(periodic):
         spectrum = Spectrum(x, periodic)
-    m = len(x) if periodic else 2 * len(x)
-    spec = spectrum.spec.copy()  # the shared transform stays whole
-    spec[np.fft.rfftfreq(m, h) > fc] = 0.0
-    return irfft(spec, m)[: len(x)]
+    if periodic:
+        spec = spectrum.spec.copy()  # the shared transform stays whole
+        spec[np.fft.rfftfreq(len(x), h) > fc] = 0.0
+        return irfft(spec, len(x))
+    # x and its mirror image, 2n samples: their transform is exp(i pi k/2n) times x's DCT-II, and the
+    # low-passed first n samples are the inverse DCT-II of the cut coefficients (half the length)
+    import scipy.fft
+
+    coef = spectrum.spec.copy()
+    coef[np.fft.rfftfreq(2 * len(x), h)[: len(x)] > fc] = 0.0
+    return scipy.fft.idct(coef, 2)
 
 
 class Spectrum:
-    """The transform :func:`lowpass` takes of ``x`` (of ``x`` with its mirror image appended when
-    not ``periodic``), taken when first asked for and kept for the low-passes at other cut-offs."""
+    """The transform :func:`lowpass` takes of ``x`` (its DCT-II when not ``periodic``, which is
+    the transform of ``x`` with its mirror image appended), taken when first asked for and kept for
+    the low-passes at other cut-offs."""
 
     def __init__(self, x, periodic: bool = True):
         self.x, self.periodic, self._spec = np.asarray(x, float), bool(periodic), None
@@ -106,8 +114,12 @@ class Spectrum:
         from ..signals.spectral import rfft  # numpy's, or scipy's for an awkward length
 
         if self._spec is None:
-            y = self.x if self.periodic else np.concatenate([self.x, self.x[::-1]])
-            self._spec = rfft(y)
+            if self.periodic:
+                self._spec = rfft(self.x)
+            else:
+                import scipy.fft
+
+                self._spec = scipy.fft.dct(self.x, 2)
         return self._spec
 
 
