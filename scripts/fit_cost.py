@@ -4,7 +4,9 @@ reconstructed from the paddle), a pixel-size 300 K record (4 periods at 1 ns) an
 worked example.  Prints the median CPU ms (``time.process_time``) of ``--repeat`` runs per record
 and method, the methods interleaved; ``--dump DIR`` also writes each extraction's JSON
 (``vetica extract --json`` without its timings) to DIR, so two versions can be compared
-(``--compare DIR_A DIR_B``: the largest relative difference of every number)."""
+(``--compare DIR_A DIR_B``: the largest relative difference of every number).  For an A/B
+comparison of two versions run it alternately with ``PYTHONPATH`` at each version's tree
+(``--cache DIR`` simulates the records once and reuses them)."""
 
 from __future__ import annotations
 
