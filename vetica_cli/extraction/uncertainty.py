@@ -77,17 +77,28 @@ def approach_jitter(z, f, i, sf: float | None = None) -> float:
 BAND_STEPS = (math.sqrt(2.0), 2.0)  # the band term re-reads the record low-passed once more at fc / each
 
 
-def lowpass(x, h: float, fc: float, periodic: bool = True) -> np.ndarray:
+def lowpass(x, h: float, fc: float, periodic: bool = True, spectrum=None) -> np.ndarray:
     """``x`` (sampled every ``h`` [s]) without its content above ``fc`` [Hz].  ``periodic=False``
     (an approach segment, whose ends differ): filtered with its mirror image appended, so the
-    segment's end does not wrap onto its start (it made the start look in contact)."""
-    from ..signals.spectral import irfft, rfft  # numpy's, or scipy's for an awkward length
+    segment's end does not wrap onto its start (it made the start look in contact).
+    ``spectrum``: a :class:`Spectrum` of this ``x`` (its transform shared by the low-passes of
+    ``x`` at several cut-offs: the same bits as without it)."""
+    from ..signals.spectral import irfft
 
     x = np.asarray(x, float)
-    y = x if periodic else np.concatenate([x, x[::-1]])
-    spec = rfft(y)
-    spec[np.fft.rfftfreq(len(y), h) > fc] = 0.0
-    return irfft(spec, len(y))[: len(x)]
+    if spectrum is None or spectrum.x is not x or spectrum.periodic != bool(periodic):
+        spectrum = Spectrum(x, periodic)
+    if periodic:
+        spec = spectrum.spec.copy()  # the shared transform stays whole
+        spec[np.fft.rfftfreq(len(x), h) > fc] = 0.0
+        return irfft(spec, len(x))
+    # x and its mirror image, 2n samples: their transform is exp(i pi k/2n) times x's DCT-II, and the
+    # low-passed first n samples are the inverse DCT-II of the cut coefficients (half the length)
+    import scipy.fft
+
+    coef = spectrum.spec.copy()
+    coef[np.fft.rfftfreq(2 * len(x), h)[: len(x)] > fc] = 0.0
+    return scipy.fft.idct(coef, 2)
 
 
 WELL_SMEARS = 10  # the narrower band's first-contact well is looked for within this many smears of the record's
@@ -104,11 +115,35 @@ def well_in_band(fa2: np.ndarray, i1: int, h: float, fc: float) -> int:
     return lo + int(np.argmin(fa2[lo:hi]))
 
 
-def band_record(record, step: float):
+class Spectrum:
+    """The transform :func:`lowpass` takes of ``x`` (its DCT-II when not ``periodic``, which is
+    the transform of ``x`` with its mirror image appended), taken when first asked for and kept for
+    the low-passes at other cut-offs."""
+
+    def __init__(self, x, periodic: bool = True):
+        self.x, self.periodic, self._spec = np.asarray(x, float), bool(periodic), None
+
+    @property
+    def spec(self) -> np.ndarray:
+        from ..signals.spectral import rfft  # numpy's, or scipy's for an awkward length
+
+        if self._spec is None:
+            if self.periodic:
+                self._spec = rfft(self.x)
+            else:
+                import scipy.fft
+
+                self._spec = scipy.fft.dct(self.x, 2)
+        return self._spec
+
+
+def band_record(record, step: float, spectra: dict | None = None):
     """The record with its force low-passed once more, at ``fc / step`` (and its approach,
     and Z1 when it came from the approach, re-read on the approach's force low-passed the same
     way); None when the force is not band-limited (no declared low-pass below the Nyquist
-    frequency) or the narrower band loses the approach's first contact."""
+    frequency) or the narrower band loses the approach's first contact.  ``spectra``: the
+    transforms of the record's force and approach force (:class:`Spectrum`, by ``"f"`` and
+    ``"approach"``), shared by the steps (filled here when empty)."""
     from ..signals import noise as nz
 
     d = nz.declared(record.f)
@@ -118,7 +153,8 @@ def band_record(record, step: float):
     fc2 = fc / step
     h = (record.t[-1] - record.t[0]) / (len(record.t) - 1)
 
-    f2 = lowpass(record.f, h, fc2)
+    spectra = {} if spectra is None else spectra
+    f2 = lowpass(record.f, h, fc2, spectrum=spectra.setdefault("f", Spectrum(record.f)))
     drive = (record.info.get("noise") or {}).get("drive_hz")
     choice = nz.measure(f2, h, drive, cutoff_hz=fc2) if drive else None
     if choice is not None:
@@ -126,7 +162,7 @@ def band_record(record, step: float):
     changes = {"f": f2, "taps": None, "info": {**record.info, "cutoff_hz": fc2}}
     if record.approach is not None and str(record.info.get("z1_source", "")).startswith("approach"):
         za, fa, i0 = record.approach
-        fa2 = lowpass(fa, h, fc2, periodic=False)
+        fa2 = lowpass(fa, h, fc2, periodic=False, spectrum=spectra.setdefault("approach", Spectrum(fa, False)))
         i1 = well_in_band(fa2, i0, h, fc2)
         changes.update(approach=(za, fa2, i1), z1=float(za[i1]))
     return dataclasses.replace(record, **changes)
@@ -147,14 +183,14 @@ def _narrower_runs(record, method, options, res=None):
     it)``, or None when that band loses the approach's first contact or the method refuses it;
     each step computed once, started from ``res`` where the method has a start
     (:meth:`~vetica_cli.extraction.base.ExtractionMethod.continuation`)."""
-    done = {}
+    done, spectra = {}, {}
     more = method.continuation(res) if res is not None else {}
     if more:
         options = method.options({**options, **more})
 
     def run(step):
         if step not in done:
-            rec2 = band_record(record, step)
+            rec2 = band_record(record, step, spectra)
             try:
                 done[step] = None if rec2 is None else (rec2, method.run(rec2, options).estimates)
             except Exception:  # noqa: BLE001 - the narrower band is refused
@@ -195,15 +231,16 @@ def model_band(res: ExtractionResult, record, method, options, narrower=None) ->
     fs = fwd.steady(record.z)
     from_approach = record.approach is not None and str(record.info.get("z1_source", "")).startswith("approach")
     fa = fwd.approach(record.approach[0]) if from_approach else None
+    spec_s, spec_a = Spectrum(fs), Spectrum(fa, False) if from_approach else None  # each transformed once for the bands fc and fc/sqrt(2)
 
     def model_record(cut, noise):  # the whole band without noise (as the answer it is compared with), or a band
-        f2 = fs.copy() if cut is None else lowpass(fs, h, cut)
+        f2 = fs.copy() if cut is None else lowpass(fs, h, cut, spectrum=spec_s)
         if noise is not None:  # the record's noise at that band: the method's thresholds as on the record
             nz.declare(f2, *noise)
         changes = {"f": f2, "taps": None, "memo": {}, "info": {**record.info, "cutoff_hz": cut}}
         if from_approach:
             za, _, i0 = record.approach
-            fa2 = fa.copy() if cut is None else lowpass(fa, h, cut, periodic=False)
+            fa2 = fa.copy() if cut is None else lowpass(fa, h, cut, periodic=False, spectrum=spec_a)
             i1 = first_contact_minimum(fa2) if cut is None else well_in_band(fa2, i0, h, cut)
             changes.update(approach=(za, fa2, i1), z1=float(za[i1]))
         return dataclasses.replace(record, **changes)

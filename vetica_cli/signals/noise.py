@@ -175,16 +175,19 @@ def harmonic_spectrum(power: np.ndarray, n: int, h: float, drive_hz: float,
     if edges[-1] < top:
         edges.append(top + 1e-9)
     f_lo, f_hi, noise, signal = [], [], [], []
+    # frac (and frac at the harmonics) increases with the bin: a band lo <= frac < hi is a slice of the bins
+    frac_h = frac[harm_idx]
     lo = edges[0]
     for hi in edges[1:]:
-        sel = (frac >= lo) & (frac < hi)
-        nsel = sel & noise_mask
-        if np.count_nonzero(nsel) < MIN_NOISE_BINS and hi < edges[-1]:
+        a, b = np.searchsorted(frac, (lo, hi))
+        in_band = noise_mask[a:b]
+        if np.count_nonzero(in_band) < MIN_NOISE_BINS and hi < edges[-1]:
             continue  # merge with the next band
-        if np.count_nonzero(nsel) < 2:
+        if np.count_nonzero(in_band) < 2:
             break
-        nmean = float(np.median(power[nsel])) / math.log(2.0)
-        hsel = harm_idx[(frac[harm_idx] >= lo) & (frac[harm_idx] < hi)]
+        nmean = float(np.median(power[a:b][in_band])) / math.log(2.0)
+        ha, hb = np.searchsorted(frac_h, (lo, hi))
+        hsel = harm_idx[ha:hb]
         hp = power if harmonic_power is None else harmonic_power
         hmean = float(np.mean(hp[hsel])) if len(hsel) else 0.0
         f_lo.append(lo * drive_hz)

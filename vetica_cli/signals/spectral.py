@@ -119,15 +119,22 @@ def bernoulli_correction(jumps: np.ndarray, n: int, h: float) -> tuple[np.ndarra
     b = np.zeros(n)
     b1 = np.zeros(n)
     b2 = np.zeros(n)
+    grids = {}  # B_m(k/n) by m: each polynomial evaluated once for b, b' and b''
+
+    def grid(m):
+        if m not in grids:
+            grids[m] = _bernoulli_on_grid(m, n)
+        return grids[m]
+
     for j, jump in enumerate(jumps):
         if jump == 0.0:  # a jump left out (below the noise) adds nothing
             continue
         m = j + 1
         a = jump * length**j / math.factorial(m)
-        b += a * _bernoulli_on_grid(m, n)
-        b1 += a * m * _bernoulli_on_grid(m - 1, n) / length
+        b += a * grid(m)
+        b1 += a * m * grid(m - 1) / length
         if m >= 2:
-            b2 += a * m * (m - 1) * _bernoulli_on_grid(m - 2, n) / length**2
+            b2 += a * m * (m - 1) * grid(m - 2) / length**2
     return b, b1, b2
 
 
