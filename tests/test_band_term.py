@@ -85,3 +85,30 @@ def test_the_low_pass_is_the_transform_of_the_segment_and_its_mirror_image(n, pe
         got = lowpass(x, h, fc, periodic=periodic)
         assert np.max(np.abs(got - want)) <= 1e-12 * np.max(np.abs(x))
         assert np.array_equal(lowpass(x, h, fc, periodic=periodic, spectrum=shared), got)
+
+
+def test_a_narrower_band_declares_the_records_noise_through_it(monkeypatch):
+    """The band term's narrower bands (fc/sqrt(2), fc/2) carry the record's noise as white noise
+    through a narrower band would: its RMS by sqrt(fc2/fc), its white equivalent (the density) as
+    it was, the smear by the step.  Measured afresh on the low-passed force the noise read ~1e-25 N
+    (the spectrum's bands above fc2 are empty), and a narrower band then took noise 127 nm above
+    the surface for the approach's first contact."""
+    from vetica_cli.extraction import uncertainty
+    from vetica_cli.signals import noise as nz
+
+    made = []
+    band_record = uncertainty.band_record
+
+    def spy(record, step, spectra=None):
+        out = band_record(record, step, spectra)
+        made.append((record, step, out, nz.declared(record.f), None if out is None else nz.declared(out.f)))
+        return out
+
+    monkeypatch.setattr(uncertainty, "band_record", spy)
+    run = simulate(load(None, {"numerics.temperature": 300, "numerics.record_cycles": 4, "numerics.print_step": 0.5e-9}))
+    extract_many(run.frame(), run.metadata(), "reconstructed", {"full": {}})
+    assert {step for _, step, *_ in made} == {math.sqrt(2.0), 2.0}
+    for rec, step, out, d, d2 in made:
+        assert d is not None and d[0] > 1e-11  # 300 K through the paddle: ~0.2 nN
+        assert d2 == pytest.approx((d[0] / math.sqrt(step), d[1], d[2] * step), rel=1e-12)
+        assert abs(out.z1 - rec.z1) < 0.1e-9  # the well stays where the record has it, within a smear's travel

@@ -155,10 +155,10 @@ def band_record(record, step: float, spectra: dict | None = None):
 
     spectra = {} if spectra is None else spectra
     f2 = lowpass(record.f, h, fc2, spectrum=spectra.setdefault("f", Spectrum(record.f)))
-    drive = (record.info.get("noise") or {}).get("drive_hz")
-    choice = nz.measure(f2, h, drive, cutoff_hz=fc2) if drive else None
-    if choice is not None:
-        nz.declare(f2, choice.noise_rms, choice.white_equivalent, choice.spectrum.nyquist / fc2)
+    # the record's noise through the narrower band (white within the band: its RMS by sqrt(fc2/fc), its white
+    # equivalent kept, the smear by step); measured afresh on the low-passed force it read ~1e-25 N (the bands
+    # above fc2 are empty and cap the floor), and the narrower band's thresholds took noise for contacts
+    nz.declare(f2, d[0] / math.sqrt(step), d[1], d[2] * step)
     changes = {"f": f2, "taps": None, "info": {**record.info, "cutoff_hz": fc2}}
     if record.approach is not None and str(record.info.get("z1_source", "")).startswith("approach"):
         za, fa, i0 = record.approach
