@@ -11,6 +11,15 @@ then edited as in this version's ``tapsigmas``, the larger of its two propagatio
     git archive ad810cf vetica_cli | tar -x -C /tmp/old
     PYTHONPATH=/tmp/old python scripts/tap_pass_reference.py tests/data/tap_pass_reference.json
 
+The two 300 K records' entries were then rewritten by this script on the version whose noisy
+recording kernel pulls the surface by the fine kernel's rule (the records changed: their forces
+moved by up to 0.5 % of the peak on the stiff surface and 9 % on the soft one, which snaps to the tip,
+at the contact onsets) and whose band term declares the
+record's noise through its narrower bands: for them the file is a regression reference of that
+version, not the Python path's (the noise-free entries still are), run as
+
+    PYTHONPATH=. python -c "..."  # estimates() of the two 300 K records, merged into the file
+
 The file holds ``{"records": {name: config overrides}, "estimates": {name: {"force/method": {quantity:
 [value, relative sigma, identifiable]}}}}`` (None where the method gives none).
 """

@@ -150,7 +150,7 @@ def tap_sigmas(res: ExtractionResult, record, method, options) -> tuple[dict, di
             changes = [m[q].value - e.value for m in moved if q in m and m[q].value and e.value]
             if changes:
                 grad_kg[q] = max(changes, key=abs) / (hk * abs(e.value))  # d ln q / d ln Kg
-    g_tau = grad_z1.get("tau_c")
+    g_tau, g_kg = grad_z1.get("tau_c"), grad_kg.get("k_g")
     sls = log_gradients(values)
     sig = {}
     for q, e in est.items():
@@ -172,10 +172,12 @@ def tap_sigmas(res: ExtractionResult, record, method, options) -> tuple[dict, di
             sig[q] = math.inf
     info = {"source": "spread over taps (standard error of the tap means, t-scaled), Z1 term by reruns with Z1 "
                       "moved by +-2 sigma", "z1_sigma_m": s_z1,
-            # d ln q / d ln tau_c (through Z1, Kr's refit included) and d ln q / d ln Kg: how far a stage's error
-            # reaches the quantities computed from it (tapchecks.stage_dependents)
+            # d ln q / d ln tau_c (through Z1, Kr's refit included) and d ln q / d ln Kg (through the slopes'
+            # scale, per the reported Kg's own change: on a 300 K lab record vetica-prestress's Kg moved by 0.036 of
+            # the scale, and k0 = Kg - Kr, +314 % off with Kg flagged +264 %, read a reach of 0.036 x 2.64 < 10 %):
+            # how far a stage's error reaches the quantities computed from it (tapchecks.stage_dependents)
             "gradient": {"tau_c": {q: gz / g_tau for q, gz in grad_z1.items() if g_tau and math.isfinite(gz / g_tau)},
-                         "k_g": {q: g for q, g in grad_kg.items() if math.isfinite(g)}}}  # fmt: skip
+                         "k_g": {q: g / g_kg for q, g in grad_kg.items() if g_kg and math.isfinite(g / g_kg)}}}  # fmt: skip
     return sig, info
 
 
