@@ -2,7 +2,7 @@
 :meth:`~vetica_cli.extraction.base.ExtractionMethod.checks` hook.  Each check is described in
 :mod:`vetica_cli.extraction.sanity`'s docstring (the shared thresholds live there): the fit's
 RMS residual against the noise floor, a fitted height with a dashpot that hardly creeps,
-the height pinned at eq. 84's Z1 (:func:`height_freedom`), and the fitted contact height
+the height pinned at the undeformed surface eq. 84's Z1 stands on (:func:`height_freedom`), and the fitted contact height
 against eq. 84's lift bracket.
 """
 
@@ -88,7 +88,7 @@ def fit_checks(method, res: ExtractionResult, record, options: dict, info: dict)
     pinned = height_freedom(method, res, record, options)
     info["height_pinned_difference"] = pinned
     for q, (rel, value) in pinned.items():
-        flag(res, [q], f"with the height pinned at eq. 84's Z1 the fit gives {value:.4g} ({100 * rel:+.3g} %): the "
+        flag(res, [q], f"with the height pinned at the undeformed surface the fit gives {value:.4g} ({100 * rel:+.3g} %): the "
                         "record does not fix the surface height")  # fmt: skip
     height = fit.get("surface_height_m")
     kg, kr = val.get("k_g"), val.get("k_inf")

@@ -309,7 +309,8 @@ class FullFit(ExtractionMethod):
             rel[q] = (e.value - a.value) / abs(a.value)
             out[q] = math.hypot(e.sigma, rel[q])
         res.__dict__["_pinned"] = (alt, {q: res.estimates[q].sigma for q in rel})  # for the check (not a field)
-        info["height"] = {"source": "the fit with the height pinned at eq. 84's Z1: each quantity's change, in "
+        info["height"] = {"source": "the fit with the height pinned at the undeformed surface (eq. 84's premise): "
+                                    "each quantity's change, in "
                                     "quadrature", "change": rel}  # fmt: skip
         return out, info
 
@@ -319,6 +320,22 @@ class FullFit(ExtractionMethod):
         from .checks import fit_checks
 
         fit_checks(self, res, record, options, info)
+
+    def flag_dependents(self, res: ExtractionResult) -> None:
+        """The SLS's derived quantities carry their parameters' flags where they are the same
+        number or scale with it: ``k_r`` is ``k_inf``; ``tau_c`` and ``tau_r`` scale with ``cd``
+        (a dashpot with only a bound gives its times only a bound).  A `lab` record's k_r was
+        -98 % off at a 26 % sigma, unflagged, while k_inf, the same value, was flagged."""
+        from ..sanity import flag
+
+        est = res.estimates
+        for q, p in (("k_r", "k_inf"), ("k_inf", "k_r"), ("tau_c", "cd"), ("tau_r", "cd")):
+            a, b = est.get(q), est.get(p)
+            if a is None or b is None or a.identifiable is False or b.identifiable is not False:
+                continue
+            if q in ("k_r", "k_inf") and a.value != b.value:  # not the SLS (another model's k_r)
+                continue
+            flag(res, [q], f"computed from {p}, which is flagged: {str(b.reason or '')[:120]}")
 
     def run(self, record: Record, options: dict) -> ExtractionResult:
         """Fit the surface's parameters (and what the record does not say: the surface height,
