@@ -43,8 +43,30 @@ def brownian_steps(s, fb1, fb2, p, a, emi, buf, stride, origin, pos):
     Brownian forces ``fb1[j], fb2[j]`` [N] on the cantilever and the paddle during
     step ``j``.  A sample (``t, z_tip, zc, zp, zb, Fts, X, Xd_1..N``) is written to
     ``buf[pos]`` after every step whose global index is ``origin`` + a multiple of ``stride``
-    (``pos`` < 0 or beyond the buffer: nothing written).  Returns the next ``pos``."""
-    n_arms = len(s) - S_XD
+    (``pos`` < 0 or beyond the buffer: nothing written).  Returns the next ``pos``.
+    The one-replica case of :func:`brownian_steps_batch` (forces given, not scaled)."""
+    pos_r = np.full(1, pos, np.int64)
+    brownian_steps_batch(s.reshape((1, s.shape[0])), fb1.reshape((1, fb1.shape[0])), fb2.reshape((1, fb2.shape[0])),
+                         np.ones((1, 2)), False, p, a, emi, buf.reshape((1, buf.shape[0], buf.shape[1])), stride,
+                         np.full(1, origin, np.int64), pos_r)  # fmt: skip
+    return pos_r[0]
+
+
+@njit(cache=True)
+def brownian_steps_batch(s, z1, z2, sig, scaled, p, a, emi, buf, stride, origin, pos):
+    """``z1.shape[1]`` Verlet steps of ``R = s.shape[0]`` independent replicas (one state
+    ``s[r]`` each, updated in place; the same coefficients ``p, a, emi``), the replica loop
+    inside the step loop, so that the replicas' serial chains (the out-of-contact fixed point
+    of the surface position: a division per iteration) overlap in the CPU.  Replica ``r``'s
+    Brownian forces during step ``j``: ``0.0 + sig[r, 0] * z1[r, j]`` and ``0.0 + sig[r, 1] *
+    z2[r, j]`` when ``scaled`` (``z`` standard normal: the numbers ``Generator.normal(0, sig, n)``
+    gives from the same stream), else ``z1[r, j], z2[r, j]`` themselves.  Its samples go to
+    ``buf[r, pos[r]]`` on the recording grid ``origin[r]`` + multiples of ``stride`` (``pos[r]``
+    < 0 or beyond the buffer: nothing written; ``pos`` updated in place).  Each replica's
+    arithmetic is the one-replica kernel's, operation for operation (no fastmath), so its record
+    is bit for bit the one it gets alone."""
+    n_rep = s.shape[0]
+    n_arms = s.shape[1] - S_XD
     dt = p[P_DT]
     hdt = 0.5 * dt
     m1, m2, k1, k2, c1, c2 = p[P_M1], p[P_M2], p[P_K1], p[P_K2], p[P_C1], p[P_C2]
@@ -58,79 +80,97 @@ def brownian_steps(s, fb1, fb2, p, a, emi, buf, stride, origin, pos):
     omer = a[A_OMER]
     lin = a[A_LIN]
     g = a[A_G]
-    xd = s[S_XD:].copy()
-    tmp = np.empty(n_arms)
-    n, zc, vc, zp, vp, zb, contact, th = PR.load(s, p)
-    cw, sw = math.cos(th), math.sin(th)
-    z_tip = zb + zc + zp
-    if contact:
-        x = z_tip - a0
-        fts = -contact_force(x, xd, p, a) - fa_c
-    else:
-        x, fa = surface_position(z_tip, xd, p, a, False)
-        fts = -fa
-    n_buf = buf.shape[0]
-    for j in range(len(fb1)):
-        f1 = fb1[j]
-        f2 = fb2[j]
-        # first half kick with the forces at the start of the step
-        vc += hdt * (-k1 * zc - c1 * vc + f0 * cw + fts + f1) / m1
-        vp += hdt * (-k2 * zp - c2 * vp + fts + f2) / m2
-        zc += dt * vc
-        zp += dt * vp
-        cw, sw = cw * cr - sw * sr, sw * cr + cw * sr
-        n += 1
+    xd = s[:, S_XD:].copy()
+    tmp = np.empty((n_rep, n_arms))
+    # each replica's probe, drive phase, surface and force (its registers, kept in arrays between steps)
+    nn = np.empty(n_rep, np.int64)
+    zc_r, vc_r, zp_r, vp_r, zb_r = np.empty(n_rep), np.empty(n_rep), np.empty(n_rep), np.empty(n_rep), np.empty(n_rep)
+    cw_r, sw_r, x_r, fts_r = np.empty(n_rep), np.empty(n_rep), np.empty(n_rep), np.empty(n_rep)
+    contact_r = np.empty(n_rep, np.bool_)
+    for r in range(n_rep):
+        n, zc, vc, zp, vp, zb, contact, th = PR.load(s[r], p)
         z_tip = zb + zc + zp
-        x_last = x
-        if not contact:
-            x, fa = surface_position(z_tip, xd, p, a, False)
-            if z_tip - x > a0:
-                for i in range(n_arms):
-                    acc = g[i] * fa
-                    for k in range(n_arms):
-                        acc += emi[i, k] * xd[k]
-                    tmp[i] = acc
-                for i in range(n_arms):
-                    xd[i] += tmp[i]
-                fts = -fa
-            else:
-                contact = True
         if contact:
             x = z_tip - a0
-            for i in range(n_arms):
-                xd[i] += omer[i] * (x - xd[i]) - lin[i] * (x - x_last)
-            f_sls = kinf * x
-            for i in range(n_arms):
-                f_sls += k_arm[i] * (x - xd[i])
-            if f_sls > sep_thr:
-                contact = False
-                xs = 0.0
-                for i in range(n_arms):
-                    xs += k_arm[i] * xd[i]
-                x = (xs + fa_sep) * invkg
-                fts = -fa0
+            fts = -contact_force(x, xd[r], p, a) - fa_c
+        else:
+            x, fa = surface_position(z_tip, xd[r], p, a, False)
+            fts = -fa
+        nn[r], zc_r[r], vc_r[r], zp_r[r], vp_r[r], zb_r[r], contact_r[r] = n, zc, vc, zp, vp, zb, contact
+        cw_r[r], sw_r[r], x_r[r], fts_r[r] = math.cos(th), math.sin(th), x, fts
+    n_buf = buf.shape[1]
+    for j in range(z1.shape[1]):
+        for r in range(n_rep):
+            if scaled:
+                f1 = 0.0 + sig[r, 0] * z1[r, j]
+                f2 = 0.0 + sig[r, 1] * z2[r, j]
             else:
-                fts = -f_sls - fa_c
-        # second half kick, damping implicit
-        vc = (vc + hdt * (-k1 * zc + f0 * cw + fts + f1) / m1) / den1
-        vp = (vp + hdt * (-k2 * zp + fts + f2) / m2) / den2
-        if (n - origin) % stride == 0 and 0 <= pos < n_buf:
-            buf[pos, 0] = n * dt
-            buf[pos, 1] = z_tip
-            buf[pos, 2] = zc
-            buf[pos, 3] = zp
-            buf[pos, 4] = zb
-            buf[pos, 5] = fts
-            buf[pos, 6] = x
-            for i in range(n_arms):
-                buf[pos, 7 + i] = xd[i]
-            pos += 1
-    s[S_ZC], s[S_VC], s[S_ZP], s[S_VP] = zc, vc, zp, vp
-    s[S_IDX] = n
-    s[S_CONTACT] = 1.0 if contact else 0.0
-    for i in range(n_arms):
-        s[S_XD + i] = xd[i]
-    return pos
+                f1 = z1[r, j]
+                f2 = z2[r, j]
+            n, zc, vc, zp, vp, zb, contact = nn[r], zc_r[r], vc_r[r], zp_r[r], vp_r[r], zb_r[r], contact_r[r]
+            cw, sw, x, fts = cw_r[r], sw_r[r], x_r[r], fts_r[r]
+            xr = xd[r]
+            # first half kick with the forces at the start of the step
+            vc += hdt * (-k1 * zc - c1 * vc + f0 * cw + fts + f1) / m1
+            vp += hdt * (-k2 * zp - c2 * vp + fts + f2) / m2
+            zc += dt * vc
+            zp += dt * vp
+            cw, sw = cw * cr - sw * sr, sw * cr + cw * sr
+            n += 1
+            z_tip = zb + zc + zp
+            x_last = x
+            if not contact:
+                x, fa = surface_position(z_tip, xr, p, a, False)
+                if z_tip - x > a0:
+                    for i in range(n_arms):
+                        acc = g[i] * fa
+                        for k in range(n_arms):
+                            acc += emi[i, k] * xr[k]
+                        tmp[r, i] = acc
+                    for i in range(n_arms):
+                        xr[i] += tmp[r, i]
+                    fts = -fa
+                else:
+                    contact = True
+            if contact:
+                x = z_tip - a0
+                for i in range(n_arms):
+                    xr[i] += omer[i] * (x - xr[i]) - lin[i] * (x - x_last)
+                f_sls = kinf * x
+                for i in range(n_arms):
+                    f_sls += k_arm[i] * (x - xr[i])
+                if f_sls > sep_thr:
+                    contact = False
+                    xs = 0.0
+                    for i in range(n_arms):
+                        xs += k_arm[i] * xr[i]
+                    x = (xs + fa_sep) * invkg
+                    fts = -fa0
+                else:
+                    fts = -f_sls - fa_c
+            # second half kick, damping implicit
+            vc = (vc + hdt * (-k1 * zc + f0 * cw + fts + f1) / m1) / den1
+            vp = (vp + hdt * (-k2 * zp + fts + f2) / m2) / den2
+            ps = pos[r]
+            if (n - origin[r]) % stride == 0 and 0 <= ps < n_buf:
+                buf[r, ps, 0] = n * dt
+                buf[r, ps, 1] = z_tip
+                buf[r, ps, 2] = zc
+                buf[r, ps, 3] = zp
+                buf[r, ps, 4] = zb
+                buf[r, ps, 5] = fts
+                buf[r, ps, 6] = x
+                for i in range(n_arms):
+                    buf[r, ps, 7 + i] = xr[i]
+                pos[r] = ps + 1
+            nn[r], zc_r[r], vc_r[r], zp_r[r], vp_r[r], contact_r[r] = n, zc, vc, zp, vp, contact
+            cw_r[r], sw_r[r], x_r[r], fts_r[r] = cw, sw, x, fts
+    for r in range(n_rep):
+        s[r, S_ZC], s[r, S_VC], s[r, S_ZP], s[r, S_VP] = zc_r[r], vc_r[r], zp_r[r], vp_r[r]
+        s[r, S_IDX] = nn[r]
+        s[r, S_CONTACT] = 1.0 if contact_r[r] else 0.0
+        for i in range(n_arms):
+            s[r, S_XD + i] = xd[r, i]
 
 
 @njit(cache=True)

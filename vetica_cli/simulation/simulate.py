@@ -52,7 +52,7 @@ from ..io import segments_table
 from .config import Config, load
 from .instrument import apply_instrument
 from .observables import compute_observables
-from .thermal import add_thermal
+from .thermal import add_thermal, add_thermal_batch
 
 if TYPE_CHECKING:
     import pandas as pd
@@ -305,19 +305,38 @@ def replicas(cfg: Config, seeds) -> list[Run]:
     found once and only the noise (thermal recording, detector) is redone per seed, each
     run the one :func:`simulate` gives at that seed.  For studies of the noise (coverage of
     the standard errors)."""
-    import copy
     import dataclasses
 
     run, kern, s0, d = _noise_free(cfg)
+    configs = [dataclasses.replace(cfg, numerics=dataclasses.replace(cfg.numerics, noise_seed=int(seed)))
+               for seed in seeds]  # fmt: skip
+    return _noisy_runs(run, kern, s0, d, configs)
+
+
+THERMAL_BATCH = 4  # replicas whose thermal recordings advance together (scripts/thermal_batch_timing.py)
+
+
+def _noisy_runs(run, kern, s0, d, configs) -> list[Run]:
+    """Copies of the noise-free ``run`` with each configuration's noise (thermal recording, then the
+    detector's), the thermal recordings :data:`THERMAL_BATCH` at a time; each run the one
+    :func:`simulate` gives at its configuration (bit for bit)."""
+    import copy
+
     out = []
-    for seed in seeds:
-        c = dataclasses.replace(cfg, numerics=dataclasses.replace(cfg.numerics, noise_seed=int(seed)))
-        r = copy.copy(run)
-        r.approach, r.steady, r.info, r.params = run.approach.copy(), run.steady.copy(), dict(run.info), c.to_dict()
+    for i in range(0, len(configs), THERMAL_BATCH):
+        group = configs[i : i + THERMAL_BATCH]
+        runs = []
+        for c in group:
+            r = copy.copy(run)
+            hot = kern is not None and bool(c.numerics.temperature)  # its steady record is replaced: no copy
+            steady = run.steady if hot else run.steady.copy()
+            r.approach, r.steady, r.info, r.params = run.approach.copy(), steady, dict(run.info), c.to_dict()
+            runs.append(r)
         if kern is not None:
-            add_thermal(r, kern, s0, c, d)
-        apply_instrument(r, c)
-        out.append(r)
+            add_thermal_batch(runs, kern, s0, group, d)
+        for r, c in zip(runs, group):
+            apply_instrument(r, c)
+        out += runs
     return out
 
 
@@ -338,7 +357,6 @@ def replica_set(cfg: Config, n: int) -> tuple[Run, list[Run]]:
     :data:`REFERENCE_TEMPERATURE` when the point is at a temperature (its discretisation differs
     from the fine kernel's by more than a thermal error bar), without the detector's noise and
     quantisation -- all from one solution of the noise-free orbit."""
-    import copy
     import dataclasses
 
     run, kern, s0, d = _noise_free(cfg)
@@ -348,14 +366,7 @@ def replica_set(cfg: Config, n: int) -> tuple[Run, list[Run]]:
     configs = [dataclasses.replace(cfg, numerics=quiet)]
     configs += [dataclasses.replace(cfg, numerics=dataclasses.replace(cfg.numerics, noise_seed=seed))
                 for seed in replica_seeds(cfg.numerics.noise_seed, n)]  # fmt: skip
-    out = []
-    for c in configs:
-        r = copy.copy(run)
-        r.approach, r.steady, r.info, r.params = run.approach.copy(), run.steady.copy(), dict(run.info), c.to_dict()
-        if kern is not None and c.numerics.temperature:
-            add_thermal(r, kern, s0, c, d)
-        apply_instrument(r, c)
-        out.append(r)
+    out = _noisy_runs(run, kern, s0, d, configs)
     return out[0], out[1:]
 
 
