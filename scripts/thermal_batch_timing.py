@@ -6,9 +6,10 @@ together in one kernel call (``thermal_records``), at R = 1, 2, 4, 8.
     PYTHONPATH=. python scripts/thermal_batch_timing.py --replica-set 30  # also replica_set(cfg, 30), whole
 
 CPU time (``time.process_time``), medians of ``--repeats`` runs (the machine is shared: wall
-time is noise).  The one-at-a-time column is ``thermal_record`` per replica (on a checkout
-without ``thermal_records`` only that column is measured: the numbers before the batch).  The
-noise-free orbit is solved once, outside the timings; every timed call records from it.
+time is noise).  The one-at-a-time column is ``thermal_record`` per replica (the path
+``simulate`` takes), the batched one ``thermal_records`` of R replicas divided by R; both draw
+the noise and run the kernel.  The noise-free orbit is solved once, outside the timings; every
+timed call records from it.
 """
 
 from __future__ import annotations
@@ -49,22 +50,22 @@ def main() -> None:
         k, v = kv.split("=", 1)
         ov[k] = _value(v)
     cfg = load(None, ov)
-    run, kern, s0, d = S._noise_free(cfg)
+    run, kern, s0, d = S.noise_free_point(cfg)
     print(f"steps per period {kern.nt}, periods {T.SETTLE_CYCLES + cfg.numerics.record_cycles}, "
           f"samples {d.n_steady}, arms {kern.n_arms}, repeats {args.repeats} (medians, CPU s)")  # fmt: skip
-    rngs = lambda n, k: [np.random.default_rng([1000 * k + i, T._SEED_SALT]) for i in range(n)]  # noqa: E731
+
+    def rngs(n, k):  # the generators of n replicas, another set for each repeat k
+        return [np.random.default_rng([k, i]) for i in range(n)]
+
     T.thermal_record(kern, s0, cfg, d, rngs(1, 0)[0])  # compiled and warm
-    single = statistics.median(cpu(lambda: T.thermal_record(kern, s0, cfg, d, rngs(1, k)[0])) for k in range(args.repeats))
+    single = statistics.median(cpu(lambda: T.thermal_record(kern, s0, cfg, d, rngs(1, k)[0]))
+                               for k in range(args.repeats))  # fmt: skip
     print(f"{'R':>3} {'one at a time':>14} {'batched':>10} {'ratio':>7}   [CPU s per replica]")
-    batch = getattr(T, "thermal_records", None)
-    if batch is None:
-        print(f"{'-':>3} {single:14.3f} {'-':>10} {'-':>7}")
-    else:
-        for n in (int(x) for x in args.sizes.split(",")):
-            batch(kern, s0, [cfg] * n, d, rngs(n, 0))  # warm at this size (memory)
-            per = statistics.median(cpu(lambda: batch(kern, s0, [cfg] * n, d, rngs(n, k))) / n
-                                    for k in range(args.repeats))  # fmt: skip
-            print(f"{n:3d} {single:14.3f} {per:10.3f} {single / per:7.2f}")
+    for n in (int(x) for x in args.sizes.split(",")):
+        T.thermal_records(kern, s0, [cfg] * n, d, rngs(n, 0))  # warm at this size (memory)
+        per = statistics.median(cpu(lambda: T.thermal_records(kern, s0, [cfg] * n, d, rngs(n, k))) / n
+                                for k in range(args.repeats))  # fmt: skip
+        print(f"{n:3d} {single:14.3f} {per:10.3f} {single / per:7.2f}")
     if args.replica_set:
         times = [cpu(lambda: S.replica_set(cfg, args.replica_set)) for _ in range(args.repeats)]
         print(f"replica_set(cfg, {args.replica_set}): median {statistics.median(times):.2f} CPU s "

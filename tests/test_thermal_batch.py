@@ -29,7 +29,7 @@ def point(request):
     """``(cfg, run, kern, s0, d)``: the noise-free orbit of the default SLS point or of the two-arm
     Wiechert surface of configs/wiechert.yaml, solved once."""
     cfg = load(None if request.param == "sls" else "configs/wiechert.yaml", FAST)
-    run, kern, s0, d = S._noise_free(cfg)
+    run, kern, s0, d = S.noise_free_point(cfg)
     assert kern.n_arms == (1 if request.param == "sls" else 2)
     return cfg, run, kern, s0, d
 
@@ -38,8 +38,9 @@ def _at(cfg, **numerics):
     return dataclasses.replace(cfg, numerics=dataclasses.replace(cfg.numerics, **numerics))
 
 
-def _rng(seed):
-    return np.random.default_rng([seed, thermal._SEED_SALT])
+def _rng(cfg, seed):
+    """The thermal generator of ``cfg`` at ``numerics.noise_seed = seed``."""
+    return thermal.generator(_at(cfg, noise_seed=seed))
 
 
 def _contact_samples(rec, a0):
@@ -53,7 +54,7 @@ def _record_with_normal_draws(kern, s0, cfg, d, rng):
     st = kern.setup
     p, a, emi = kern.coef[0], kern.coef[1], kern.coef[2]
     s = np.array(s0, float).copy()
-    thermal._kick(s, cfg, d, rng)
+    thermal.equipartition_kick(s, cfg, d, rng)
     sig1, sig2 = (thermal.step_sigma(m, k, q, cfg.numerics.temperature, st.dt) for (m, k, q) in thermal.modes(cfg, d))
     buf = np.zeros((d.n_steady, 7 + kern.n_arms))
     pos, origin = -1, 0
@@ -70,11 +71,12 @@ def test_standard_normal_scaled_in_the_kernel_is_the_normal_draw():
     """``0.0 + s * standard_normal(n, out=...)`` equals ``normal(0, s, n)`` from the same stream,
     element for element (numpy computes ``loc + scale * z``), -0.0 included: the kernel's scaling
     gives the forces the generator gave before, so bit-identity is the right test."""
+    cfg = load(None, FAST)
     for seed in SEEDS:
         s = 3.7e-11
-        ref = _rng(seed).normal(0.0, s, 100_000)
+        ref = _rng(cfg, seed).normal(0.0, s, 100_000)
         z = np.empty(100_000)
-        _rng(seed).standard_normal(100_000, out=z)
+        _rng(cfg, seed).standard_normal(100_000, out=z)
         got = 0.0 + s * z
         assert np.array_equal(ref, got) and np.array_equal(np.signbit(ref), np.signbit(got))
 
@@ -86,7 +88,7 @@ def test_thermal_record_is_the_record_drawn_with_normal(point):
     is unchanged by the batch."""
     cfg, run, kern, s0, d = point
     for seed in SEEDS:
-        r1, r2 = _rng(seed), _rng(seed)
+        r1, r2 = _rng(cfg, seed), _rng(cfg, seed)
         got = thermal.thermal_record(kern, s0, cfg, d, r1)
         ref = _record_with_normal_draws(kern, s0, cfg, d, r2)
         assert got.shape == ref.shape == (d.n_steady, 7 + kern.n_arms)
@@ -102,10 +104,10 @@ def test_batched_records_equal_one_at_a_time(point):
     cfg, run, kern, s0, d = point
     cfgs = [_at(cfg, noise_seed=s) for s in SEEDS] + [_at(cfg, temperature=S.REFERENCE_TEMPERATURE)]
     seeds = list(SEEDS) + [99]
-    rngs = [_rng(s) for s in seeds]
+    rngs = [_rng(cfg, s) for s in seeds]
     batch = thermal.thermal_records(kern, s0, cfgs, d, rngs)
     for c, seed, rng, rec in zip(cfgs, seeds, rngs, batch):
-        alone_rng = _rng(seed)
+        alone_rng = _rng(cfg, seed)
         alone = thermal.thermal_record(kern, s0, c, d, alone_rng)
         assert rec.shape == alone.shape == (d.n_steady, 7 + kern.n_arms)
         assert np.array_equal(rec, alone)
@@ -120,7 +122,6 @@ def test_replicas_and_replica_set_equal_one_at_a_time(point, monkeypatch):
     thermal motion, detector noise) and thermal metadata bit for bit as with one replica per
     kernel call, the path ``simulate`` takes."""
     cfg, run, kern, s0, d = point
-    monkeypatch.setattr(S, "_noise_free", lambda c: (run, kern, s0, d))  # the orbit once for all calls
     batched = S.replicas(cfg, [3, 4, 5, 6, 8]), S.replica_set(cfg, 4)
     monkeypatch.setattr(S, "THERMAL_BATCH", 1)
     single = S.replicas(cfg, [3, 4, 5, 6, 8]), S.replica_set(cfg, 4)

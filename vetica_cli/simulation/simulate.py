@@ -293,7 +293,7 @@ def run_info(rr: engine.RunResult, st: engine.KernelSetup, d: Derived) -> dict:
 
 def simulate(cfg: Config) -> Run:
     """Run one point to its steady state and record it (approach, steady state, recorded window)."""
-    run, kern, s0, d = _noise_free(cfg)
+    run, kern, s0, d = noise_free_point(cfg)
     if kern is not None:
         add_thermal(run, kern, s0, cfg, d)  # noisy recorded periods from the noise-free orbit
     apply_instrument(run, cfg)
@@ -307,7 +307,7 @@ def replicas(cfg: Config, seeds) -> list[Run]:
     the standard errors)."""
     import dataclasses
 
-    run, kern, s0, d = _noise_free(cfg)
+    run, kern, s0, d = noise_free_point(cfg)
     configs = [dataclasses.replace(cfg, numerics=dataclasses.replace(cfg.numerics, noise_seed=int(seed)))
                for seed in seeds]  # fmt: skip
     return _noisy_runs(run, kern, s0, d, configs)
@@ -359,7 +359,7 @@ def replica_set(cfg: Config, n: int) -> tuple[Run, list[Run]]:
     quantisation -- all from one solution of the noise-free orbit."""
     import dataclasses
 
-    run, kern, s0, d = _noise_free(cfg)
+    run, kern, s0, d = noise_free_point(cfg)
     quiet = dataclasses.replace(cfg.numerics, position_noise=0.0, force_noise=0.0, adc_resolution=0.0,
                                 detector_noise_density=0.0,
                                 temperature=REFERENCE_TEMPERATURE if cfg.numerics.temperature else 0.0)  # fmt: skip
@@ -370,7 +370,7 @@ def replica_set(cfg: Config, n: int) -> tuple[Run, list[Run]]:
     return out[0], out[1:]
 
 
-def _noise_free(cfg: Config):
+def noise_free_point(cfg: Config):
     """The point's noise-free run (orbit, records, observables) and what the thermal
     recording starts from: ``(run, kernel or None, state at the window start, derived)``."""
     d = derive(cfg)

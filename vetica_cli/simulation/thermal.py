@@ -135,7 +135,7 @@ def modes(cfg, d):
     return [(d.m1, p.k1, p.q1), (d.m2, p.k2, p.q2)]
 
 
-def _kick(s, cfg, d, rng) -> None:
+def equipartition_kick(s, cfg, d, rng) -> None:
     """Add the free modes' equipartition draw to the probe of the state ``s`` (in place)."""
     temp = cfg.numerics.temperature
     (m1, k1, q1), (m2, k2, q2) = modes(cfg, d)
@@ -163,7 +163,7 @@ def thermal_records(kern, s0, cfgs, d, rngs) -> list[np.ndarray]:
     s = np.tile(np.array(s0, float), (n_rep, 1))
     sig = np.empty((n_rep, 2))
     for r, (cfg, rng) in enumerate(zip(cfgs, rngs)):
-        _kick(s[r], cfg, d, rng)
+        equipartition_kick(s[r], cfg, d, rng)
         sig[r] = [step_sigma(m, k, q, cfg.numerics.temperature, st.dt) for (m, k, q) in modes(cfg, d)]
     nt = kern.nt
     buf = np.zeros((n_rep, d.n_steady, 7 + kern.n_arms))
@@ -212,7 +212,7 @@ def approach_response(z_noisy, z_clean, st, d) -> np.ndarray:
 APPROACH_PASSES = 2  # reaction-then-force passes of the approach window (the change of z_tip after 2: < 1e-3 pm)
 
 
-def _generator(cfg):
+def generator(cfg):
     """The thermal noise's generator of a configuration (its ``numerics.noise_seed``)."""
     return np.random.default_rng([cfg.numerics.noise_seed, _SEED_SALT])
 
@@ -228,7 +228,7 @@ def add_thermal_batch(runs, kern, s0, cfgs, d) -> None:
     differing at most in their noise), the recorded periods advanced together
     (:func:`thermal_records`); each run as :func:`add_thermal` alone makes it, bit for bit."""
     hot = [(run, cfg) for run, cfg in zip(runs, cfgs) if cfg.numerics.temperature]
-    rngs = [_generator(cfg) for _, cfg in hot]
+    rngs = [generator(cfg) for _, cfg in hot]
     records = thermal_records(kern, s0, [cfg for _, cfg in hot], d, rngs)
     for (run, cfg), rng, rec in zip(hot, rngs, records):  # each generator goes on to its approach window
         run.steady = rec
