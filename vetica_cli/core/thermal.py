@@ -43,18 +43,107 @@ _surface_position = njit(inline="always")(surface_position.py_func)
 
 
 @njit(cache=True)
-def brownian_steps(s, fb1, fb2, p, a, emi, buf, stride, origin, pos):
+def brownian_steps(s, fb1, fb2, p, a, emi, buf, stride, origin, pos, sig1=1.0, sig2=1.0, scaled=False):
     """``len(fb1)`` Verlet steps from the state ``s`` (updated in place) with the
     Brownian forces ``fb1[j], fb2[j]`` [N] on the cantilever and the paddle during
     step ``j``.  A sample (``t, z_tip, zc, zp, zb, Fts, X, Xd_1..N``) is written to
     ``buf[pos]`` after every step whose global index is ``origin`` + a multiple of ``stride``
-    (``pos`` < 0 or beyond the buffer: nothing written).  Returns the next ``pos``.
-    The one-replica case of :func:`brownian_steps_batch` (forces given, not scaled)."""
-    pos_r = np.full(1, pos, np.int64)
-    brownian_steps_batch(s.reshape((1, s.shape[0])), fb1.reshape((1, fb1.shape[0])), fb2.reshape((1, fb2.shape[0])),
-                         np.ones((1, 2)), False, p, a, emi, buf.reshape((1, buf.shape[0], buf.shape[1])), stride,
-                         np.full(1, origin, np.int64), pos_r)  # fmt: skip
-    return pos_r[0]
+    (``pos`` < 0 or beyond the buffer: nothing written).  Returns the next ``pos``.  With
+    ``scaled``, ``fb1, fb2`` are standard normal and the forces ``0.0 + sig1 * fb1[j]``, ``0.0 +
+    sig2 * fb2[j]`` (the numbers ``Generator.normal(0, sig, n)`` gives from the same stream).
+    The one-replica twin of :func:`brownian_steps_batch` (the same arithmetic, the state in
+    registers; tests/test_thermal_batch.py holds the two to the same records bit for bit)."""
+    n_arms = len(s) - S_XD
+    dt = p[P_DT]
+    hdt = 0.5 * dt
+    m1, m2, k1, k2, c1, c2 = p[P_M1], p[P_M2], p[P_K1], p[P_K2], p[P_C1], p[P_C2]
+    f0 = p[P_F0]
+    a0, fa0, fa_c, sep_thr, fa_sep, invkg = p[P_A0], p[P_FA0], p[P_FAC], p[P_SEPTHR], p[P_FASEP], p[P_INVKG]
+    kinf = p[P_KINF]
+    cr, sr = p[P_COSDT], p[P_SINDT]
+    den1 = 1.0 + hdt * c1 / m1
+    den2 = 1.0 + hdt * c2 / m2
+    k_arm = a[A_K]
+    omer = a[A_OMER]
+    lin = a[A_LIN]
+    g = a[A_G]
+    xd = s[S_XD:].copy()
+    tmp = np.empty(n_arms)
+    n, zc, vc, zp, vp, zb, contact, th = PR.load(s, p)
+    cw, sw = math.cos(th), math.sin(th)
+    z_tip = zb + zc + zp
+    if contact:
+        x = z_tip - a0
+        fts = -contact_force(x, xd, p, a) - fa_c
+    else:
+        x, fa = _surface_position(z_tip, xd, p, a, False)
+        fts = -fa
+    n_buf = buf.shape[0]
+    for j in range(len(fb1)):
+        if scaled:
+            f1 = 0.0 + sig1 * fb1[j]
+            f2 = 0.0 + sig2 * fb2[j]
+        else:
+            f1 = fb1[j]
+            f2 = fb2[j]
+        # first half kick with the forces at the start of the step
+        vc += hdt * (-k1 * zc - c1 * vc + f0 * cw + fts + f1) / m1
+        vp += hdt * (-k2 * zp - c2 * vp + fts + f2) / m2
+        zc += dt * vc
+        zp += dt * vp
+        cw, sw = cw * cr - sw * sr, sw * cr + cw * sr
+        n += 1
+        z_tip = zb + zc + zp
+        x_last = x
+        if not contact:
+            x, fa = _surface_position(z_tip, xd, p, a, False)
+            if z_tip - x > a0:
+                for i in range(n_arms):
+                    acc = g[i] * fa
+                    for k in range(n_arms):
+                        acc += emi[i, k] * xd[k]
+                    tmp[i] = acc
+                for i in range(n_arms):
+                    xd[i] += tmp[i]
+                fts = -fa
+            else:
+                contact = True
+        if contact:
+            x = z_tip - a0
+            for i in range(n_arms):
+                xd[i] += omer[i] * (x - xd[i]) - lin[i] * (x - x_last)
+            f_sls = kinf * x
+            for i in range(n_arms):
+                f_sls += k_arm[i] * (x - xd[i])
+            if f_sls > sep_thr:
+                contact = False
+                xs = 0.0
+                for i in range(n_arms):
+                    xs += k_arm[i] * xd[i]
+                x = (xs + fa_sep) * invkg
+                fts = -fa0
+            else:
+                fts = -f_sls - fa_c
+        # second half kick, damping implicit
+        vc = (vc + hdt * (-k1 * zc + f0 * cw + fts + f1) / m1) / den1
+        vp = (vp + hdt * (-k2 * zp + fts + f2) / m2) / den2
+        if (n - origin) % stride == 0 and 0 <= pos < n_buf:
+            buf[pos, 0] = n * dt
+            buf[pos, 1] = z_tip
+            buf[pos, 2] = zc
+            buf[pos, 3] = zp
+            buf[pos, 4] = zb
+            buf[pos, 5] = fts
+            buf[pos, 6] = x
+            for i in range(n_arms):
+                buf[pos, 7 + i] = xd[i]
+            pos += 1
+    s[S_ZC], s[S_VC], s[S_ZP], s[S_VP] = zc, vc, zp, vp
+    s[S_IDX] = n
+    s[S_CONTACT] = 1.0 if contact else 0.0
+    for i in range(n_arms):
+        s[S_XD + i] = xd[i]
+    return pos
 
 
 @njit(cache=True)
@@ -68,8 +157,9 @@ def brownian_steps_batch(s, z1, z2, sig, scaled, p, a, emi, buf, stride, origin,
     gives from the same stream), else ``z1[r, j], z2[r, j]`` themselves.  Its samples go to
     ``buf[r, pos[r]]`` on the recording grid ``origin[r]`` + multiples of ``stride`` (``pos[r]``
     < 0 or beyond the buffer: nothing written; ``pos`` updated in place).  Each replica's
-    arithmetic is the one-replica kernel's, operation for operation (no fastmath), so its record
-    is bit for bit the one it gets alone."""
+    arithmetic is :func:`brownian_steps`'s, operation for operation (no fastmath), so its record
+    is bit for bit the one it gets alone (its state lives in arrays between its steps here: R = 1
+    is :func:`brownian_steps`'s job)."""
     n_rep = s.shape[0]
     n_arms = s.shape[1] - S_XD
     dt = p[P_DT]

@@ -177,7 +177,11 @@ def thermal_records(kern, s0, cfgs, d, rngs) -> list[np.ndarray]:
         for r, rng in enumerate(rngs):  # per replica as rng.normal(0, sig, nt) drew them: fb1, then fb2
             rng.standard_normal(nt, out=z1[r])
             rng.standard_normal(nt, out=z2[r])
-        kernel.brownian_steps_batch(s, z1, z2, sig, True, p, a, emi, buf, st.stride, origin, pos)
+        if n_rep == 1:  # the one-replica kernel (its state in registers)
+            pos[0] = kernel.brownian_steps(s[0], z1[0], z2[0], p, a, emi, buf[0], st.stride, origin[0], pos[0],
+                                           sig[0, 0], sig[0, 1], True)  # fmt: skip
+        else:
+            kernel.brownian_steps_batch(s, z1, z2, sig, True, p, a, emi, buf, st.stride, origin, pos)
     return [buf[r, : pos[r]] for r in range(n_rep)]
 
 
