@@ -82,10 +82,10 @@ def test_standard_normal_scaled_in_the_kernel_is_the_normal_draw():
 
 
 def test_thermal_record_is_the_record_drawn_with_normal(point):
-    """``thermal_record`` (standard-normal draws into reused buffers, scaled in the batch kernel at
-    R = 1) gives bit for bit the record of per-period ``rng.normal`` forces through
-    ``brownian_steps``, and leaves the generator where that left it: the single path (``simulate``)
-    is unchanged by the batch."""
+    """``thermal_record`` (standard-normal draws into reused buffers, scaled in the kernel) gives bit
+    for bit the record of per-period ``rng.normal`` forces handed to ``brownian_steps`` as they are
+    (as the recording drew them before), and leaves the generator where that left it: the single
+    path (``simulate``) draws the same forces as before."""
     cfg, run, kern, s0, d = point
     for seed in SEEDS:
         r1, r2 = _rng(cfg, seed), _rng(cfg, seed)
@@ -97,10 +97,12 @@ def test_thermal_record_is_the_record_drawn_with_normal(point):
 
 
 def test_batched_records_equal_one_at_a_time(point):
-    """``thermal_records`` of several replicas (three seeds, and the replica-set reference at
-    1e-9 K, a different force scale, in the same batch) equals each replica's ``thermal_record``
-    alone, bit for bit, in records with contacts (the separation and contact branches differ
-    between replicas), and leaves each generator where the single recording leaves it."""
+    """``thermal_records`` of several replicas (``brownian_steps_batch``: three seeds, and the
+    replica-set reference at 1e-9 K, a different force scale, in the same batch) equals each
+    replica's ``thermal_record`` alone (``brownian_steps``, the one-replica kernel), bit for bit,
+    in records with contacts (the separation and contact branches differ between replicas), and
+    leaves each generator where the single recording leaves it: the two kernels' arithmetic is
+    held to be the same."""
     cfg, run, kern, s0, d = point
     cfgs = [_at(cfg, noise_seed=s) for s in SEEDS] + [_at(cfg, temperature=S.REFERENCE_TEMPERATURE)]
     seeds = list(SEEDS) + [99]

@@ -147,14 +147,14 @@ def brownian_steps(s, fb1, fb2, p, a, emi, buf, stride, origin, pos, sig1=1.0, s
 
 
 @njit(cache=True)
-def brownian_steps_batch(s, z1, z2, sig, scaled, p, a, emi, buf, stride, origin, pos):
+def brownian_steps_batch(s, z1, z2, sig, p, a, emi, buf, stride, origin, pos):
     """``z1.shape[1]`` Verlet steps of ``R = s.shape[0]`` independent replicas (one state
     ``s[r]`` each, updated in place; the same coefficients ``p, a, emi``), the replica loop
     inside the step loop, so that the replicas' serial chains (the out-of-contact fixed point
     of the surface position: a division per iteration) overlap in the CPU.  Replica ``r``'s
     Brownian forces during step ``j``: ``0.0 + sig[r, 0] * z1[r, j]`` and ``0.0 + sig[r, 1] *
-    z2[r, j]`` when ``scaled`` (``z`` standard normal: the numbers ``Generator.normal(0, sig, n)``
-    gives from the same stream), else ``z1[r, j], z2[r, j]`` themselves.  Its samples go to
+    z2[r, j]`` (``z`` standard normal: the numbers ``Generator.normal(0, sig, n)`` gives from the
+    same stream).  Its samples go to
     ``buf[r, pos[r]]`` on the recording grid ``origin[r]`` + multiples of ``stride`` (``pos[r]``
     < 0 or beyond the buffer: nothing written; ``pos`` updated in place).  Each replica's
     arithmetic is :func:`brownian_steps`'s, operation for operation (no fastmath), so its record
@@ -198,12 +198,8 @@ def brownian_steps_batch(s, z1, z2, sig, scaled, p, a, emi, buf, stride, origin,
     n_buf = buf.shape[1]
     for j in range(z1.shape[1]):
         for r in range(n_rep):
-            if scaled:
-                f1 = 0.0 + sig[r, 0] * z1[r, j]
-                f2 = 0.0 + sig[r, 1] * z2[r, j]
-            else:
-                f1 = z1[r, j]
-                f2 = z2[r, j]
+            f1 = 0.0 + sig[r, 0] * z1[r, j]
+            f2 = 0.0 + sig[r, 1] * z2[r, j]
             n, zc, vc, zp, vp, zb, contact = nn[r], zc_r[r], vc_r[r], zp_r[r], vp_r[r], zb_r[r], contact_r[r]
             cw, sw, x, fts = cw_r[r], sw_r[r], x_r[r], fts_r[r]
             xr = xd[r]

@@ -181,7 +181,7 @@ def thermal_records(kern, s0, cfgs, d, rngs) -> list[np.ndarray]:
             pos[0] = kernel.brownian_steps(s[0], z1[0], z2[0], p, a, emi, buf[0], st.stride, origin[0], pos[0],
                                            sig[0, 0], sig[0, 1], True)  # fmt: skip
         else:
-            kernel.brownian_steps_batch(s, z1, z2, sig, True, p, a, emi, buf, st.stride, origin, pos)
+            kernel.brownian_steps_batch(s, z1, z2, sig, p, a, emi, buf, st.stride, origin, pos)
     return [buf[r, : pos[r]] for r in range(n_rep)]
 
 
