@@ -42,13 +42,22 @@ from .sls import vdw_force
 from .tapping import contact_force, surface_position
 
 
+# :func:`.tapping.surface_position`'s own body, compiled into the recording kernel (the start state's surface; a call no
+# more: the replicas' steps sit closer together in the instruction stream); same arithmetic
+_surface_position = njit(inline="always")(surface_position.py_func)
+
+
 @njit(cache=True)
-def brownian_steps(s, fb1, fb2, p, a, emi, buf, stride, origin, pos):
+def brownian_steps(s, fb1, fb2, p, a, emi, buf, stride, origin, pos, sig1=1.0, sig2=1.0, scaled=False):
     """``len(fb1)`` Verlet steps from the state ``s`` (updated in place) with the
     Brownian forces ``fb1[j], fb2[j]`` [N] on the cantilever and the paddle during
     step ``j``.  A sample (``t, z_tip, zc, zp, zb, Fts, X, Xd_1..N``) is written to
     ``buf[pos]`` after every step whose global index is ``origin`` + a multiple of ``stride``
-    (``pos`` < 0 or beyond the buffer: nothing written).  Returns the next ``pos``."""
+    (``pos`` < 0 or beyond the buffer: nothing written).  Returns the next ``pos``.  With
+    ``scaled``, ``fb1, fb2`` are standard normal and the forces ``0.0 + sig1 * fb1[j]``, ``0.0 +
+    sig2 * fb2[j]`` (the numbers ``Generator.normal(0, sig, n)`` gives from the same stream).
+    The one-replica twin of :func:`brownian_steps_batch` (the same arithmetic, the state in
+    registers; tests/test_thermal_batch.py holds the two to the same records bit for bit)."""
     n_arms = len(s) - S_XD
     dt = p[P_DT]
     hdt = 0.5 * dt
@@ -74,12 +83,16 @@ def brownian_steps(s, fb1, fb2, p, a, emi, buf, stride, origin, pos):
         x = z_tip - a0
         fts = -contact_force(x, xd, p, a) - fa_c
     else:
-        x, fa = surface_position(z_tip, xd, p, a, False)
+        x, fa = _surface_position(z_tip, xd, p, a, False)
         fts = -fa
     n_buf = buf.shape[0]
     for j in range(len(fb1)):
-        f1 = fb1[j]
-        f2 = fb2[j]
+        if scaled:
+            f1 = 0.0 + sig1 * fb1[j]
+            f2 = 0.0 + sig2 * fb2[j]
+        else:
+            f1 = fb1[j]
+            f2 = fb2[j]
         # first half kick with the forces at the start of the step
         vc += hdt * (-k1 * zc - c1 * vc + f0 * cw + fts + f1) / m1
         vp += hdt * (-k2 * zp - c2 * vp + fts + f2) / m2
@@ -145,6 +158,138 @@ def brownian_steps(s, fb1, fb2, p, a, emi, buf, stride, origin, pos):
     for i in range(n_arms):
         s[S_XD + i] = xd[i]
     return pos
+
+
+@njit(cache=True)
+def brownian_steps_batch(s, z1, z2, sig, p, a, emi, buf, stride, origin, pos):
+    """``z1.shape[1]`` Verlet steps of ``R = s.shape[0]`` independent replicas (one state
+    ``s[r]`` each, updated in place; the same coefficients ``p, a, emi``), the replica loop
+    inside the step loop, so that the replicas' serial chains (the kicks, the attraction's
+    Newton step, the creep) overlap in the CPU.  Replica ``r``'s
+    Brownian forces during step ``j``: ``0.0 + sig[r, 0] * z1[r, j]`` and ``0.0 + sig[r, 1] *
+    z2[r, j]`` (``z`` standard normal: the numbers ``Generator.normal(0, sig, n)`` gives from the
+    same stream).  Its samples go to
+    ``buf[r, pos[r]]`` on the recording grid ``origin[r]`` + multiples of ``stride`` (``pos[r]``
+    < 0 or beyond the buffer: nothing written; ``pos`` updated in place).  Each replica's
+    arithmetic is :func:`brownian_steps`'s, operation for operation (no fastmath), so its record
+    is bit for bit the one it gets alone (its state lives in arrays between its steps here: R = 1
+    is :func:`brownian_steps`'s job)."""
+    n_rep = s.shape[0]
+    n_arms = s.shape[1] - S_XD
+    dt = p[P_DT]
+    hdt = 0.5 * dt
+    m1, m2, k1, k2, c1, c2 = p[P_M1], p[P_M2], p[P_K1], p[P_K2], p[P_C1], p[P_C2]
+    f0 = p[P_F0]
+    a0, fa0, fa_c, sep_thr, fa_sep, invkg = p[P_A0], p[P_FA0], p[P_FAC], p[P_SEPTHR], p[P_FASEP], p[P_INVKG]
+    kinf = p[P_KINF]
+    hr6, ihr6, vdw = p[P_HR6], p[P_IHR6], p[P_VDW] > 0.0
+    cr, sr = p[P_COSDT], p[P_SINDT]
+    den1 = 1.0 + hdt * c1 / m1
+    den2 = 1.0 + hdt * c2 / m2
+    k_arm = a[A_K]
+    omer = a[A_OMER]
+    lin = a[A_LIN]
+    g = a[A_G]
+    xd = s[:, S_XD:].copy()
+    tmp = np.empty((n_rep, n_arms))
+    # each replica's probe, drive phase, surface and force (its registers, kept in arrays between steps)
+    nn = np.empty(n_rep, np.int64)
+    zc_r, vc_r, zp_r, vp_r, zb_r = np.empty(n_rep), np.empty(n_rep), np.empty(n_rep), np.empty(n_rep), np.empty(n_rep)
+    cw_r, sw_r, x_r, fts_r = np.empty(n_rep), np.empty(n_rep), np.empty(n_rep), np.empty(n_rep)
+    fa_r = np.empty(n_rep)
+    contact_r = np.empty(n_rep, np.bool_)
+    left = np.empty(n_rep, np.int64)  # steps to the replica's next grid point (1..stride): no division a step
+    for r in range(n_rep):
+        n, zc, vc, zp, vp, zb, contact, th = PR.load(s[r], p)
+        z_tip = zb + zc + zp
+        fa = fa0
+        if contact:
+            x = z_tip - a0
+            fts = -contact_force(x, xd[r], p, a) - fa_c
+        else:
+            x, fa = _surface_position(z_tip, xd[r], p, a, False)
+            fts = -fa
+        fa_r[r] = fa
+        nn[r], zc_r[r], vc_r[r], zp_r[r], vp_r[r], zb_r[r], contact_r[r] = n, zc, vc, zp, vp, zb, contact
+        cw_r[r], sw_r[r], x_r[r], fts_r[r] = math.cos(th), math.sin(th), x, fts
+        left[r] = stride - (n - origin[r]) % stride
+    n_buf = buf.shape[1]
+    for j in range(z1.shape[1]):
+        for r in range(n_rep):
+            f1 = 0.0 + sig[r, 0] * z1[r, j]
+            f2 = 0.0 + sig[r, 1] * z2[r, j]
+            n, zc, vc, zp, vp, zb, contact = nn[r], zc_r[r], vc_r[r], zp_r[r], vp_r[r], zb_r[r], contact_r[r]
+            cw, sw, x, fts, fa = cw_r[r], sw_r[r], x_r[r], fts_r[r], fa_r[r]
+            xr = xd[r]
+            # first half kick with the forces at the start of the step
+            vc += hdt * (-k1 * zc - c1 * vc + f0 * cw + fts + f1) / m1
+            vp += hdt * (-k2 * zp - c2 * vp + fts + f2) / m2
+            zc += dt * vc
+            zp += dt * vp
+            cw, sw = cw * cr - sw * sr, sw * cr + cw * sr
+            n += 1
+            z_tip = zb + zc + zp
+            x_last = x
+            if not contact:  # the fine kernel's rule, as in brownian_steps
+                d = z_tip - x
+                if d > a0:
+                    fa = vdw_force(d, fa, hr6, ihr6)
+                    for i in range(n_arms):
+                        acc = g[i] * fa
+                        for k in range(n_arms):
+                            acc += emi[i, k] * xr[k]
+                        tmp[r, i] = acc
+                    xs = 0.0
+                    for i in range(n_arms):
+                        xr[i] += tmp[r, i]
+                        xs += k_arm[i] * xr[i]
+                    x = (xs + fa) * invkg if vdw else xs * invkg
+                    fts = -fa
+                else:
+                    contact = True
+            if contact:
+                x = z_tip - a0
+                for i in range(n_arms):
+                    xr[i] += omer[i] * (x - xr[i]) - lin[i] * (x - x_last)
+                f_sls = kinf * x
+                for i in range(n_arms):
+                    f_sls += k_arm[i] * (x - xr[i])
+                if f_sls > sep_thr:
+                    contact = False
+                    xs = 0.0
+                    for i in range(n_arms):
+                        xs += k_arm[i] * xr[i]
+                    x = (xs + fa_sep) * invkg
+                    fts = -fa0
+                    fa = fa0
+                else:
+                    fts = -f_sls - fa_c
+            # second half kick, damping implicit
+            vc = (vc + hdt * (-k1 * zc + f0 * cw + fts + f1) / m1) / den1
+            vp = (vp + hdt * (-k2 * zp + fts + f2) / m2) / den2
+            left[r] -= 1
+            if left[r] == 0:  # (n - origin) a multiple of stride
+                left[r] = stride
+                ps = pos[r]
+                if 0 <= ps < n_buf:
+                    buf[r, ps, 0] = n * dt
+                    buf[r, ps, 1] = z_tip
+                    buf[r, ps, 2] = zc
+                    buf[r, ps, 3] = zp
+                    buf[r, ps, 4] = zb
+                    buf[r, ps, 5] = fts
+                    buf[r, ps, 6] = x
+                    for i in range(n_arms):
+                        buf[r, ps, 7 + i] = xr[i]
+                    pos[r] = ps + 1
+            nn[r], zc_r[r], vc_r[r], zp_r[r], vp_r[r], contact_r[r] = n, zc, vc, zp, vp, contact
+            cw_r[r], sw_r[r], x_r[r], fts_r[r], fa_r[r] = cw, sw, x, fts, fa
+    for r in range(n_rep):
+        s[r, S_ZC], s[r, S_VC], s[r, S_ZP], s[r, S_VP] = zc_r[r], vc_r[r], zp_r[r], vp_r[r]
+        s[r, S_IDX] = nn[r]
+        s[r, S_CONTACT] = 1.0 if contact_r[r] else 0.0
+        for i in range(n_arms):
+            s[r, S_XD + i] = xd[r, i]
 
 
 @njit(cache=True)

@@ -52,7 +52,7 @@ from ..io import segments_table
 from .config import Config, load
 from .instrument import apply_instrument
 from .observables import compute_observables
-from .thermal import add_thermal
+from .thermal import add_thermal, add_thermal_batch
 
 if TYPE_CHECKING:
     import pandas as pd
@@ -293,7 +293,7 @@ def run_info(rr: engine.RunResult, st: engine.KernelSetup, d: Derived) -> dict:
 
 def simulate(cfg: Config) -> Run:
     """Run one point to its steady state and record it (approach, steady state, recorded window)."""
-    run, kern, s0, d = _noise_free(cfg)
+    run, kern, s0, d = noise_free_point(cfg)
     if kern is not None:
         add_thermal(run, kern, s0, cfg, d)  # noisy recorded periods from the noise-free orbit
     apply_instrument(run, cfg)
@@ -305,19 +305,38 @@ def replicas(cfg: Config, seeds) -> list[Run]:
     found once and only the noise (thermal recording, detector) is redone per seed, each
     run the one :func:`simulate` gives at that seed.  For studies of the noise (coverage of
     the standard errors)."""
-    import copy
     import dataclasses
 
-    run, kern, s0, d = _noise_free(cfg)
+    run, kern, s0, d = noise_free_point(cfg)
+    configs = [dataclasses.replace(cfg, numerics=dataclasses.replace(cfg.numerics, noise_seed=int(seed)))
+               for seed in seeds]  # fmt: skip
+    return _noisy_runs(run, kern, s0, d, configs)
+
+
+THERMAL_BATCH = 4  # replicas whose thermal recordings advance together (scripts/thermal_batch_timing.py)
+
+
+def _noisy_runs(run, kern, s0, d, configs) -> list[Run]:
+    """Copies of the noise-free ``run`` with each configuration's noise (thermal recording, then the
+    detector's), the thermal recordings :data:`THERMAL_BATCH` at a time; each run the one
+    :func:`simulate` gives at its configuration (bit for bit)."""
+    import copy
+
     out = []
-    for seed in seeds:
-        c = dataclasses.replace(cfg, numerics=dataclasses.replace(cfg.numerics, noise_seed=int(seed)))
-        r = copy.copy(run)
-        r.approach, r.steady, r.info, r.params = run.approach.copy(), run.steady.copy(), dict(run.info), c.to_dict()
+    for i in range(0, len(configs), THERMAL_BATCH):
+        group = configs[i : i + THERMAL_BATCH]
+        runs = []
+        for c in group:
+            r = copy.copy(run)
+            hot = kern is not None and bool(c.numerics.temperature)  # its steady record is replaced: no copy
+            steady = run.steady if hot else run.steady.copy()
+            r.approach, r.steady, r.info, r.params = run.approach.copy(), steady, dict(run.info), c.to_dict()
+            runs.append(r)
         if kern is not None:
-            add_thermal(r, kern, s0, c, d)
-        apply_instrument(r, c)
-        out.append(r)
+            add_thermal_batch(runs, kern, s0, group, d)
+        for r, c in zip(runs, group):
+            apply_instrument(r, c)
+        out += runs
     return out
 
 
@@ -339,28 +358,20 @@ def replica_set(cfg: Config, n: int) -> tuple[Run, list[Run]]:
     differs from the fine kernel's exact probe map: 5e-6 of the peak force on a 5:1 surface at
     0.05 ns), without the detector's noise and
     quantisation -- all from one solution of the noise-free orbit."""
-    import copy
     import dataclasses
 
-    run, kern, s0, d = _noise_free(cfg)
+    run, kern, s0, d = noise_free_point(cfg)
     quiet = dataclasses.replace(cfg.numerics, position_noise=0.0, force_noise=0.0, adc_resolution=0.0,
                                 detector_noise_density=0.0,
                                 temperature=REFERENCE_TEMPERATURE if cfg.numerics.temperature else 0.0)  # fmt: skip
     configs = [dataclasses.replace(cfg, numerics=quiet)]
     configs += [dataclasses.replace(cfg, numerics=dataclasses.replace(cfg.numerics, noise_seed=seed))
                 for seed in replica_seeds(cfg.numerics.noise_seed, n)]  # fmt: skip
-    out = []
-    for c in configs:
-        r = copy.copy(run)
-        r.approach, r.steady, r.info, r.params = run.approach.copy(), run.steady.copy(), dict(run.info), c.to_dict()
-        if kern is not None and c.numerics.temperature:
-            add_thermal(r, kern, s0, c, d)
-        apply_instrument(r, c)
-        out.append(r)
+    out = _noisy_runs(run, kern, s0, d, configs)
     return out[0], out[1:]
 
 
-def _noise_free(cfg: Config):
+def noise_free_point(cfg: Config):
     """The point's noise-free run (orbit, records, observables) and what the thermal
     recording starts from: ``(run, kernel or None, state at the window start, derived)``."""
     d = derive(cfg)

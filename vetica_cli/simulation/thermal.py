@@ -135,33 +135,60 @@ def modes(cfg, d):
     return [(d.m1, p.k1, p.q1), (d.m2, p.k2, p.q2)]
 
 
-def thermal_record(kern, s0, cfg, d, rng) -> np.ndarray:
-    """The recorded periods with the Brownian forces (module docstring), from the
-    noise-free state ``s0`` at the start of the recorded window."""
+def equipartition_kick(s, cfg, d, rng) -> None:
+    """Add the free modes' equipartition draw to the probe of the state ``s`` (in place)."""
     temp = cfg.numerics.temperature
-    st = kern.setup
-    p, a, emi = kern.coef[0], kern.coef[1], kern.coef[2]
     (m1, k1, q1), (m2, k2, q2) = modes(cfg, d)
-    s = np.array(s0, float).copy()
     dzc = rng.normal(0.0, math.sqrt(KB * temp / k1))  # equipartition, drawn in this order (the seed's stream)
     dvc = rng.normal(0.0, math.sqrt(KB * temp / m1))
     dzp = rng.normal(0.0, math.sqrt(KB * temp / k2))
     dvp = rng.normal(0.0, math.sqrt(KB * temp / m2))
     session.kick_probe(s, dzc, dvc, dzp, dvp)
-    sig1 = step_sigma(m1, k1, q1, temp, st.dt)
-    sig2 = step_sigma(m2, k2, q2, temp, st.dt)
+
+
+def thermal_records(kern, s0, cfgs, d, rngs) -> list[np.ndarray]:
+    """The recorded periods with the Brownian forces (module docstring) of several replicas at
+    once, from the noise-free state ``s0`` at the start of the recorded window: replica ``r``
+    at the temperature of ``cfgs[r]`` with the generator ``rngs[r]`` (the same record and the
+    same draws from it as :func:`thermal_record` alone; the configurations differ at most in
+    their noise).  Each record is a view of one buffer shared by the batch."""
+    n_rep = len(rngs)
+    if n_rep == 0:
+        return []
+    record_cycles = {c.numerics.record_cycles for c in cfgs}
+    if len(record_cycles) != 1:
+        raise ValueError("thermal_records: the replicas of a batch record the same number of periods")
+    st = kern.setup
+    p, a, emi = kern.coef[0], kern.coef[1], kern.coef[2]
+    s = np.tile(np.array(s0, float), (n_rep, 1))
+    sig = np.empty((n_rep, 2))
+    for r, (cfg, rng) in enumerate(zip(cfgs, rngs)):
+        equipartition_kick(s[r], cfg, d, rng)
+        sig[r] = [step_sigma(m, k, q, cfg.numerics.temperature, st.dt) for (m, k, q) in modes(cfg, d)]
     nt = kern.nt
-    buf = np.zeros((d.n_steady, 7 + kern.n_arms))
-    pos = -1
-    origin = 0
-    for cyc in range(SETTLE_CYCLES + cfg.numerics.record_cycles):
+    buf = np.zeros((n_rep, d.n_steady, 7 + kern.n_arms))
+    z1, z2 = np.empty((n_rep, nt)), np.empty((n_rep, nt))
+    pos = np.full(n_rep, -1, np.int64)
+    origin = np.zeros(n_rep, np.int64)
+    for cyc in range(SETTLE_CYCLES + record_cycles.pop()):
         if cyc == SETTLE_CYCLES:
-            pos = 0
-            origin = session.step_index(s)
-        fb1 = rng.normal(0.0, sig1, nt)
-        fb2 = rng.normal(0.0, sig2, nt)
-        pos = kernel.brownian_steps(s, fb1, fb2, p, a, emi, buf, st.stride, origin, pos)
-    return buf[:pos]
+            pos[:] = 0
+            origin[:] = [session.step_index(s[r]) for r in range(n_rep)]
+        for r, rng in enumerate(rngs):  # per replica as rng.normal(0, sig, nt) drew them: fb1, then fb2
+            rng.standard_normal(nt, out=z1[r])
+            rng.standard_normal(nt, out=z2[r])
+        if n_rep == 1:  # the one-replica kernel (its state in registers)
+            pos[0] = kernel.brownian_steps(s[0], z1[0], z2[0], p, a, emi, buf[0], st.stride, origin[0], pos[0],
+                                           sig[0, 0], sig[0, 1], True)  # fmt: skip
+        else:
+            kernel.brownian_steps_batch(s, z1, z2, sig, p, a, emi, buf, st.stride, origin, pos)
+    return [buf[r, : pos[r]] for r in range(n_rep)]
+
+
+def thermal_record(kern, s0, cfg, d, rng) -> np.ndarray:
+    """The recorded periods with the Brownian forces (module docstring), from the
+    noise-free state ``s0`` at the start of the recorded window."""
+    return thermal_records(kern, s0, [cfg], d, [rng])[0]
 
 
 def approach_response(z_noisy, z_clean, st, d) -> np.ndarray:
@@ -189,14 +216,34 @@ def approach_response(z_noisy, z_clean, st, d) -> np.ndarray:
 APPROACH_PASSES = 2  # reaction-then-force passes of the approach window (the change of z_tip after 2: < 1e-3 pm)
 
 
+def generator(cfg):
+    """The thermal noise's generator of a configuration (its ``numerics.noise_seed``)."""
+    return np.random.default_rng([cfg.numerics.noise_seed, _SEED_SALT])
+
+
 def add_thermal(run, kern, s0, cfg, d) -> None:
     """Replace ``run.steady`` by the noisy recorded periods and add the free probe's thermal
     motion to the first-approach window (module docstring).  Nothing at T = 0."""
+    add_thermal_batch([run], kern, s0, [cfg], d)
+
+
+def add_thermal_batch(runs, kern, s0, cfgs, d) -> None:
+    """:func:`add_thermal` of each ``runs[r]`` at ``cfgs[r]`` (replicas of one noise-free run,
+    differing at most in their noise), the recorded periods advanced together
+    (:func:`thermal_records`); each run as :func:`add_thermal` alone makes it, bit for bit."""
+    hot = [(run, cfg) for run, cfg in zip(runs, cfgs) if cfg.numerics.temperature]
+    rngs = [generator(cfg) for _, cfg in hot]
+    records = thermal_records(kern, s0, [cfg for _, cfg in hot], d, rngs)
+    for (run, cfg), rng, rec in zip(hot, rngs, records):  # each generator goes on to its approach window
+        run.steady = rec
+        _approach_thermal(run, kern, cfg, d, rng)
+
+
+def _approach_thermal(run, kern, cfg, d, rng) -> None:
+    """The free probe's thermal motion (and the surface's and the probe's response to it) added to
+    the first-approach window of ``run``, drawn from ``rng`` after the recorded periods; the
+    thermal metadata."""
     temp = cfg.numerics.temperature
-    if not temp:
-        return
-    rng = np.random.default_rng([cfg.numerics.noise_seed, _SEED_SALT])
-    run.steady = thermal_record(kern, s0, cfg, d, rng)
     ap = run.approach
     if len(ap):
         names = ("z_cantilever", "z_paddle", "z_tip", "z_base", "f_ts")
