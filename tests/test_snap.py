@@ -29,18 +29,17 @@ def _model(kg, h=0.5e-9, n=800):
     return z, SurfaceFit(z, np.ones(n), h, None, None, A0, 10e-9, True, z_ref=0.0, substeps=20)
 
 
-@pytest.mark.parametrize("k_inf,k0", [(2.0, 10.0), (4.0, 30.0), (4.0, 128.0)])
-def test_the_first_contact_height_is_where_the_pulled_surface_meets_the_tip(k_inf, k0):
+@pytest.mark.parametrize("k_inf,kg", [(2.0, 10.0), (4.0, 30.0), (4.0, 128.0)])
+def test_the_first_contact_height_is_where_the_pulled_surface_meets_the_tip(k_inf, kg):
     """The prescribed-trajectory kernel (the fit's forward model) run along a slow approach of an
     undeformed surface: its first contact (the force's jump, or the contact onset) is at the tip
     height the closed form says, within 6 pm (the lag of the pull updated once per 0.025 ns
     sub-step, 0.125 pm of tip travel: measured 1-5 pm), for two surfaces that snap (Kg 10 and
     30 N/m: 1.5 d* = 0.64 and 0.44 nm) and one that does not (Kg 128: a0 + Fa(a0)/Kg = 0.265 nm).
     Eq. 84's lift would put the snapping ones at 1.03 and 0.48 nm."""
-    z, model = _model(k0)
-    theta = np.array([k_inf, k0 - k_inf, 1e3, HR6])  # a frozen dashpot: Kg = k0 all along
+    z, model = _model(kg)
+    theta = np.array([k_inf, kg - k_inf, 1e3, HR6])  # k_inf and the arm's spring; a frozen dashpot: Kg all along
     f = model.force_everywhere(theta, 0.0, np.zeros(1), False, z, start=False)
-    kg = k0
     lift, _ = model._contact_lift(1.0 / kg, HR6 / A0**2, np.zeros(model.ndir), np.zeros(model.ndir))
     d_star = (2.0 * HR6 / kg) ** (1.0 / 3.0)
     closed = 1.5 * d_star if d_star > A0 else A0 + HR6 / A0**2 / kg
@@ -86,7 +85,7 @@ def test_the_narrower_band_looks_for_the_well_near_the_records():
 
 @pytest.fixture(scope="module")
 def stripped_snapping():
-    """A 5:1 surface with Kg = 10 N/m (it snaps from 0.43 nm) recorded at 1e-9 K by the noisy
+    """A 5:1 surface with Kg = k0 + k_inf = 12 N/m (it snaps from 0.38 nm) recorded at 1e-9 K by the noisy
     kernel, stripped to t, z_tip, f_ts (no approach, no metadata): a0 and the pull given."""
     truth = {"k_inf": 2.0, "k0": 10.0, "cd": 1.5e-5}
     ov = {"numerics.temperature": 1e-9, "numerics.print_step": 0.5e-9, "numerics.record_cycles": 6,
@@ -101,7 +100,7 @@ def test_the_fit_recovers_a_snapping_surface_from_a_stripped_record(stripped_sna
     """The whole-cycle fit on the stripped record of a snapping surface: k0, k_inf and cd within
     1 % of the surface it was made with, unflagged (measured: within 0.05 %).  Before the noisy
     kernel pulled the surface by the simulator's rule and the fit started its height from the
-    snap, a 5:1 surface of Kg 8.7 N/m came out at k_inf +17 %, tau_c -19 % (sigma 6 %, unflagged)."""
+    snap, a 5:1 surface of Kg 10.5 N/m came out at k_inf +17 %, tau_c -19 % (sigma 6 %, unflagged)."""
     df, truth = stripped_snapping
     res = extract_many(df, None, "true", {"full": {}}, a0=A0, vdw_on_surface=True)["full"]
     for q, v in truth.items():

@@ -69,9 +69,9 @@ def test_noisy_kernel_at_negligible_temperature_reproduces_the_orbit(surface):
     1e-4 of the peak force in f_ts (measured: 2.4e-15 m and 4.6e-6; what is left is the probe's
     plain Verlet against the fine kernel's exact probe map).  Both kernels pull the surface by
     the same rule -- the attraction at the gap to the last step's surface -- so a surface soft
-    enough to snap to the tip (Kg = 10 N/m: the pull's gain reaches 1 at 0.43 nm > a0) snaps at
+    enough to snap to the tip (Kg = 12 N/m: the pull's gain reaches 1 at 0.38 nm > a0) snaps at
     the same tip height in both; the previous rule of the noisy kernel (four fixed-point
-    iterations from the unpulled surface each step) snapped 45 pm lower on such a surface, 4.7 %
+    iterations from the unpulled surface each step) snapped 45 pm lower on such a surface (Kg 10.5 N/m), 4.7 %
     of the peak force off the orbit at the snap, and biased the whole-cycle fit of its records."""
     ov = {"numerics.record_cycles": 2, "numerics.dt": 0.05e-9, "numerics.print_step": 0.5e-9, **surface}
     a = simulate(load(None, ov)).steady

@@ -17,7 +17,7 @@ creep by the exact coupled step (``Xd += emi Xd + g Fa``) and the surface follow
 ``X = (sum k_i Xd_i + Fa)/Kg`` -- the fine kernel's rule, so a surface soft enough
 to snap to the tip (the pull's gain ``2 Fa/(d Kg)`` reaching 1 above ``a0``) snaps
 where the noise-free record has it (a 4-iteration fixed point from the unpulled
-surface, the rule before, snapped 45 pm lower at Kg = 10 N/m); in contact
+surface, the rule before, snapped 45 pm lower at Kg = 10.5 N/m); in contact
 ``X = z_tip - a0`` and each arm relaxes exactly towards the linearly moving
 target; contact when the gap reaches ``a0``, separation when the surface would
 have to hold the tip with more than the adhesion -- the rules of the SLS and Wiechert models.

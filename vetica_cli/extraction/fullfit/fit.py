@@ -168,7 +168,7 @@ def solve(vec: FitVector, x0, max_nfev=60, xtol=1e-10, scanned=()) -> dict:
     :data:`LEVERAGE_ROUNDS` times: one sample that decides a direction of the fit is one where
     the force's sensitivity to the surface diverges -- the pull's gain reaching 1 as a soft
     surface snaps to the tip or springs back from it -- where a linear error bar means nothing
-    (on stripped 300 K records of a 5:1 surface, Kg 8.7 N/m, such rows had leverage 0.93-1.00
+    (on stripped 300 K records of a 5:1 surface, Kg 10.5 N/m, such rows had leverage 0.93-1.00
     and the tap-robust 1-sigma read 36-165 % on answers within 0.5 % of the truth; a surface
     that does not snap: at most 0.18, on the 1,554 rows of one period)."""
     from scipy.optimize import least_squares  # lazy: the CLI starts without scipy.optimize

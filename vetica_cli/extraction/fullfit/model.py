@@ -49,10 +49,10 @@ def jump_samples(f) -> np.ndarray:
     approach to it where the pull's feedback gain ``2 Fa(d)/(d Kg)`` exceeds 1/2 (the attraction
     within ``2^(-2/3)`` of its value before the jump, ``Fa ~ 1/d^2``).  Where in its sample
     interval the jump falls is not in the record, and a model that puts it one sample early or
-    late misses by the whole jump (2 nN at Kg = 10 N/m against 0.1 nN of noise); before it the
+    late misses by the whole jump (2 nN at Kg = 10.5 N/m against 0.1 nN of noise); before it the
     force's sensitivity to the surface grows as ``1/(1 - gain)``, and those few samples ruled the
     linearised error bars: the tap-robust 1-sigma read 40-950 % on answers within 1 % of the
-    truth (stripped 300 K records of a 5:1 surface, Kg 8.7 N/m)."""
+    truth (stripped 300 K records of a 5:1 surface, Kg 10.5 N/m)."""
     f = np.asarray(f, dtype=float)
     out = np.zeros(len(f), bool)
     if len(f) < 4:
