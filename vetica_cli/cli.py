@@ -13,6 +13,7 @@ from __future__ import annotations
 import functools
 import importlib
 import math
+import signal
 import sys
 from pathlib import Path
 from typing import List, Optional
@@ -666,6 +667,9 @@ def main():  # pragma: no cover - console script entry
         interrupt_handled()
         sys.exit(130)
     except SystemExit as exc:
+        if exc.code in (0, None) and not _REPORTED:  # the command finished: a Ctrl-C from here on interrupts nothing
+            signal.signal(signal.SIGINT, signal.SIG_IGN)  # (one during the interpreter's shutdown ended it by
+            interrupt_handled()  # SIGINT, status -2, after a sweep had written its table)
         if exc.code == 130 and not _REPORTED:
             sys.stderr.write(INTERRUPTED_EARLY + "\n")
         if exc.code == 130 or _REPORTED:  # an interrupt ended the command (a normal exit needs no ctypes)
