@@ -140,8 +140,8 @@ class Spectrum:
 def band_record(record, step: float, spectra: dict | None = None):
     """The record with its force low-passed once more, at ``fc / step`` (and its approach,
     and Z1 when it came from the approach, re-read on the approach's force low-passed the same
-    way); None when the force is not band-limited (no declared low-pass below the Nyquist
-    frequency) or the narrower band loses the approach's first contact.  ``spectra``: the
+    way: its well looked for near the record's, :func:`well_in_band`); None when the force is not
+    band-limited (no declared low-pass below the Nyquist frequency).  ``spectra``: the
     transforms of the record's force and approach force (:class:`Spectrum`, by ``"f"`` and
     ``"approach"``), shared by the steps (filled here when empty)."""
     from ..signals import noise as nz
@@ -180,7 +180,7 @@ def _relative(a: dict, b: dict) -> dict:
 
 def _narrower_runs(record, method, options, res=None):
     """``run(step)``: ``(the record low-passed once more at fc/step, the method's estimates on
-    it)``, or None when that band loses the approach's first contact or the method refuses it;
+    it)``, or None when the force is not band-limited or the method refuses that band;
     each step computed once, started from ``res`` where the method has a start
     (:meth:`~vetica_cli.extraction.base.ExtractionMethod.continuation`)."""
     done, spectra = {}, {}
@@ -303,7 +303,7 @@ def band_term(res: ExtractionResult, record, method, options) -> dict:
     alts = []
     for step in BAND_STEPS:
         got = narrower(step)
-        if got is None:  # the narrower band loses the first contact, or the method refuses it: the steps before stand
+        if got is None:  # the method refuses the narrower band: the steps before stand
             break
         alts.append(got[1])
     if not alts:

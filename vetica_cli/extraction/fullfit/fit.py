@@ -9,6 +9,7 @@ import math
 import numpy as np
 
 from .model import SurfaceFit
+from .uncertainty import LEVERAGE_MAX, leverage
 
 CD_SCAN = np.logspace(-10, 2, 7)  # [kg/s] starting-cd scan, every two decades
 # a start whose RMS residual after its Gauss-Newton step is below this fraction of the peak force
@@ -21,8 +22,7 @@ HAMAKER_BOUNDS = (1e-24, 1e-14)  # [J] fit range of the Hamaker constant (fit_ha
 OFFSET_UNIT = 1e-10  # [m] unit of the surface height in the fit vector
 OFFSET_RANGE = 5e-9  # [m] the fitted surface height stays within this of its reference (Z1 or the start)
 XD0_RANGE = 1e-6  # [m] bound of a fitted dashpot start position
-LEVERAGE_MAX = 0.5  # a residual row deciding more than half a fitted direction alone is left out (solve)
-LEVERAGE_ROUNDS = 3
+LEVERAGE_ROUNDS = 3  # times a fit leaves out rows of leverage above LEVERAGE_MAX and resumes (solve)
 
 
 class FitVector:
@@ -150,15 +150,6 @@ def fit_surface(
     vec = FitVector(model, theta0, bounds, fit_hamaker, s0, xd0, s0_ref)
     x0, scanned = scan_cd(vec) if scan and model.n_arms == 1 else (vec.x0, [])
     return solve(vec, x0, max_nfev, xtol, scanned)
-
-
-def leverage(jac) -> np.ndarray:
-    """Each residual row's leverage ``h_i = J_i (J^T J)^+ J_i^T`` (normalised columns): the share of
-    a fitted direction that row decides alone (they sum to the number of directions)."""
-    norm = np.sqrt(np.sum(jac**2, axis=0))
-    norm[norm == 0] = 1.0
-    jn = jac / norm
-    return np.sum((jn @ np.linalg.pinv(jn.T @ jn)) * jn, axis=1)
 
 
 def solve(vec: FitVector, x0, max_nfev=60, xtol=1e-10, scanned=()) -> dict:

@@ -310,8 +310,7 @@ class FullFit(ExtractionMethod):
             out[q] = math.hypot(e.sigma, rel[q])
         res.__dict__["_pinned"] = (alt, {q: res.estimates[q].sigma for q in rel})  # for the check (not a field)
         info["height"] = {"source": "the fit with the height pinned at the undeformed surface (eq. 84's premise): "
-                                    "each quantity's change, in "
-                                    "quadrature", "change": rel}  # fmt: skip
+                                    "each quantity's change, in quadrature", "change": rel}  # fmt: skip
         return out, info
 
     def checks(self, res: ExtractionResult, record: Record, options: dict, info: dict) -> None:

@@ -165,7 +165,7 @@ class SurfaceFit:
             "fitted (approach tap + steady window)" if self.approach is not None
             else "fitted (steady window)" if fit_offset else "from Z1"
         )  # fmt: skip
-        self.f = self.steady.f if self.approach is None else np.concatenate([self.steady.f, self.approach.f])
+        self._gather_f()
         self.scale = float(np.max(f)) or 1.0
         self.near_samples = self.steady.near
         self._state = (np.zeros(self.n_arms), False)  # periodic (Xd0, contact0) of the last evaluation: warm start
@@ -351,8 +351,12 @@ class SurfaceFit:
         if not len(rows):
             return rows
         out = self.steady.drop(rows)
-        self.f = self.steady.f if self.approach is None else np.concatenate([self.steady.f, self.approach.f])
+        self._gather_f()
         return out
+
+    def _gather_f(self):
+        """The measured force of the residual rows: the steady window's, then the approach's."""
+        self.f = self.steady.f if self.approach is None else np.concatenate([self.steady.f, self.approach.f])
 
     def reset(self):
         """Forget the warm start (periodic state of the last evaluation)."""

@@ -20,14 +20,27 @@ def gn_gain(res, jac) -> float:
     return 1.0 - float(np.sum((res + jac @ step) ** 2)) / r0 if r0 > 0 else 0.0
 
 
+def normalised(jac):
+    """``(jac / norm, norm)``: the Jacobian with unit columns (a zero column kept as it is)."""
+    norm = np.sqrt(np.sum(jac**2, axis=0))
+    norm[norm == 0] = 1.0
+    return jac / norm, norm
+
+
+def leverage(jac) -> np.ndarray:
+    """Each residual row's leverage ``h_i = J_i (J^T J)^+ J_i^T`` (normalised columns): the share of
+    a fitted direction that row decides alone (they sum to the number of directions)."""
+    jn, _ = normalised(jac)
+    return np.sum((jn @ np.linalg.pinv(jn.T @ jn)) * jn, axis=1)
+
+
 def covariance(res, jac):
     """``s^2 (J^T J)^-1`` with ``s^2 = |r|^2/(n - p)``, by SVD without truncation
     (a degenerate direction gives an infinite variance, not a truncated one)."""
     n, p = jac.shape
     s2 = float(np.sum(res**2)) / max(n - p, 1)
-    norm = np.sqrt(np.sum(jac**2, axis=0))
-    norm[norm == 0] = 1.0
-    _, sv, vt = np.linalg.svd(jac / norm, full_matrices=False)
+    jn, norm = normalised(jac)
+    _, sv, vt = np.linalg.svd(jn, full_matrices=False)
     with np.errstate(over="ignore", divide="ignore", invalid="ignore"):
         inv_sv2 = np.where(sv > 0, 1.0 / sv**2, np.inf)
         cov = (vt.T * inv_sv2) @ vt
@@ -53,7 +66,8 @@ def tap_groups(idx, contacts, spacing: float, n_approach: int = 0) -> np.ndarray
 
 APPROACH = -1  # group of the approach tap's rows (tap_groups)
 LOO_RCOND = 1e-6  # relative singular value below which a direction is left open (tap_covariance)
-GROUP_LEVERAGE_MAX = 0.5  # a tap deciding more than half a direction alone gets the bias-reduced term (tap_covariance)
+LEVERAGE_MAX = 0.5  # deciding more than half a fitted direction alone: a residual row is left out of the fit
+# (fit.solve), a tap gets the bias-reduced term (tap_covariance)
 
 
 def tap_covariance(res, jac, groups):
@@ -69,7 +83,7 @@ def tap_covariance(res, jac, groups):
     The approach tap (group :data:`APPROACH`) pins the surface height almost alone, so
     leaving it out is no answer: its term is the bias-reduced one,
     ``(I - H_gg)^(-1/2) r_g`` (CR2, Bell and McCaffrey); so is any tap whose leverage in some
-    direction exceeds :data:`GROUP_LEVERAGE_MAX` (on stripped 300 K records of a 40:1 surface
+    direction exceeds :data:`LEVERAGE_MAX` (on stripped 300 K records of a 40:1 surface
     whose dashpot creeps over more than a period, one tap pinned the window's start state, and
     leaving it out read a 1-sigma of 10-40 on tau_c answers within 1 %).  Normalised columns; a direction the
     record does not determine (``M`` singular there) gets no term, fewer than two groups an
@@ -80,9 +94,7 @@ def tap_covariance(res, jac, groups):
     p = jac.shape[1]
     if g < 2:
         return np.full((p, p), np.inf), g
-    norm = np.sqrt(np.sum(jac**2, axis=0))
-    norm[norm == 0] = 1.0
-    jn = jac / norm
+    jn, norm = normalised(jac)
     m = jn.T @ jn
     w, v = np.linalg.eigh(m)
     # M^-1/2 on the directions the record determines; the others get no term here (the white
@@ -96,7 +108,7 @@ def tap_covariance(res, jac, groups):
         jh = jg @ half
         u, sv, _ = np.linalg.svd(jh, full_matrices=False)  # H_gg = u diag(sv^2) u^T
         lam = sv**2
-        if lab != APPROACH and not (len(lam) and lam.max() > GROUP_LEVERAGE_MAX):
+        if lab != APPROACH and not (len(lam) and lam.max() > LEVERAGE_MAX):
             # left out: the rest's least squares, a direction it leaves open stays put
             d[i] = np.linalg.lstsq(m - jg.T @ jg, jg.T @ r, rcond=LOO_RCOND)[0]
             continue
