@@ -100,3 +100,26 @@ def test_a_hopeless_record_costs_little_memory():
     finally:
         tracemalloc.stop()
     assert peak < 200e6, peak
+
+
+@pytest.mark.parametrize("c", [0.0, 4e11])
+def test_contact_location_term_is_the_slopes_change_per_sample(c):
+    """The error bars' contact-location term (stage 1b's grown window read one sample later and
+    earlier, ``per_sample_of_contact``) against its closed form: with a contact force
+    ``kg d + c d^2`` (indentation ``d`` growing by ``v`` a sample) the slope ``-dF/dz_tip`` is
+    ``kg + 2 c d``, so it moves by ``2 c v`` a sample the window moves (0 for a linear contact);
+    the quadratic fits read it exactly; the noise (1 pm, 0.1 nN) scatters each tap's value by
+    0.2-0.3 N/m, so the mean over the nine taps is held to 0.2 N/m (~3 standard errors) of the
+    closed form, 0.69 N/m a sample for the stiffening contact."""
+    rng = np.random.default_rng(8)
+    z0, f0 = _record(n_taps=9)
+    depth = np.maximum(1e-9 - z0, 0.0) * (f0 > -8e-9 + 1e-15)  # in contact only
+    f0 = f0 + c * depth**2
+    z = z0 + 1e-12 * rng.standard_normal(len(z0))
+    f = f0 + 1e-10 * rng.standard_normal(len(f0))
+    taps = find_taps(f)
+    _, info = noise_aware_slopes(z, f, taps.contact, taps.separation, 10)
+    per = np.array([x for x in info["per_sample_of_contact"] if math.isfinite(x)])
+    assert len(per) >= 5 and not any(info["thesis"])
+    expected = 2.0 * c * 0.86e-12  # [N/m a sample]
+    assert abs(np.mean(per) - expected) < 0.2, (np.mean(per), expected)

@@ -109,6 +109,26 @@ def sampling_term(record, taps) -> float:
     return float(np.median(out)) if out else 0.0
 
 
+def contact_location_term(record, options, kg: float) -> float:
+    """Relative 1-sigma of Kg from where stage 1b's grown window locates the contact: the slope's
+    change per sample the contact moves (the mean over taps, :func:`vetica_cli.signals.slopes.
+    _per_sample`) times :data:`~vetica_cli.signals.slopes.LOCATION_SAMPLES`.  It does not average
+    over taps (the broken line's break sits at the same place against the force minimum in every
+    tap), so it is not in the taps' spread; 0 where the thesis's window was kept (noise-free
+    records) or the options name no stage-1b window."""
+    from ...signals.slopes import LOCATION_SAMPLES
+    from .vetica import record_stage1
+
+    if "kg_points" not in options or "kg_window" not in options or not kg:
+        return 0.0
+    try:
+        windows = record_stage1(record, options["kg_points"], options["kg_window"]).windows or {}
+    except Exception:  # noqa: BLE001 - the record's taps refused: the method has said so
+        return 0.0
+    per = [x for x in windows.get("per_sample_of_contact") or () if math.isfinite(x)]
+    return LOCATION_SAMPLES * abs(float(np.mean(per))) / abs(kg) if per else 0.0
+
+
 def tap_sigmas(res: ExtractionResult, record, method, options) -> tuple[dict, dict]:
     """Relative sigmas of a tap method's quantities and the bookkeeping (module docstring)."""
     est = res.estimates
@@ -120,6 +140,9 @@ def tap_sigmas(res: ExtractionResult, record, method, options) -> tuple[dict, di
         sp = est[s].spread
         n = sp.n if sp else 0
         rel[s] = (sp.std / math.sqrt(n) * t_factor(n) / abs(values[s])) if n >= 2 and sp.std is not None else math.inf
+    loc = contact_location_term(record, options, values["k_g"])
+    if loc:
+        rel["k_g"] = math.hypot(rel["k_g"], loc)
     taps = find_taps(record.f)
     s_z1 = z1_sigma(record, taps, values["k_r"]) if record.z1 is not None else 0.0
     # the print step: every force minimum is located on the sample grid, to within half a step in
@@ -171,7 +194,7 @@ def tap_sigmas(res: ExtractionResult, record, method, options) -> tuple[dict, di
         if not math.isfinite(s_z1):
             sig[q] = math.inf
     info = {"source": "spread over taps (standard error of the tap means, t-scaled), Z1 term by reruns with Z1 "
-                      "moved by +-2 sigma", "z1_sigma_m": s_z1,
+                      "moved by +-2 sigma", "z1_sigma_m": s_z1, "kg_contact_location": loc,
             # d ln q / d ln tau_c (through Z1, Kr's refit included) and d ln q / d ln Kg (through the slopes'
             # scale, per the reported Kg's own change: on a 300 K lab record vetica-prestress's Kg moved by 0.036 of
             # the scale, and k0 = Kg - Kr, +314 % off with Kg flagged +264 %, read a reach of 0.036 x 2.64 < 10 %):
