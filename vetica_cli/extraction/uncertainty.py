@@ -30,9 +30,10 @@ result by :func:`vetica_cli.extraction.extract_many` after the method ran).
 * the whole-cycle fit -- the larger of **the fit's Jacobian and residual** (``s^2 (J^T J)^-1``) and
   the **tap-robust sandwich** (delete-one-tap jackknife of the linearised fit, for
   residuals correlated within a tap, e.g. thermal noise; :mod:`.fullfit.uncertainty`),
-  kept as the method computes it (with the approach's Z1 reading error); a record's Z1 from
-  thesis eq. 84 (no approach segment) only starts the fit's surface height, which is then
-  fitted free (the height against eq. 84's lift bracket is a check, :mod:`.sanity`).
+  kept as the method computes it (with the approach's Z1 reading error); on a record whose Z1
+  is from thesis eq. 84 (no approach segment) the fit holds the surface height at the undeformed
+  surface, eq. 84's premise (:func:`.fullfit.method.premise_height`; freed on request, with the
+  height term of :meth:`.fullfit.method.FullFit.sigmas`).
 
 * every other method -- the base's default hook: the standard error of its per-tap (or
   per-period) values (:meth:`~vetica_cli.extraction.base.ExtractionMethod.sigmas`).

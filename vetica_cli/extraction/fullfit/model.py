@@ -167,7 +167,9 @@ class SurfaceFit:
         self.fit_offset = fit_offset
         self.offset_source = (
             "fitted (approach tap + steady window)" if self.approach is not None
-            else "fitted (steady window)" if fit_offset else "from Z1"
+            else "fitted (steady window)" if fit_offset
+            else "the undeformed surface (z_tip measured from it: thesis eq. 84's premise)" if self.height is not None
+            else "from Z1"
         )  # fmt: skip
         self._gather_f()
         self.scale = float(np.max(f)) or 1.0
