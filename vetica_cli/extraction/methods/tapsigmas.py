@@ -109,20 +109,19 @@ def sampling_term(record, taps) -> float:
     return float(np.median(out)) if out else 0.0
 
 
-def contact_location_term(record, options, kg: float) -> float:
+def contact_location_term(record, method, options, kg: float) -> float:
     """Relative 1-sigma of Kg from where stage 1b's grown window locates the contact: the slope's
     change per sample the contact moves (the mean over taps, :func:`vetica_cli.signals.slopes.
     _per_sample`) times :data:`~vetica_cli.signals.slopes.LOCATION_SAMPLES`.  It does not average
     over taps (the broken line's break sits at the same place against the force minimum in every
     tap), so it is not in the taps' spread; 0 where the thesis's window was kept (noise-free
-    records) or the options name no stage-1b window."""
+    records) or the method keeps no stage-1b windows (``method.kg_windows``)."""
     from ...signals.slopes import LOCATION_SAMPLES
-    from .vetica import record_stage1
 
-    if "kg_points" not in options or "kg_window" not in options or not kg:
+    if not hasattr(method, "kg_windows") or "kg_points" not in options or "kg_window" not in options or not kg:
         return 0.0
     try:
-        windows = record_stage1(record, options["kg_points"], options["kg_window"]).windows or {}
+        windows = method.kg_windows(record, options)
     except Exception:  # noqa: BLE001 - the record's taps refused: the method has said so
         return 0.0
     per = [x for x in windows.get("per_sample_of_contact") or () if math.isfinite(x)]
@@ -140,7 +139,7 @@ def tap_sigmas(res: ExtractionResult, record, method, options) -> tuple[dict, di
         sp = est[s].spread
         n = sp.n if sp else 0
         rel[s] = (sp.std / math.sqrt(n) * t_factor(n) / abs(values[s])) if n >= 2 and sp.std is not None else math.inf
-    loc = contact_location_term(record, options, values["k_g"])
+    loc = contact_location_term(record, method, options, values["k_g"])
     if loc:
         rel["k_g"] = math.hypot(rel["k_g"], loc)
     taps = find_taps(record.f)

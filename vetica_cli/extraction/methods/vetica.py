@@ -738,6 +738,11 @@ class TapMethod(ExtractionMethod):
         opts = options if kg_scale is None else {**options, "kg_scale": kg_scale}
         return self.values_at(record, opts, record.z1 if z1 is None else z1)
 
+    def kg_windows(self, record: Record, options: dict) -> dict:
+        """Stage 1b's window bookkeeping on ``record`` (:func:`record_stage1`, measured once; ``{}``
+        for the thesis's windows): the error bars' contact-location term reads it."""
+        return record_stage1(record, options["kg_points"], options["kg_window"]).windows or {}
+
     def values_at(self, record: Record, options: dict, z1: float | None = None) -> dict:
         """The estimates (values only: no spread, sigma or checks) of the method on ``record`` at
         ``z1`` (default the record's): the checks' comparison of the two VETICA variants and the
