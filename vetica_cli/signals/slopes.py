@@ -205,19 +205,19 @@ def noise_aware_slopes(z: np.ndarray, f: np.ndarray, contact, separation, points
                 "thesis": [True] * len(thesis_fit), "thesis_predicted_sigma": predicted,
                 "start": [int(c) + 1 for c in contact], "at": [None] * len(thesis_fit)}  # fmt: skip
         return thesis_fit, info
-    out, windows, thesis, starts, ats, located = [], [], [], [], [], []
+    out, windows, thesis, starts, ats, located, shifts = [], [], [], [], [], [], []
     prev_sep = 0
     for ic, isep, rel2, kg0 in zip(contact, separation, rel2s, thesis_fit):
         ic, isep = int(ic), int(isep)
         span = isep - ic
         if not math.isfinite(rel2):
             out.append(kg0), windows.append(points), thesis.append(True), starts.append(ic + 1), ats.append(None)
-            located.append(math.nan)
+            located.append(math.nan), shifts.append(math.nan)
             prev_sep = isep
             continue
         if span - offset < 2 * points:  # the contact is shorter than the smear: no slope to read
             out.append(np.nan), windows.append(0), thesis.append(False), starts.append(ic), ats.append(0.0)
-            located.append(math.nan)
+            located.append(math.nan), shifts.append(math.nan)
             prev_sep = isep
             continue
         lo_n = max(points, SMEAR_WINDOW * offset)  # the window spans several smears: the low-pass's ripple averages out
@@ -244,25 +244,36 @@ def noise_aware_slopes(z: np.ndarray, f: np.ndarray, contact, separation, points
         out.append(-bf / bz if bz != 0 else np.nan), windows.append(n), thesis.append(False)
         starts.append(int(a)), ats.append(at)
         located.append(_per_sample(z, f, a, n, at, lo=prev_sep, hi=isep))
+        # where the slope is read against the thesis's reading point (a low-passed force: the band term, read on the
+        # whole-cycle fit's surface with the thesis's window at the whole band, holds the smear's reading already)
+        if offset:
+            shifts.append(math.nan)
+        else:  # the same fits read at the thesis's reading point: the slope's difference there
+            bf2, _ = quad_slope(f[a : a + n], ic + 1.0 + 0.5 * (points - 1) - a)
+            bz2, _ = quad_slope(z[a : a + n], ic + 1.0 + 0.5 * (points - 1) - a)
+            shifts.append(-bf2 / bz2 - out[-1] if bz2 != 0 and math.isfinite(out[-1]) else math.nan)
         prev_sep = isep
     info = {"window": windows, "noise_force_n": sf, "noise_position_m": sz, "thesis": thesis,
             "thesis_predicted_sigma": predicted, "start": starts, "at": ats,
-            "per_sample_of_contact": located}  # fmt: skip
+            "per_sample_of_contact": located, "at_thesis_reading": shifts}  # fmt: skip
     return np.array(out, dtype=float), info
 
 
-LOCATION_SAMPLES = 1.0  # how far (samples) the located contact may sit from the force minimum the thesis starts at
+LOCATION_SAMPLES = 1.0  # the least distance (samples) the error bars allow between the grown window's reading and the thesis's
 
 
 def _per_sample(z, f, a: int, n: int, at: float, lo: int, hi: int) -> float:
     """How the grown window's slope moves per sample the contact is located later [N/m]: half the
     difference of the slopes read with the window one sample later and one earlier (the same
     ``n`` and ``at``); nan at the tap's ends.  The broken line's break and the force minimum the
-    thesis's window starts after are different readings of the contact: on noisy records of the
-    same orbit the break sat 0-2 samples before the noise-free minimum (a 55:1 surface at 0.5 ns:
-    the slope 1.6 % low; the worked example at 1 ns: 0.0 samples), and a parabolic contact branch
-    put it a sample after it on the worked example.  The error bars carry that sample
-    (:data:`LOCATION_SAMPLES`) as a systematic term (:mod:`vetica_cli.extraction.methods.tapsigmas`)."""
+    thesis's window starts after are different readings of the contact (``at_thesis_reading``: the
+    same fits' slope at the thesis's reading point, 5.5 samples after the minimum, less theirs): on
+    noisy records of the same orbit the break sat 0-2 samples before the noise-free minimum on a
+    55:1 surface at 0.5 ns (the slope 1.6 % low), 0 on the worked example at 1 ns, and 7-8 samples
+    after it on a 10:1 surface that snaps to the tip (0.5 ns: the slope 1.1 % low; its force
+    minimum is the snap).  A parabolic contact branch for the break moved it onto the stiff surface's
+    kink but a sample late on the worked example: not kept.  The error bars carry the difference
+    as a systematic term (:mod:`vetica_cli.extraction.methods.tapsigmas`)."""
     if a - 1 < lo or a + 1 + n > hi:
         return math.nan
     got = []
