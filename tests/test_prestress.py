@@ -134,3 +134,25 @@ def test_bad_options_are_one_line_errors(runs):
     with pytest.raises(InputError, match="not allowed here"):
         vetica_prestress(s["t"], s["z_tip"], s["f_ts"], 2e-10, prestress="auto")
     assert math.isfinite(vetica_prestress(s["t"], s["z_tip"], s["f_ts"], 2e-10, prestress="creep").values["k0"])
+
+
+@pytest.mark.slow
+def test_stages_without_a_fixed_point_are_flagged():
+    """A `lab` record (300 K, the detector's band and noise) of a 7:1 surface (k_inf 2.12, k0 14.23
+    N/m, cd 3.8e-4 kg/s; noise seed 267771479) whose contact the 1.75 MHz band leaves unresolved:
+    vetica-prestress's stages 1b and 2 do not reach a fixed point in their 60 iterations and stop at
+    Kg 1960 N/m (the surface's 16.4; stage 1b's slope 35.8).  Every quantity the fixed point gives
+    is flagged, with the reason (it was unflagged at a 9 % sigma)."""
+    from vetica_cli.extraction import extract_many
+    from vetica_cli.simulation.config import load
+    from vetica_cli.simulation.simulate import replicas
+
+    ov = {"numerics.record_cycles": 10, "numerics.instrument": "lab", "surface.k_inf": 2.1207,
+          "surface.k0": 14.2305, "surface.cd": 3.826e-4}  # fmt: skip
+    run = replicas(load(None, ov), [267771479])[0]
+    res = extract_many(run.frame(), run.metadata(), "reconstructed", {"vetica-prestress": {}})["vetica-prestress"]
+    assert res.diagnostics["converged"] is False
+    for q in ("k_g", "k0", "k_r", "k_inf", "cd", "tau_r"):
+        e = res.estimates[q]
+        assert e.value is None or e.identifiable is False, (q, e.value)
+    assert any("fixed point" in str(e.reason) for e in res.estimates.values())
