@@ -495,9 +495,14 @@ class FullFit(ExtractionMethod):
         fitted = [n for n in names if n in (*surface.parameter_keys, "hamaker")]  # not s0, xd0: nuisance
         arm_names = [(surface.parameter_keys[1 + 2 * i], surface.parameter_keys[2 + 2 * i]) for i in range(n_arms)]
         contact_s = float(np.median(taps.separation - taps.contact)) * h
+        from ...signals.slopes import noise_floor
+
+        # the residual's part the record's noise does not explain (the model's misfit) is what a dashpot's
+        # signature is held against; the noise's part is in the error bars (relative to the peak force, as res)
+        rms = math.sqrt(float(np.mean(res**2)))
+        misfit = math.sqrt(max(rms**2 - (noise_floor(record.f) / model.scale) ** 2, 0.0))
         ident = identifiability(fitted, rel, at_bound, k_inf, list(zip(k, cd)), arm_names, contact_s,
-                                float(taps.spacing) * h - contact_s, h, sigma["k_g"],
-                                math.sqrt(float(np.mean(res**2))))  # fmt: skip
+                                float(taps.spacing) * h - contact_s, h, sigma["k_g"], misfit)  # fmt: skip
         if "hamaker" in ident:  # reported as H R (and H when the tip radius is known)
             ok, why = ident.pop("hamaker")
             ident["hamaker_radius"] = (ok, why)

@@ -142,7 +142,8 @@ def identifiability(names, rel, at_bound, k_inf, arms, arm_names, t_contact, t_f
     ``REL_LIMIT``, or at a bound of the fit range, or when a fitted dashpot does
     not act within the record: arm i's signature in the force within a tap,
     ``(k_i/Kg) max(relaxation in a contact, creep between taps)`` relative to the
-    peak force, is below ``SIGNATURE`` times the relative RMS residual (``cd_i``
+    peak force, is below ``SIGNATURE`` times the relative RMS misfit ``rms`` (the residual less the
+    record's noise in quadrature: the noise is in the error bars; ``cd_i``
     then has only a lower bound and the arm acts as a spring in parallel with
     ``k_inf``: one arm shows only its glassy stiffness ``Kg = k0 + k_inf``), or it
     relaxes within one sample (``cd_i`` has only an upper bound).  Relaxation time
@@ -166,7 +167,7 @@ def identifiability(names, rel, at_bound, k_inf, arms, arm_names, t_contact, t_f
             why = (
                 f"the dashpot hardly moves within a tap (relaxes {100 * relax:.2g} % in contact, creeps "
                 f"{100 * creep:.2g} % between taps; force signature {signature:.2g} of the peak < "
-                f"{SIGNATURE:g} x RMS residual {rms:.2g})"
+                f"{SIGNATURE:g} x the RMS misfit {rms:.2g})"
             )
             extra[cdname] = f"; {why}: {cdname} has only a lower bound"
             if single:
