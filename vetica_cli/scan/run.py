@@ -58,18 +58,21 @@ if TYPE_CHECKING:  # pandas and the lines' simulation (numba) are imported by th
 SCAN_ROOTS = ("scan/line.py", "scan/table.py")  # the code that computes a line's rows (its import closure)
 # The dry run's costs, measured on the committed scans (results/scans: blend 64 x 64 and edge, 2 workers on
 # 2 cores, PS 1 ns, 4 periods, vetica + full; per-row wall_s = the pixel's simulation + that row's extraction):
-# a drive period of a transient pixel 1.26-1.38 ms (differences between pixel times); the orbit pass as 14-24
-# such periods; a pixel's record and both extractions 0.11-0.14 s; a scan's start-up (process, workers,
-# kernels, summary, figures) 6.7-8.4 s for a 2-pixel scan.
-SECONDS_PER_PERIOD = 1.3e-3
+# a drive period of a transient pixel 0.65 ms (the rows' median wall between the 0.5 and 2 ms passes; 1.3 ms
+# two versions before); the orbit pass as ~20 such periods; a pixel's record and both extractions 0.070 s
+# (0.12 s before), which with the period's cost puts the blend map at 632 s against 632.5 measured and the
+# edge at 24 s against 22.8; a scan's start-up (process, workers, kernels, summary, figures) 6.7-8.4 s for a
+# 2-pixel scan.
+SECONDS_PER_PERIOD = 0.65e-3
 ORBIT_PERIODS = 20
 SCAN_START_S = 7.0
 # a pixel's record (observables, table, force) at the methods' reference size, 10 periods at 0.125 ns, one
 # force source; a record costs in proportion to its samples, as each method's seconds_per_point / 2, plus a
-# fixed part smaller than a sweep point's (no task or part file of its own): 0.04 puts the blend's and the
-# edge's pixel records at 0.12 s
+# fixed part smaller than a sweep point's (no task or part file of its own): 0.003 puts the blend's and the
+# edge's pixel records at 0.070 s (the tap methods' compiled pass and the fit's speed-ups left little that
+# does not grow with the record)
 SECONDS_PER_RECORD = 0.2
-PIXEL_FIXED_COST = 0.04
+PIXEL_FIXED_COST = 0.003
 
 
 @dataclass
