@@ -105,14 +105,20 @@ def white_noise_floor(x: np.ndarray, samples: int = NOISE_SAMPLES) -> float:
     return float(1.4826 * np.median(np.abs(d2 - np.median(d2))) / math.sqrt(6.0))
 
 
-def quad_slope(y: np.ndarray, at: float = 0.0) -> tuple[float, float]:
-    """``(slope at sample ``at``, residual RMS)`` of a quadratic least-squares fit of ``y``
-    against the sample index."""
+def quad_fit(y: np.ndarray) -> tuple[np.ndarray, float]:
+    """``(coefficients of 1, k, k^2, residual RMS)`` of a quadratic least-squares fit of ``y``
+    against the sample index ``k``; its slope at sample ``at`` is ``c[1] + 2 c[2] at``."""
     n = len(y)
     k = np.arange(n, dtype=float)
     x = np.column_stack([np.ones(n), k, k * k])
     coef, res, *_ = np.linalg.lstsq(x, y, rcond=None)
-    rms = math.sqrt(float(res[0]) / n) if len(res) else 0.0
+    return coef, math.sqrt(float(res[0]) / n) if len(res) else 0.0
+
+
+def quad_slope(y: np.ndarray, at: float = 0.0) -> tuple[float, float]:
+    """``(slope at sample ``at``, residual RMS)`` of a quadratic least-squares fit of ``y``
+    against the sample index (:func:`quad_fit`)."""
+    coef, rms = quad_fit(y)
     return float(coef[1] + 2.0 * coef[2] * at), rms
 
 
@@ -205,19 +211,20 @@ def noise_aware_slopes(z: np.ndarray, f: np.ndarray, contact, separation, points
                 "thesis": [True] * len(thesis_fit), "thesis_predicted_sigma": predicted,
                 "start": [int(c) + 1 for c in contact], "at": [None] * len(thesis_fit)}  # fmt: skip
         return thesis_fit, info
-    out, windows, thesis, starts, ats, located, shifts = [], [], [], [], [], [], []
+    out, windows, thesis, starts, ats, located, at_thesis = [], [], [], [], [], [], []
+    thesis_at = 1.0 + 0.5 * (points - 1)  # the thesis's straight line over samples 1..points reads at its centre
     prev_sep = 0
     for ic, isep, rel2, kg0 in zip(contact, separation, rel2s, thesis_fit):
         ic, isep = int(ic), int(isep)
         span = isep - ic
         if not math.isfinite(rel2):
             out.append(kg0), windows.append(points), thesis.append(True), starts.append(ic + 1), ats.append(None)
-            located.append(math.nan), shifts.append(math.nan)
+            located.append(math.nan), at_thesis.append(math.nan)
             prev_sep = isep
             continue
         if span - offset < 2 * points:  # the contact is shorter than the smear: no slope to read
             out.append(np.nan), windows.append(0), thesis.append(False), starts.append(ic), ats.append(0.0)
-            located.append(math.nan), shifts.append(math.nan)
+            located.append(math.nan), at_thesis.append(math.nan)
             prev_sep = isep
             continue
         lo_n = max(points, SMEAR_WINDOW * offset)  # the window spans several smears: the low-pass's ripple averages out
@@ -237,25 +244,19 @@ def noise_aware_slopes(z: np.ndarray, f: np.ndarray, contact, separation, points
                 break
             n = m
         a = c + offset
-        # where the thesis's straight line reads the slope (its window's centre), or past the smear
-        at = -float(offset) if offset else 1.0 + 0.5 * (points - 1)
-        bf, _ = quad_slope(f[a : a + n], at)
-        bz, _ = quad_slope(z[a : a + n], at)
-        out.append(-bf / bz if bz != 0 else np.nan), windows.append(n), thesis.append(False)
-        starts.append(int(a)), ats.append(at)
+        # where the thesis's straight line reads the slope (its window's centre), or past the smear; and, on a force
+        # at its whole band, the same fits read at the thesis's reading point (a low-passed force: the band term, read
+        # on the whole-cycle fit's surface with the thesis's window at the whole band, holds the smear's reading)
+        at = -float(offset) if offset else thesis_at
+        read = _slopes_at(z, f, a, n, (at,) if offset else (at, ic + thesis_at - a))
+        out.append(read[0]), windows.append(n), thesis.append(False), starts.append(int(a)), ats.append(at)
         located.append(_per_sample(z, f, a, n, at, lo=prev_sep, hi=isep))
-        # where the slope is read against the thesis's reading point (a low-passed force: the band term, read on the
-        # whole-cycle fit's surface with the thesis's window at the whole band, holds the smear's reading already)
-        if offset:
-            shifts.append(math.nan)
-        else:  # the same fits read at the thesis's reading point: the slope's difference there
-            bf2, _ = quad_slope(f[a : a + n], ic + 1.0 + 0.5 * (points - 1) - a)
-            bz2, _ = quad_slope(z[a : a + n], ic + 1.0 + 0.5 * (points - 1) - a)
-            shifts.append(-bf2 / bz2 - out[-1] if bz2 != 0 and math.isfinite(out[-1]) else math.nan)
+        moved = read[1] - read[0] if len(read) > 1 else math.nan
+        at_thesis.append(moved if math.isfinite(moved) else math.nan)
         prev_sep = isep
     info = {"window": windows, "noise_force_n": sf, "noise_position_m": sz, "thesis": thesis,
             "thesis_predicted_sigma": predicted, "start": starts, "at": ats,
-            "per_sample_of_contact": located, "at_thesis_reading": shifts}  # fmt: skip
+            "per_sample_of_contact": located, "at_thesis_reading": at_thesis}  # fmt: skip
     return np.array(out, dtype=float), info
 
 
@@ -276,9 +277,17 @@ def _per_sample(z, f, a: int, n: int, at: float, lo: int, hi: int) -> float:
     as a systematic term (:mod:`vetica_cli.extraction.methods.tapsigmas`)."""
     if a - 1 < lo or a + 1 + n > hi:
         return math.nan
-    got = []
-    for b in (a - 1, a + 1):
-        bf, _ = quad_slope(f[b : b + n], at)
-        bz, _ = quad_slope(z[b : b + n], at)
-        got.append(-bf / bz if bz != 0 else math.nan)
-    return 0.5 * (got[1] - got[0])
+    later, earlier = (_slopes_at(z, f, b, n, (at,))[0] for b in (a + 1, a - 1))
+    return 0.5 * (later - earlier)
+
+
+def _slopes_at(z, f, a: int, n: int, ats) -> list[float]:
+    """``-dF/dz_tip`` read at each sample ``at`` of ``ats`` (from ``a``) from quadratic least-squares
+    fits of ``f`` and ``z`` over the ``n`` samples from ``a``, each fitted once (:func:`quad_fit`:
+    the numbers of :func:`quad_slope` at every ``at``); nan where z's slope is 0."""
+    (cf, _), (cz, _) = quad_fit(f[a : a + n]), quad_fit(z[a : a + n])
+    out = []
+    for at in ats:
+        bf, bz = float(cf[1] + 2.0 * cf[2] * at), float(cz[1] + 2.0 * cz[2] * at)
+        out.append(-bf / bz if bz != 0 else math.nan)
+    return out

@@ -13,6 +13,7 @@ from ... import surfaces
 from ...constants import TIP_RADIUS
 from ...checks import MAX_ARMS, limit, one_of
 from ...errors import InputError
+from ...signals.slopes import noise_floor
 from ...signals.taps import find_taps
 from ...surfaces import COMMON_KEYS
 from ..base import KG_POINTS, ExtractionMethod, Option, register
@@ -495,8 +496,6 @@ class FullFit(ExtractionMethod):
         fitted = [n for n in names if n in (*surface.parameter_keys, "hamaker")]  # not s0, xd0: nuisance
         arm_names = [(surface.parameter_keys[1 + 2 * i], surface.parameter_keys[2 + 2 * i]) for i in range(n_arms)]
         contact_s = float(np.median(taps.separation - taps.contact)) * h
-        from ...signals.slopes import noise_floor
-
         # the residual's part the record's noise does not explain (the model's misfit) is what a dashpot's
         # signature is held against; the noise's part is in the error bars (relative to the peak force, as res)
         rms = math.sqrt(float(np.mean(res**2)))
