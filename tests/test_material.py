@@ -136,8 +136,9 @@ def test_extract_reports_material_from_the_record_and_theory(run):
     res = extract(run.frame(), run.metadata(), force="true")
     m = res.material
     assert [k for k in m] == ["E_dmt", "E_glassy", "E_rubbery", "viscosity", "peak_force", "penetration"]
-    # the record's peak force is the run's observable (one periodic state: every tap equal), rtol 1e-9
-    assert m["peak_force"]["value"] == pytest.approx(run.observables["peak_force"], rel=1e-9)
+    # the record's peak force is the run's observable (one periodic state: every tap equal): the largest recorded
+    # sample (every 0.5 ns) against the largest over every fine step (0.025 ns), 1.6e-7 apart: rtol 1e-6
+    assert m["peak_force"]["value"] == pytest.approx(run.observables["peak_force"], rel=1e-6, abs=0.0)
     # penetration: the tip's depth below Z1 is the surface's below its undeformed level plus the lift of the
     # first contact, X1 = Z1 - a0 (in contact X = z_tip - a0), to rounding; the method takes the adhesion lift
     # -Fc/Kg off (the surface feels the pull), which leaves X1 - Fa/Kg, the first approach's creep k0 Xd1/Kg

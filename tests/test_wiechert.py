@@ -82,7 +82,7 @@ def test_coupled_arm_creep_under_a_constant_load_is_the_eigenmode_sum():
     expected, _ = eigen_creep(K_INF, K, CD, np.zeros(2), force, t)
     np.testing.assert_allclose(xs, expected, rtol=1e-9)
     x0, _ = eigen_creep(K_INF, K, CD, np.zeros(2), force, np.array([0.0, 1.0]))
-    assert x0[0] == pytest.approx(force / KG, rel=1e-12) and x0[1] == pytest.approx(force / K_INF, rel=1e-9)
+    assert x0[0] == pytest.approx(force / KG, rel=1e-12, abs=0.0) and x0[1] == pytest.approx(force / K_INF, rel=1e-9, abs=0.0)
 
 
 @pytest.mark.parametrize("integrator", ["verlet", "hybrid"])

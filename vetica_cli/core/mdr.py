@@ -192,6 +192,9 @@ def surface_step(zs, n, dt, ud, inc, ulast, tlast, hi_prev, g, w, q, arm, vec, v
     m = len(g)
     dgeo = -zs
     kinf, kg, kc = q[Q_KINF], q[Q_KG], q[Q_KC]
+    if n_arms == 1:
+        return _surface_step_one_arm(zs, n, dt, ud, inc, ulast, tlast, hi_prev, g, w, arm, vec, vi, lam, sm, o, energy,
+                                     el_off, tmp, kg, kc)  # fmt: skip
     fsum = 0.0
     hi = 0
     i = 0
@@ -234,6 +237,77 @@ def surface_step(zs, n, dt, ud, inc, ulast, tlast, hi_prev, g, w, q, arm, vec, v
             hi = i + 1
         i += 1
     _ = kinf
+    return fsum, hi
+
+
+@njit(cache=True, inline="always")
+def _surface_step_one_arm(zs, n, dt, ud, inc, ulast, tlast, hi_prev, g, w, arm, vec, vi, lam, sm, o, energy, el_off, tmp,
+                          kg, kc):  # fmt: skip
+    """:func:`surface_step` for one arm (the SLS's sphere): the same updates, the arm's constants held
+    in registers and the dissipation summed over the elements before it is added to the outputs
+    (each output written in the loop made the compiled loop reload every constant after it)."""
+    m = len(g)
+    dgeo = -zs
+    k, ker, omer, lin = arm[A_K, 0], arm[A_KER, 0], arm[A_OMER, 0], arm[A_LIN, 0]
+    klin = k * lin
+    one_ok = False
+    e1 = q1 = q2 = 0.0
+    fsum = 0.0
+    diss = 0.0
+    hi = 0
+    i = 0
+    while i < m and (g[i] <= dgeo or i < hi_prev):
+        gi = g[i]
+        ut = zs + gi
+        if inc[i] == 0:
+            if gi > dgeo:
+                i += 1
+                continue
+            if tlast[i] == n - 2:  # one step out of contact since it was looked at: the exact step, its factors once
+                if not one_ok:
+                    e1 = math.exp(lam[0] * dt)
+                    q1 = math.expm1(lam[0] * dt) / lam[0]
+                    s2 = lam[0] + lam[0]
+                    q2 = math.expm1(s2 * dt) / s2
+                    one_ok = True
+                c0 = vi[0, 0] * ud[i, 0]
+                if energy:
+                    o[el_off + i] += sm[0, 0] * c0 * q1
+                    dis = vec[0, 0] * lam[0] * c0 * vec[0, 0] * lam[0] * c0 * q2
+                    dis *= w[i] * arm[A_ETA, 0]
+                    o[O_DDASH] += dis
+                    o[O_XM + 1] += dis
+                ud[i, 0] = vec[0, 0] * (c0 * e1)
+                tlast[i] = n - 1
+            elif tlast[i] < n - 1:
+                free_advance(ud, i, (n - 1 - tlast[i]) * dt, w[i], arm, vec, vi, lam, sm, o, energy, el_off, tmp)
+                tlast[i] = n - 1
+            uf = k * ud[i, 0] / kg
+            if ut > uf:
+                i += 1
+                continue
+            inc[i] = 1
+            ulast[i] = uf
+        ul = ulast[i]
+        old = ud[i, 0]
+        f = kc * ut - (ker * old + klin * ul)
+        new = old + omer * (ut - old) - lin * (ut - ul)
+        ud[i, 0] = new
+        wi = w[i]
+        if energy:
+            diss += wi * k * (0.5 * (ut + ul) - 0.5 * (new + old)) * (new - old)
+            o[el_off + i] += (ut - new) * dt
+        ulast[i] = ut
+        tlast[i] = n
+        if f > 0.0:
+            inc[i] = 0
+        else:
+            fsum += wi * f
+            hi = i + 1
+        i += 1
+    if energy:
+        o[O_DDASH] += diss
+        o[O_XM + 1] += diss
     return fsum, hi
 
 
