@@ -205,7 +205,7 @@ def test_shaded_regime_is_exactly_the_stated_range():
         spans = [p for p in ax.patches if p.get_label().startswith("acceptance regime")]
         assert rng is not None and len(spans) == 1
         x0, x1 = x_range(spans[0])
-        assert x0 == pytest.approx(rng.lo, rel=1e-12) and x1 == pytest.approx(rng.hi, rel=1e-12)
+        assert x0 == pytest.approx(rng.lo, rel=1e-12, abs=0.0) and x1 == pytest.approx(rng.hi, rel=1e-12, abs=0.0)
         assert f"{rng.lo:.2g} to {rng.hi:.2g}" in ax.get_title()
 
 

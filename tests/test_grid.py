@@ -69,7 +69,7 @@ def test_derived_keys_stiffness_ratio_and_f2_ratio():
     )
     assert len(st.points) == 6
     for p in st.points:
-        assert p.config.surface.k0 == pytest.approx(4.0 * p.values["surface.stiffness_ratio"], rel=1e-12)
+        assert p.config.surface.k0 == pytest.approx(4.0 * p.values["surface.stiffness_ratio"], rel=1e-12, abs=0.0)
         assert p.config.probe.f2 == pytest.approx(15 * p.config.probe.f1, rel=1e-12)
     assert sorted({p.config.surface.k0 for p in st.points}) == [0.5, 4.0, 128.0]
 

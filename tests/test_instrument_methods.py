@@ -55,7 +55,7 @@ def test_closed_forms_reduce_to_the_resonant_loss_tangent():
     amp, a0, phi = 70e-9, 100e-9, 48.9
     o = am_observables(amp, phi, a0, 10.0, 100.0, 1.0)
     p = math.radians(phi)
-    assert o["tan_delta"] == pytest.approx((math.sin(p) - amp / a0) / abs(math.cos(p)), rel=1e-12)
+    assert o["tan_delta"] == pytest.approx((math.sin(p) - amp / a0) / abs(math.cos(p)), rel=1e-12, abs=0.0)
     free = am_observables(a0, 90.0, a0, 10.0, 100.0, 1.0)
     assert abs(free["e_diss"]) < 1e-12 * math.pi * 10 * a0**2 / 100 and abs(free["virial"]) < 1e-25
 
@@ -90,11 +90,11 @@ def test_sls_loss_tangent_is_the_spec_closed_form():
     w = 2 * math.pi * 50e3
     x = w * p["cd"] / p["k0"]
     ks, kl = surfaces.get("sls").complex_stiffness(p, w)
-    assert ks == pytest.approx(4.0 + 128.0 * x * x / (1 + x * x), rel=1e-14)
-    assert kl == pytest.approx(128.0 * x / (1 + x * x), rel=1e-14)
+    assert ks == pytest.approx(4.0 + 128.0 * x * x / (1 + x * x), rel=1e-14, abs=0.0)
+    assert kl == pytest.approx(128.0 * x / (1 + x * x), rel=1e-14, abs=0.0)
     wp = surfaces.get("wiechert").parse({"k_inf": 4.0, "arms": [{"k": 128.0, "cd": 3e-5}]})
     th = surfaces.get("wiechert").dynamic_theory(wp, 50e3, 1e-6)
-    assert th["tan_delta_drive"] == pytest.approx(kl / ks, rel=1e-14)
+    assert th["tan_delta_drive"] == pytest.approx(kl / ks, rel=1e-14, abs=0.0)
     assert th["e_storage_drive"] is None  # springs have no modulus
 
 
@@ -123,7 +123,7 @@ def test_dmt_fit_recovers_the_modulus_of_a_hertz_force_curve():
     res = extract(hertz_record(e_star, radius, 5e-9, depth), {"time_sampling": "nonuniform"}, force="true", method="dmt-fit", tip_radius=radius)
     assert res.taps >= 2
     assert res.value("e_dmt") == pytest.approx(e_star, rel=1e-4)
-    assert res.value("adhesion") == pytest.approx(5e-9, rel=1e-4)
+    assert res.value("adhesion") == pytest.approx(5e-9, rel=1e-4, abs=0.0)
     assert res.value("deformation") == pytest.approx(depth, rel=1e-3)
     assert res.value("k_dmt") == pytest.approx(2 * e_star * math.sqrt(radius * depth), rel=1e-3)
     loop = abs(res.value("e_diss_tap"))
@@ -147,7 +147,7 @@ def test_extract_json_gives_theory_and_signed_errors(worked, method, names):
     for name in names:
         e = out[name]
         if e["theory"] is not None and e["value"] is not None:
-            assert e["error_pct"] == pytest.approx(100 * (e["value"] - e["theory"]) / e["theory"], rel=1e-9)
+            assert e["error_pct"] == pytest.approx(100 * (e["value"] - e["theory"]) / e["theory"], rel=1e-9, abs=0.0)
     assert out["theory"]["tan_delta_drive"]["value"] == pytest.approx(
         surfaces.get("sls").dynamic_theory(run.params["surface"], 50e3, None)["tan_delta_drive"], rel=1e-12
     )
@@ -201,7 +201,7 @@ def test_scan_writes_tan_delta_and_dmt_maps(tmp_path):
     for _, r in obs.iterrows():
         s = {"k_inf": 4.0, "k0": 128.0, "cd": 3e-5} if r["domain"] == 0 else {"k_inf": 4.0, "k0": 32.0, "cd": 3e-4}
         assert r["tan_delta_am_theory"] == pytest.approx(
-            surfaces.get("sls").dynamic_theory(s, 50e3, None)["tan_delta_drive"], rel=1e-12
+            surfaces.get("sls").dynamic_theory(s, 50e3, None)["tan_delta_drive"], rel=1e-12, abs=0.0
         )
     fig = fig_instrument(ScanGeometry.of(df, meta), df, "inst_scan")
     assert fig is not None and len([a for a in fig.axes if a.images]) >= 5  # tau_c, tan d, E*, k_DMT (+ truths)
@@ -234,4 +234,4 @@ def test_observables_sigma_needs_a_record_longer_than_the_ring_down(worked):
     sp = low_q.estimates["amplitude_obs"].spread
     n_eff = sp.n / (1 + 2 * tau)
     expect = sp.std / math.sqrt(n_eff) * t_factor(int(n_eff)) / low_q.estimates["amplitude_obs"].value
-    assert low_q.estimates["amplitude_obs"].sigma == pytest.approx(expect, rel=1e-12)
+    assert low_q.estimates["amplitude_obs"].sigma == pytest.approx(expect, rel=1e-12, abs=0.0)

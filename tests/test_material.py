@@ -116,9 +116,9 @@ def test_tap_contact_reads_peak_force_and_depth_below_z1():
     f = np.where(inside, -1e-9 + 1e-8 * (1 - abs(ph - 100) / 50), -1e-9 * np.exp(-dist / 10.0))
     z = -1e-9 * np.cos(2 * np.pi * (ph - 100) / 200) - 0.5e-9 * (t // 200 == 1)  # second tap dips deeper
     peak, depth = tap_contact(z, f, 0.2e-9)
-    assert peak == pytest.approx(-1e-9 + 1e-8, rel=1e-12)
+    assert peak == pytest.approx(-1e-9 + 1e-8, rel=1e-12, abs=0.0)
     # lowest tip position per tap: -1 nm (taps 1, 3) and -1.5 nm (tap 2); median of three -> 1 nm + Z1
-    assert depth == pytest.approx(0.2e-9 + 1e-9, rel=1e-9)
+    assert depth == pytest.approx(0.2e-9 + 1e-9, rel=1e-9, abs=0.0)
 
 
 # ------------------------------------------------------------------ in extract and its JSON

@@ -72,7 +72,7 @@ def test_constant_pull_gives_closed_form_creep_compliance():
     fa = 0.0  # no guess: the first step divides exactly, later ones refine the previous force
     for i in range(n_steps):
         fa, xs[i], xd = noncontact_update(d, xd, fa, HR6, 1 / HR6, alpha, beta, gamma, ec)
-    assert fa == pytest.approx(fa_expected, rel=1e-12)
+    assert fa == pytest.approx(fa_expected, rel=1e-12, abs=0.0)
     t = np.arange(1, n_steps + 1) * DT
     j = 1 / KR - (1 / KR - 1 / KG) * np.exp(-t / TAU_C)
     np.testing.assert_allclose(xs, fa_expected * j, rtol=1e-3)
@@ -89,7 +89,7 @@ def test_dashpot_step_is_stable_and_never_overshoots_when_tau_below_dt():
         f, xd = contact_update(x, xd, kc, k0er, er)
         assert x <= xd <= 0.0
     # fully relaxed: only k_inf carries load
-    assert f == pytest.approx(K_INF * x, rel=1e-9)
+    assert f == pytest.approx(K_INF * x, rel=1e-9, abs=0.0)
     assert math.isfinite(f)
 
 

@@ -43,11 +43,11 @@ def test_the_first_contact_height_is_where_the_pulled_surface_meets_the_tip(k_in
     lift, _ = model._contact_lift(1.0 / kg, HR6 / A0**2, np.zeros(model.ndir), np.zeros(model.ndir))
     d_star = (2.0 * HR6 / kg) ** (1.0 / 3.0)
     closed = 1.5 * d_star if d_star > A0 else A0 + HR6 / A0**2 / kg
-    assert lift == pytest.approx(closed, rel=1e-12)
+    assert lift == pytest.approx(closed, rel=1e-12, abs=0.0)
     onset = int(np.argmax(np.diff(f) > 0.0))  # the attraction deepens until the contact, then falls
     assert z[onset] == pytest.approx(closed, abs=6e-12)
     eq84 = A0 + HR6 / A0**2 / kg
-    assert eq84 - closed > 0.05e-9 if d_star > A0 else eq84 == pytest.approx(closed, rel=1e-12)
+    assert eq84 - closed > 0.05e-9 if d_star > A0 else eq84 == pytest.approx(closed, rel=1e-12, abs=0.0)
 
 
 def test_the_lift_is_continuous_and_its_derivatives_are_its_slopes():
@@ -58,7 +58,7 @@ def test_the_lift_is_continuous_and_its_derivatives_are_its_slopes():
     e_h = np.zeros(nd)
     e_h[nd - 1] = 1.0
     for kg in (2.0 * HR6 / A0**3 * (1 - 1e-9), 2.0 * HR6 / A0**3 * (1 + 1e-9)):
-        assert model._contact_lift(1.0 / kg, HR6 / A0**2, e_h * 0, e_h * 0)[0] == pytest.approx(1.5 * A0, rel=1e-8)
+        assert model._contact_lift(1.0 / kg, HR6 / A0**2, e_h * 0, e_h * 0)[0] == pytest.approx(1.5 * A0, rel=1e-8, abs=0.0)
     for kg in (10.0, 200.0):
         fa, inv = HR6 / A0**2, 1.0 / kg
         dinv = -inv * e_h[::-1]  # a direction along ln Kg (any column: the lift is linear in it)
@@ -67,7 +67,7 @@ def test_the_lift_is_continuous_and_its_derivatives_are_its_slopes():
         for vec, fun in ((dinv, lambda s: model._contact_lift(inv * math.exp(-s), fa, dinv, fa * e_h)[0]),
                          (fa * e_h, lambda s: model._contact_lift(inv, fa * math.exp(s), dinv, fa * e_h)[0])):
             col = int(np.flatnonzero(vec)[0])
-            assert d[col] == pytest.approx((fun(eps) - fun(-eps)) / (2 * eps), rel=1e-6)
+            assert d[col] == pytest.approx((fun(eps) - fun(-eps)) / (2 * eps), rel=1e-6, abs=0.0)
 
 
 def test_the_narrower_band_looks_for_the_well_near_the_records():

@@ -32,7 +32,7 @@ def test_orbit_equals_the_long_transient_where_the_transient_settles(cd):
     assert orbit.info["steady"]["method"] == "orbit" and trans.info["steady"]["method"] == "transient"
     assert abs(orbit.info["zb_final"] - trans.info["zb_final"]) < 2 * 2e-6 * 70e-9
     for k in OBSERVABLES:
-        assert trans.observables[k] == pytest.approx(orbit.observables[k], rel=1e-4), k
+        assert trans.observables[k] == pytest.approx(orbit.observables[k], rel=1e-4, abs=0.0), k
 
 
 @pytest.mark.parametrize("cd", [1.0, 10.0, 1e3])
@@ -127,7 +127,7 @@ def test_hybrid_integrator_matches_all_fine_verlet(over):
     assert hybrid.stop_reason == fine.stop_reason == "steady"
     assert hybrid.info["far_steps"] > 0 and fine.info["far_steps"] == 0
     for k in OBSERVABLES:
-        assert hybrid.observables[k] == pytest.approx(fine.observables[k], rel=1e-4), k
+        assert hybrid.observables[k] == pytest.approx(fine.observables[k], rel=1e-4, abs=0.0), k
 
 
 @pytest.mark.parametrize("over", [{}, {"surface.cd": 1.0, "surface.vdw_on_surface": False}])

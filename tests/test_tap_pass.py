@@ -88,7 +88,7 @@ def test_compiled_stage2_equals_the_per_tap_loop(soft_record):
     loop = vetica(r.t, r.z, r.f, r.z1, stage1=measure_stage1(r.z, r.f, 10, r.taps))
     compiled = vetica(r.t, r.z, r.f, r.z1, stage1=measure_stage1(r.z, r.f, 10, r.taps, t=r.t))
     for q, v in loop.values.items():
-        assert compiled.values[q] == pytest.approx(v, rel=1e-12), q
+        assert compiled.values[q] == pytest.approx(v, rel=1e-12, abs=0.0), q
 
 
 @pytest.mark.parametrize("mode", ["adhesion", "creep", "fit"])
@@ -100,7 +100,7 @@ def test_compiled_prestress_fixed_point_equals_the_python_loop(soft_record, mode
     loop = vetica_prestress(r.t, r.z, r.f, r.z1, prestress=mode, stage1=measure_stage1(r.z, r.f, 10, r.taps))
     compiled = vetica_prestress(r.t, r.z, r.f, r.z1, prestress=mode, stage1=measure_stage1(r.z, r.f, 10, r.taps, t=r.t))
     for q, v in loop.values.items():
-        assert compiled.values[q] == pytest.approx(v, rel=1e-8), (mode, q)
+        assert compiled.values[q] == pytest.approx(v, rel=1e-8, abs=0.0), (mode, q)
 
 
 @pytest.mark.parametrize("method", ["vetica", "vetica-prestress"])

@@ -40,7 +40,7 @@ def test_free_probe_variance_matches_equipartition(free_runs):
     assert noisy.steady.shape == clean.steady.shape
     for col, k, rtol in ((IC, cfg.probe.k1, 0.05), (IP, cfg.probe.k2, 0.03)):
         dz = noisy.steady[:, col] - clean.steady[:, col]
-        assert np.var(dz) == pytest.approx(thermal.KB * 300.0 / k, rel=rtol)
+        assert np.var(dz) == pytest.approx(thermal.KB * 300.0 / k, rel=rtol, abs=0.0)
     # z_tip is the sum of its parts; a free probe feels only the (tiny) attraction
     np.testing.assert_allclose(noisy.steady[:, IT], noisy.steady[:, IB] + noisy.steady[:, IC] + noisy.steady[:, IP])
 
@@ -96,7 +96,7 @@ def test_thermal_noise_is_seeded_and_the_default_is_none():
     # the paddle's thermal motion (2.4 pm RMS free; the contacts stiffen it for a tenth of
     # each period) is what the force read from the paddle, k2 zp, carries as ~1.7 nN noise
     rms_paddle = math.sqrt(thermal.KB * 300 / 700)
-    assert np.std(one.steady[:, IP] - clean.steady[:, IP]) == pytest.approx(rms_paddle, rel=0.3)
+    assert np.std(one.steady[:, IP] - clean.steady[:, IP]) == pytest.approx(rms_paddle, rel=0.3, abs=0.0)
     assert np.std(one.steady[:, IF] - clean.steady[:, IF]) > 1e-12  # the true force feels it too
     assert one.observables == clean.observables  # observables from the noise-free orbit
 

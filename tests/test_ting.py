@@ -78,7 +78,7 @@ def test_ramp_closed_form_is_lee_radok():
     # weight 'alg': the integrand's end-point powers s^0.5 (tt - s)^-beta handled exactly
     val = ting.hertz_constant(R, NU) * 1000.0 * 1.5 * v**1.5 * quad(lambda s: 1.0, 0, tt, weight="alg",
                                                                      wvar=(0.5, -beta))[0]
-    assert ting.powerlaw_ramp_force(tt, v, R, NU, 1000.0, beta) == pytest.approx(val, rel=1e-8)
+    assert ting.powerlaw_ramp_force(tt, v, R, NU, 1000.0, beta) == pytest.approx(val, rel=1e-8, abs=0.0)
 
 
 def test_prony_ting_matches_the_hertz_surface_mdr_kernel():

@@ -48,7 +48,7 @@ def test_sls_elements_invert_the_theory_constants():
     th = theory(K0, KINF, CD)
     back = sls_elements(th["tau_c"], th["k_g"], th["k_r"])
     for k in ("k0", "k_inf", "cd", "tau_r"):
-        assert back[k] == pytest.approx(th[k], rel=1e-12)
+        assert back[k] == pytest.approx(th[k], rel=1e-12, abs=0.0)
 
 
 def test_thesis_table4_recomputed_from_its_own_stage1_values():
