@@ -16,10 +16,8 @@ recording kernel pulls the surface by the fine kernel's rule (the records change
 moved by up to 0.5 % of the peak on the stiff surface and 9 % on the soft one, which snaps to the tip,
 at the contact onsets) and whose band term declares the
 record's noise through its narrower bands, and once more on the version whose Kg error bar carries the
-contact-location term of stage 1b's grown window, and once more (their reconstructed-force entries
-moved) on the version that inverts an approach segment of an awkward length as two windows of a fast
-length: for them the file is a regression reference of that version, not the Python path's (the
-noise-free entries still are), run as
+contact-location term of stage 1b's grown window: for them the file is a regression reference of that
+version, not the Python path's (the noise-free entries still are), run as
 
     PYTHONPATH=. python -c "..."  # estimates() of the two 300 K records, merged into the file
 

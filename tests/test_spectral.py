@@ -162,27 +162,3 @@ def test_awkward_lengths_give_the_same_transform(n):
     spec = np.fft.rfft(x)
     assert np.max(np.abs(rfft(x) - spec)) < 1e-13 * np.max(np.abs(spec))
     assert np.max(np.abs(irfft(spec, n) - x)) < 1e-13 * np.max(np.abs(x))
-
-
-@pytest.mark.parametrize("n", [32439, 40961])
-def test_awkward_length_inverts_as_two_fast_windows_to_the_equation_of_motion(n):
-    """A record whose length has a large prime factor (3 x 11 x 983; 71 x 577) is inverted as two
-    overlapping windows of a fast length (spectral module docstring).  On a drifting,
-    non-periodic window the force matches the paddle's equation of motion (thesis eq. 16,
-    closed form) to 1e-5 of the peak force from the 10th sample in from each end (measured
-    1.3e-6 and 1.5e-6; the whole window, inverted at once: 1.2e-7 and 2.3e-6); the end samples
-    to 1e-3 (2.1e-4 and 1.9e-4; the whole window 3.9e-5 and 4.7e-4: its own end effects); the
-    join at the middle leaves no step above 1e-6 of the peak (3e-8)."""
-    from vetica_cli.signals.spectral import is_fast_length, split_length
-
-    m = split_length(np.zeros(n))
-    assert not is_fast_length(n) and is_fast_length(m) and 0.9 * n <= m < n
-    f1, h = 75e3, 1e-9
-    t = 1e-3 + np.arange(n) * h
-    zp, force = _analytic(t, f1, HARMONICS, drift=(2e-7, 3e-4))
-    err = reconstruct_force(t, zp, K2, F2, Q2).f - force
-    peak = np.max(np.abs(force))
-    assert np.max(np.abs(err[10:-10])) < 1e-5 * peak
-    assert np.max(np.abs(err)) < 1e-3 * peak
-    mid = n // 2
-    assert abs(err[mid] - err[mid - 1]) < 1e-6 * peak

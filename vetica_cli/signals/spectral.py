@@ -45,20 +45,6 @@ results/thesis/worked_example.md for the reconstruction and VETICA errors agains
 ``fc``.  For measured (noisy) data choose ``fc`` from the detector noise
 floor: noise is amplified by ``(w/w2)^2``.
 
-Window length: the FFT of a length with a large prime factor is slow (an approach segment of
-32,439 = 3 x 11 x 983 samples: 2.2 ms a transform against 0.17 ms at 32,400).  Such a record of
-``STITCH_MIN`` samples or more is inverted as two windows of the largest fast length ``m <= n``,
-the first ``m`` samples and the last ``m``, each with its own end correction, joined at the
-middle, where each is ~n/2 samples from its ends (the windows' inner ends put where the signal is
-smoothest, :func:`split_length`): away from the record's ends the two
-inversions agree with the whole record's to its end effects (on a 300 K approach segment
-low-passed at 23 MHz, within 2.5e-12 N near the first contact, a peak force of 2e-8 N; 1e-15 N
-noise-free), and within the first and last dozens of samples they differ as much as the whole
-record's own end effects do (8e-10 N at 300 K).  A record whose two ends meet ten times more
-smoothly than the windows' would (:data:`WRAP_FRACTION`: a simulated record of whole periods, which
-the end correction leaves within 5e-7 of the peak force RMS where two windows cut mid-period left
-1.2e-4) and an automatic cut-off (read on the record's own spectrum) keep the whole window.
-
 The spectral derivative ``dz/dt = F^-1[i w Z(w)]`` (thesis eqs. 93-94, the tip
 velocity of the "4-D" force curve) needs the same end correction for the same
 reason, to first order (value and slope jumps): :func:`spectral_derivative`.
@@ -156,50 +142,9 @@ def bernoulli_correction(jumps: np.ndarray, n: int, h: float) -> tuple[np.ndarra
 CACHE_SAMPLES = 1 << 17
 FFT_RADICES = (2, 3, 5, 7, 11)  # prime factors numpy's FFT has fast passes for
 SCIPY_FFT_MIN = 1024  # awkward lengths from which scipy's FFT is faster (below, its call costs more than it saves)
-# awkward lengths from which the inversion runs as two overlapping windows of a fast length (module docstring),
-# when that length is within this fraction of the record's
-STITCH_MIN = 4096
-STITCH_SLACK = 0.1
-# ... unless the record's own ends meet this much more smoothly than the windows' (a record of whole periods)
-WRAP_FRACTION = 0.1
 
 
-@functools.lru_cache(maxsize=64)
-def fast_lengths(lo: int, hi: int) -> np.ndarray:
-    """Every length in ``[lo, hi]`` with no prime factor beyond :data:`FFT_RADICES`, ascending."""
-    out = [1]
-    for p in FFT_RADICES:
-        out = [x * p**k for x in out for k in range(int(math.log(hi, p)) + 2) if x * p**k <= hi]
-    return np.array(sorted(x for x in set(out) if x >= lo), dtype=np.int64)
-
-
-def _wrap_step(y: np.ndarray) -> float:
-    """How far a window's periodic extension jumps at its wrap: its last sample carried one step
-    on (linearly) less its first, in ``y``'s units."""
-    return abs(2.0 * float(y[-1]) - float(y[-2]) - float(y[0]))
-
-
-def split_length(y: np.ndarray, points: int = 12, degree: int = 4) -> int:
-    """The fast length ``m`` (:func:`fast_lengths`, within ``STITCH_SLACK`` of ``len(y)``) whose two
-    windows, ``y[:m]`` and ``y[-m:]``, end inside the record where ``y`` is smoothest: the least
-    sum of squared residuals of the end correction's polynomial fit (``degree`` through
-    ``points`` samples) at the first window's last samples and the second's first (an end
-    inside a tap, where the force kinks, is what the correction reads worst)."""
-    n = len(y)
-    m = fast_lengths(int(math.ceil((1.0 - STITCH_SLACK) * n)), n - 1)
-    if not len(m):
-        return 0
-    (_, _, a), _ = end_fit_weights(points, degree)
-    a = np.asarray(a)
-    resid = np.eye(points) - a @ np.linalg.pinv(a)  # the fit's residual operator on ``points`` samples
-    k = np.arange(points)
-    ends = np.concatenate([y[m[:, None] - points + k], y[(n - m)[:, None] + k]], axis=0)
-    ends = ends - ends.mean(axis=1, keepdims=True)
-    score = np.sum((ends @ resid.T) ** 2, axis=1)
-    return int(m[int(np.argmin(score[: len(m)] + score[len(m) :]))])
-
-
-def is_fast_length(n: int) -> bool:
+def _smooth(n: int) -> bool:
     """Whether ``n`` has no prime factor beyond :data:`FFT_RADICES` (numpy's FFT is fast on it)."""
     for p in FFT_RADICES:
         while n > 1 and n % p == 0:
@@ -212,7 +157,7 @@ def rfft(x: np.ndarray) -> np.ndarray:
     approach segment of 3 x 10813 samples: 8 ms against 0.3 ms at a nearby length) goes to
     ``scipy.fft``, the same transform (the same pocketfft: equal bits on 407 lengths tried) 2-4x
     faster there (imported only then)."""
-    if len(x) < SCIPY_FFT_MIN or is_fast_length(len(x)):
+    if len(x) < SCIPY_FFT_MIN or _smooth(len(x)):
         return np.fft.rfft(x)
     import scipy.fft
 
@@ -221,7 +166,7 @@ def rfft(x: np.ndarray) -> np.ndarray:
 
 def irfft(spec: np.ndarray, n: int) -> np.ndarray:
     """``numpy.fft.irfft(spec, n)`` (:func:`rfft`: scipy's for a long awkward ``n``)."""
-    if n < SCIPY_FFT_MIN or is_fast_length(n):
+    if n < SCIPY_FFT_MIN or _smooth(n):
         return np.fft.irfft(spec, n)
     import scipy.fft
 
@@ -367,14 +312,6 @@ def reconstruct_force(
     fc = nyquist if cutoff_hz is None or auto else float(cutoff_hz)
     if not fc > 0:
         raise InputError(f"cut-off {cutoff_hz} Hz not allowed; expected > 0")
-    if not auto and n >= STITCH_MIN and not is_fast_length(n):
-        m = split_length(zp)
-        wraps = [_wrap_step(zp[w]) for w in (slice(0, n), slice(0, m), slice(n - m, n))] if m else []
-        if m and wraps[0] >= WRAP_FRACTION * max(wraps[1:]):  # two fast windows joined at the middle (module docstring)
-            first, last = (reconstruct_force(t[s], zp[s], k2, f2, q2, cutoff_hz, taper, order) for s in (slice(0, m), slice(n - m, n)))
-            mid = n // 2
-            f = np.concatenate([first.f[:mid], last.f[mid - (n - m) :]])
-            return Reconstruction(f=f, cutoff_hz=first.cutoff_hz, taper=taper, end_jumps=first.end_jumps + last.end_jumps)
     w2 = 2.0 * math.pi * f2
     m2 = k2 / w2**2
     c2 = m2 * w2 / q2
