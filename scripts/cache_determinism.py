@@ -5,14 +5,12 @@ cache directory -- the first compiles (and writes the cache), the second loads -
 
     PYTHONPATH=. python scripts/cache_determinism.py
 
-On 2026-11-26 (numba 0.68.1, x86_64), with the kernel compiled with ``fastmath={"contract"}``: the force
-and five of six tangent columns were identical, the ``d F/d ln k0`` column differed by up to 5e-12
-relative (whether a multiply-add was fused differed between numba's in-process code and the object code
-it caches).  A fit far from convex amplified that: the whole-cycle fit of a noise-free 16:1 record at cd
-1e-6 kg/s (configs/method_low_cd.yaml's point, 0.125 ns, reconstructed force) read k0 +0.25 % in a
-process that loaded the cached kernels and -80 % (flagged) in one that compiled them (+0.27 % with BLAS
-on one thread).  Without contraction the two are identical (exit status 0); the simulator's kernels,
-still contracted, gave identical records both ways on that point (not checked in general).
+On 2026-11-26 (numba 0.68.1, x86_64): the force and five of six tangent columns were identical, the
+``d F/d ln k0`` column differed by up to 5e-12 relative.  A fit far from convex amplifies that: the
+whole-cycle fit of a noise-free 16:1 record at cd 1e-6 kg/s (configs/method_low_cd.yaml's point, 0.125
+ns, reconstructed force) read k0 +0.25 % in a process that loaded the cached kernels and -80 % (flagged)
+in one that compiled them (+0.27 % and +0.25 % with BLAS on one thread).  Not yet traced to its cause;
+the committed results tables were made with the kernels loaded from the cache.
 """
 
 from __future__ import annotations

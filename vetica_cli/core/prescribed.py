@@ -26,12 +26,6 @@ one exact-exponential step of length ``block h`` (the same
 gap at both ends of the block exceeds ``far_gap`` and the caller allows it
 (``coarse_ok``, from which samples it wants the force at).
 
-Compiled without floating-point contraction (no ``fastmath``): with it, whether a multiply-add
-became one fused instruction differed between the kernel numba compiled in the process and the same
-kernel loaded from its cache (``dF/d ln k0`` by up to 5e-12 relative, ``scripts/cache_determinism.py``),
-and a fit far from convex then took another path (k0 +0.25 % with the cached kernel, +0.27 % or -80 %
-compiled): a record's answer depended on whether the machine had run vetica before.
-
 Tangent-linear model: alongside the state the kernel propagates its exact
 derivatives (for a fixed contact/separation schedule) with respect to
 ``ndir`` of the directions ``DIRECTIONS`` = (initial dashpot position
@@ -128,7 +122,7 @@ def coefficient_tangents(k_inf, k0, cd, hr6, a0, vdw_on_surface, dt):
     return c, dc
 
 
-@njit(cache=True, inline="always", error_model="numpy")
+@njit(cache=True, inline="always", fastmath={"contract"}, error_model="numpy")
 def _noncontact(d, xd, fa, hr6, ihr6, c, dc, dir0, ndir, dxd, dx, dfa, ds0, dlnhr6):
     """One non-contact update (:func:`.sls.noncontact_update`) at gap ``d`` with the
     coefficients ``c`` of its step, and its tangent: ``dfa``, ``dx``, ``dxd`` updated
@@ -142,7 +136,7 @@ def _noncontact(d, xd, fa, hr6, ihr6, c, dc, dir0, ndir, dxd, dx, dfa, ds0, dlnh
     return fa, x, xd_new
 
 
-@njit(cache=True, inline="always", error_model="numpy")
+@njit(cache=True, inline="always", fastmath={"contract"}, error_model="numpy")
 def _contact(xc, xd, c, dc, dir0, ndir, dxd, dx, dfa, ds0):
     """One contact update (:func:`.sls.contact_update`) with the surface at ``xc``
     and its tangent; ``dfa`` receives ``d(F_sls + fa_c)``.  On separation
@@ -166,7 +160,7 @@ def _contact(xc, xd, c, dc, dir0, ndir, dxd, dx, dfa, ds0):
     return -f_sls - c[C_FAC], f_sls, xc, xd_new, False
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, fastmath={"contract"}, error_model="numpy")
 def surface_force(
     z, s0, k_inf, k0, cd, hr6, a0, vdw_on_surface, h,
     block, coarse_ok, want, far_gap, substeps, sub_gap,
@@ -422,7 +416,7 @@ def arm_coefficients(k_inf, k, cd, hr6, a0, vdw_on_surface, steps, tangents=True
     return arm, emi, sc, darm, demi, dsc
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, fastmath={"contract"}, error_model="numpy")
 def arms_force(
     z, s0, a0, block, coarse_ok, want, far_gap, substeps, sub_gap,
     xd0, contact0, ndir, arm3, emi3, sc3, darm3, demi3, dsc3, out_f, out_jac,
@@ -564,7 +558,7 @@ def arms_force(
     return xd, x, contact, dxd, k, contacts, separations, coarse_steps
 
 
-@njit(cache=True, inline="always", error_model="numpy")
+@njit(cache=True, inline="always", fastmath={"contract"}, error_model="numpy")
 def _arms_noncontact(d, xd, fa, hr6, ihr6, c, arm3, emi3, sc3, darm3, demi3, dsc3, ndir, dxd, dx, dfa, ds0, dlnhr6,
                      xd_new, dxd_new):  # fmt: skip
     """One non-contact update at gap ``d`` with the coefficients of step ``c`` (see
@@ -600,7 +594,7 @@ def _arms_noncontact(d, xd, fa, hr6, ihr6, c, arm3, emi3, sc3, darm3, demi3, dsc
     return fa, x
 
 
-@njit(cache=True, inline="always", error_model="numpy")
+@njit(cache=True, inline="always", fastmath={"contract"}, error_model="numpy")
 def _arms_contact(xc, xd, c, arm3, sc3, darm3, dsc3, ndir, dxd, dx, dfa, ds0, xd_new, dxd_new):
     """One contact update with the surface at ``xc`` (coefficients of step ``c``) and its
     tangent; ``dfa`` receives ``d(F_sls + fa_c)``.  On separation (``F_sls > sep_thr``) the
