@@ -9,8 +9,12 @@ On 2026-11-26 (numba 0.68.1, x86_64): the force and five of six tangent columns 
 ``d F/d ln k0`` column differed by up to 5e-12 relative.  A fit far from convex amplifies that: the
 whole-cycle fit of a noise-free 16:1 record at cd 1e-6 kg/s (configs/method_low_cd.yaml's point, 0.125
 ns, reconstructed force) read k0 +0.25 % in a process that loaded the cached kernels and -80 % (flagged)
-in one that compiled them (+0.27 % and +0.25 % with BLAS on one thread).  Not yet traced to its cause;
-the committed results tables were made with the kernels loaded from the cache.
+in one that compiled them (+0.27 % and +0.25 % with BLAS on one thread).  The cause is the kernel's
+``fastmath={"contract"}``: numba's in-process code and the object code it caches fuse different
+multiply-adds; compiled without contraction the two are identical.  Not changed: the fit's answers at
+its fragile points then moved the other way (results/methods regenerated: two right rows at cd 1e-6 and
+one at 1:8 lost, and a row at cd 100 kg/s, 0.5 ns, true force read cd +11.8 % at a 0.44 % sigma,
+unflagged).  The committed results tables were made with the kernels loaded from the cache.
 """
 
 from __future__ import annotations
