@@ -324,3 +324,49 @@ def test_frozen_dashpot_is_flagged_not_identifiable():
     assert {k: res.estimates[k].identifiable for k in res.fitted} == {"k_inf": False, "k0": False, "cd": False}
     assert abs(res.estimates["k_g"].error_pct) < 1.0
     assert res.estimates["k_g"].sigma < 0.01
+
+
+# ----------------------------------------------------------------------------- the window's start state
+
+
+@pytest.mark.slow
+def test_a_record_taken_before_the_surface_settled_releases_the_start_state():
+    """A record 4 ms after the approach (``numerics.steady: transient`` stopped by ``max_time``;
+    cd 3e-2 kg/s at 32:1, tau_c 0.23 ms): its dashpot has not reached the periodic orbit.  Held
+    periodic the fit reads k_inf +138 % (measured); ``state='auto'`` sees the state remove more than
+    half the residual (measured 0.995), frees it and recovers the surface within 0.01 % (measured
+    3e-4 %)."""
+    run = simulate(load(None, {"surface.cd": 3e-2, "numerics.steady": "transient", "numerics.max_time": 4e-3,
+                               "numerics.record_cycles": 4, "numerics.print_step": 1e-9}))  # fmt: skip
+    df, meta = run.frame(), run.metadata()
+    held = extract(df, meta, force="true", method="full", state="periodic")
+    assert abs(held.estimates["k_inf"].error_pct) > 50.0
+    res = extract(df, meta, force="true", method="full")
+    assert res.info["free_state_gain"] > 0.5 and res.info["fit"]["state"] == "free"
+    for q in ("k0", "k_inf", "cd"):
+        assert abs(res.estimates[q].error_pct) < 0.01, q
+
+
+def test_misfit_term_is_the_misfit_over_the_dashpots_signature():
+    """The misfit term against its closed form: one arm (the SLS) of signature ``s`` = (k0/Kg) x the
+    larger of its relaxation in a contact and its creep between taps (thesis SLS: tau_r = cd/k0,
+    tau_c = cd Kg/(k0 k_inf)); a misfit ``m`` gives ln cd a 1-sigma of m/s, and so tau_c and tau_r
+    (each proportional to cd), and nothing to k0, k_inf or Kg, which do not depend on cd.  No
+    misfit, no term."""
+    from vetica_cli.extraction.fullfit.uncertainty import misfit_term
+    from vetica_cli.surfaces import get
+
+    sls = get("sls")
+    k_inf, k0, cd, t_contact, t_free = 4.0, 64.0, 100.0, 1.4e-6, 18.6e-6
+    params = sls.from_arms(k_inf, [k0], [cd])
+    grads = sls.log_gradients(params)
+    kg = k0 + k_inf
+    relax = 1.0 - math.exp(-t_contact * k0 / cd)
+    creep = 1.0 - math.exp(-t_free * k0 * k_inf / (cd * kg))
+    s = k0 / kg * max(relax, creep)
+    out = misfit_term(7e-8, k_inf, [(k0, cd)], t_contact, t_free, grads, 5)
+    for q in ("cd", "tau_c", "tau_r"):
+        assert out[q] == pytest.approx(7e-8 / s, rel=1e-9, abs=0), q
+    for q in ("k0", "k_inf", "k_g"):
+        assert out[q] == 0.0, q
+    assert misfit_term(0.0, k_inf, [(k0, cd)], t_contact, t_free, grads, 5) == {}

@@ -23,7 +23,9 @@ from ..uncertainty import approach_jitter, t_factor
 from .fit import HAMAKER_BOUNDS, OFFSET_UNIT, FitVector, fit_surface, solve
 from .model import SurfaceFit
 from .start import starting_point
-from .uncertainty import covariance, gn_gain, height_sensitivity, identifiability, propagate, tap_covariance, tap_groups
+from .uncertainty import (
+    covariance, gn_gain, height_sensitivity, identifiability, misfit_term, propagate, tap_covariance, tap_groups,
+)
 
 STATES = ("auto", "periodic", "free")  # dashpot state at the window start
 FREE_NFEV = 25  # evaluation budget of the free-start-state stage (whole window)
@@ -475,7 +477,15 @@ class FullFit(ExtractionMethod):
         # Z1's reading error (the approach's force minimum under the force noise): the fitted height
         # follows it, and every quantity follows the height as the fit's covariance says
         s_z1, sigma_z1 = self._z1_term(record, model, res, names, cov, grads)
-        sigma = {q: math.hypot(max(v, sigma_taps[q]), sigma_z1.get(q, 0.0)) for q, v in sigma_white.items()}
+        contact_s = float(np.median(taps.separation - taps.contact)) * h
+        free_s = float(taps.spacing) * h - contact_s
+        # the residual's part the record's noise does not explain (the model's misfit) is what a dashpot's
+        # signature is held against; the noise's part is in the error bars (relative to the peak force, as res)
+        rms = math.sqrt(float(np.mean(res**2)))
+        misfit = math.sqrt(max(rms**2 - (noise_floor(record.f) / model.scale) ** 2, 0.0))
+        sigma_misfit = misfit_term(misfit, k_inf, list(zip(k, cd)), contact_s, free_s, grads, len(cov))
+        sigma = {q: math.hypot(max(v, sigma_taps[q]), sigma_z1.get(q, 0.0), sigma_misfit.get(q, 0.0))
+                 for q, v in sigma_white.items()}  # fmt: skip
         sigma_model = propagate(cov_model, grads)
         units = {q: v.unit for q, v in self.quantities(surface).items()}
         hr = 6.0 * float(theta[p])  # H R [J m]
@@ -495,13 +505,8 @@ class FullFit(ExtractionMethod):
         est = estimates(values, units, truth, sigmas=sigma)
         fitted = [n for n in names if n in (*surface.parameter_keys, "hamaker")]  # not s0, xd0: nuisance
         arm_names = [(surface.parameter_keys[1 + 2 * i], surface.parameter_keys[2 + 2 * i]) for i in range(n_arms)]
-        contact_s = float(np.median(taps.separation - taps.contact)) * h
-        # the residual's part the record's noise does not explain (the model's misfit) is what a dashpot's
-        # signature is held against; the noise's part is in the error bars (relative to the peak force, as res)
-        rms = math.sqrt(float(np.mean(res**2)))
-        misfit = math.sqrt(max(rms**2 - (noise_floor(record.f) / model.scale) ** 2, 0.0))
-        ident = identifiability(fitted, rel, at_bound, k_inf, list(zip(k, cd)), arm_names, contact_s,
-                                float(taps.spacing) * h - contact_s, h, sigma["k_g"], misfit)  # fmt: skip
+        ident = identifiability(fitted, rel, at_bound, k_inf, list(zip(k, cd)), arm_names, contact_s, free_s, h,
+                                sigma["k_g"], misfit)  # fmt: skip
         if "hamaker" in ident:  # reported as H R (and H when the tip radius is known)
             ok, why = ident.pop("hamaker")
             ident["hamaker_radius"] = (ok, why)
@@ -520,12 +525,14 @@ class FullFit(ExtractionMethod):
         info["fit"]["uncertainty"] = {
             "source": "the larger of the Jacobian-and-residual error (white residuals) and the tap-robust sandwich "
                       "(delete-one-tap jackknife of the linearised fit, the approach tap bias-reduced; t-scaled), and "
-                      "in quadrature Z1's reading error through the fitted surface height",
+                      "in quadrature Z1's reading error through the fitted surface height and the misfit term (the RMS "
+                      "misfit over each dashpot's force signature)",
             "groups": n_groups,
             "white": {k: finite_or_none(v) for k, v in sigma_white.items()},
             "taps": {k: finite_or_none(v) for k, v in sigma_taps.items()},
             "z1": {k: finite_or_none(v) for k, v in sigma_z1.items()},
             "z1_sigma_m": finite_or_none(s_z1),
+            "misfit": {k: finite_or_none(v) for k, v in sigma_misfit.items()},
         }  # fmt: skip
         info["fit"]["vdw_on_surface"] = vdw
         info["constants"] = _constants_info(consts, opts, model, fit, vdw, hr)
