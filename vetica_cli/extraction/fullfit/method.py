@@ -24,7 +24,8 @@ from .fit import HAMAKER_BOUNDS, OFFSET_UNIT, FitVector, fit_surface, solve
 from .model import SurfaceFit
 from .start import starting_point
 from .uncertainty import (
-    covariance, gn_gain, height_sensitivity, identifiability, misfit_term, propagate, tap_covariance, tap_groups,
+    covariance, gn_gain, height_sensitivity, identifiability, misfit_term, propagate, systematic_misfit, tap_covariance,
+    tap_groups,
 )
 
 STATES = ("auto", "periodic", "free")  # dashpot state at the window start
@@ -483,7 +484,8 @@ class FullFit(ExtractionMethod):
         # signature is held against; the noise's part is in the error bars (relative to the peak force, as res)
         rms = math.sqrt(float(np.mean(res**2)))
         misfit = math.sqrt(max(rms**2 - (noise_floor(record.f) / model.scale) ** 2, 0.0))
-        sigma_misfit = misfit_term(misfit, k_inf, list(zip(k, cd)), contact_s, free_s, grads, len(cov))
+        smooth = systematic_misfit(res, model.steady.idx, opts["near_stride"], noise_floor(record.f) / model.scale)
+        sigma_misfit = misfit_term(smooth, k_inf, list(zip(k, cd)), contact_s, free_s, grads, len(cov))
         sigma = {q: math.hypot(max(v, sigma_taps[q]), sigma_z1.get(q, 0.0), sigma_misfit.get(q, 0.0))
                  for q, v in sigma_white.items()}  # fmt: skip
         sigma_model = propagate(cov_model, grads)
