@@ -484,8 +484,12 @@ class FullFit(ExtractionMethod):
         # signature is held against; the noise's part is in the error bars (relative to the peak force, as res)
         rms = math.sqrt(float(np.mean(res**2)))
         misfit = math.sqrt(max(rms**2 - (noise_floor(record.f) / model.scale) ** 2, 0.0))
-        smooth = systematic_misfit(res, model.steady.idx, opts["near_stride"], noise_floor(record.f) / model.scale)
-        sigma_misfit = misfit_term(smooth, k_inf, list(zip(k, cd)), contact_s, free_s, grads, len(cov))
+        # the misfit term where the residual is more the model's own error (it repeats every period) than
+        # noise (a noise-free record: there the Jacobian's error, scaled by that residual, holds none of it);
+        # on a noisy record the tap-robust error holds a misfit that repeats with the tap: left out
+        repeats, rest = systematic_misfit(res, model.steady.idx, round(taps.spacing), noise_floor(record.f) / model.scale)
+        sigma_misfit = misfit_term(repeats, k_inf, list(zip(k, cd)), contact_s, free_s, grads, len(cov)) \
+            if repeats > rest else {}
         sigma = {q: math.hypot(max(v, sigma_taps[q]), sigma_z1.get(q, 0.0), sigma_misfit.get(q, 0.0))
                  for q, v in sigma_white.items()}  # fmt: skip
         sigma_model = propagate(cov_model, grads)

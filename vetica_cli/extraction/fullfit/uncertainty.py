@@ -145,26 +145,33 @@ def arm_signature(k: float, cd: float, kg: float, t_contact: float, t_free: floa
     return k / kg * max(relax, creep), relax, creep
 
 
-def systematic_misfit(res, idx, stride: int, floor: float) -> float:
-    """RMS of the residual's part that no noise explains, relative as ``res`` is: the RMS residual
-    less, in quadrature, the larger of the record's force noise floor ``floor`` and the white noise
-    the residual itself shows between neighbouring rows (``stride`` samples apart, ``idx`` the steady
-    rows' samples; ``var(r[i+1] - r[i]) = 2 sigma^2`` for white noise, ~0 for a misfit smooth over a
-    few samples).  The second holds what the force's floor does not: noise on the tip position,
-    which the model's force follows at the contact's stiffness (stripped records with 1 pm on z_tip:
-    the force floor alone left a "misfit" that widened the whole-cycle fit's cd sigma 4.5x beyond the
-    replicas' scatter)."""
-    res = np.asarray(res, float)
-    rms2 = float(np.mean(res**2)) if len(res) else 0.0
-    r = res[: len(idx)]
-    adj = np.flatnonzero(np.diff(np.asarray(idx)) == stride)
-    white = math.sqrt(float(np.mean((r[adj + 1] - r[adj]) ** 2)) / 2.0) if len(adj) >= 10 else 0.0
-    noise = max(floor, white)
-    return math.sqrt(max(rms2 - noise**2, 0.0))
+def systematic_misfit(res, idx, period: int, floor: float) -> tuple[float, float]:
+    """``(repeating, the rest)``: RMS of the residual's part that repeats from one drive period to the
+    next, relative as ``res`` is -- the steady rows' covariance at a lag of one period (rows ``period``
+    samples apart; ``idx`` the steady rows' samples), bounded by their mean square less the force's
+    noise floor ``floor`` squared -- and of what is left of their mean square.  A misfit of the model
+    (or of the force's reconstruction: the band limit's ringing at a contact) repeats on a steady
+    record; noise that does not stay correlated over a period does not, on the force or on the tip
+    position (which the force's floor does not hold).  Fewer than 10 row pairs a period apart: the
+    bound, and 0."""
+    idx = np.asarray(idx)
+    r = np.asarray(res, float)[: len(idx)]
+    if not len(r):
+        return 0.0, 0.0
+    ms = float(np.mean(r**2))
+    bound = ms - floor**2
+    j = np.searchsorted(idx, idx + period)
+    pair = j < len(idx)
+    pair[pair] = idx[j[pair]] == idx[pair] + period
+    if int(np.count_nonzero(pair)) < 10:
+        return math.sqrt(max(bound, 0.0)), 0.0
+    rep = max(min(float(np.mean(r[pair] * r[j[pair]])), bound), 0.0)
+    return math.sqrt(rep), math.sqrt(max(ms - rep, 0.0))
 
 
 def misfit_term(rms: float, k_inf: float, arms, t_contact: float, t_free: float, gradients: dict, n: int) -> dict:
-    """Relative 1-sigma of each quantity from **the misfit term**: the residual the model does not
+    """Relative 1-sigma of each quantity from **the misfit term** (where the misfit exceeds the
+    record's noise: :meth:`~.method.FullFit._result`): the residual the model does not
     explain (``rms``, relative to the peak force, the noise taken out: :func:`systematic_misfit`), were it to lie along
     a dashpot's force signature, moves that dashpot's ``ln cd_i`` by ``rms / signature_i``
     (:func:`arm_signature`; ``cd_i`` column ``2 + 2 i`` of the fit vector, ``n`` long); propagated as
