@@ -370,3 +370,22 @@ def test_misfit_term_is_the_misfit_over_the_dashpots_signature():
     for q in ("k0", "k_inf", "k_g"):
         assert out[q] == 0.0, q
     assert misfit_term(0.0, k_inf, [(k0, cd)], t_contact, t_free, grads, 5) == {}
+
+
+def test_systematic_misfit_is_what_repeats_every_period():
+    """:func:`systematic_misfit` against its construction: rows every 4 samples, a period of 400
+    samples (10 periods); a residual that repeats every period (RMS 0.3) plus white noise (RMS 0.2,
+    independent from row to row): the repeating part comes back within its sampling error (~0.2^2 /
+    sqrt(1000 pairs)), the rest is the noise; white noise alone repeats nothing; a force noise floor
+    above the residual bounds it to 0."""
+    from vetica_cli.extraction.fullfit.uncertainty import systematic_misfit
+
+    rng = np.random.default_rng(5)
+    idx = np.arange(0, 4000, 4)
+    shape = 0.3 * math.sqrt(2.0) * np.sin(2 * np.pi * idx / 400 * 3)  # RMS 0.3, period 400 samples
+    noise = rng.normal(0.0, 0.2, len(idx))
+    rep, rest = systematic_misfit(shape + noise, idx, 400, 0.0)
+    assert rep == pytest.approx(0.3, abs=0.02) and rest == pytest.approx(0.2, abs=0.02)
+    rep, rest = systematic_misfit(noise, idx, 400, 0.0)
+    assert rep < 0.03 and rest == pytest.approx(0.2, abs=0.02)
+    assert systematic_misfit(shape, idx, 400, 1.0)[0] == 0.0

@@ -108,12 +108,12 @@ Choices (see the module functions for details):
   noise-free simulations ``s`` is systematic model mismatch, and the actual
   errors exceed the 1-sigma values by ~10x (cd = 1e-2 kg/s; 1 pm position
   noise) up to ~5000x (worked example: 1-sigma 4e-8, error 2e-4 from the
-  contact-step lead above).  Added in quadrature, **the misfit term**: the
-  RMS misfit (the residual less its noise) over each dashpot's
-  force signature, the change of ``ln cd`` a misfit along that signature
-  would make (noise-free 16:1 at cd 100 kg/s, 0.5 ns: cd +11.8 % at a
-  Jacobian 1-sigma of 0.44 %, the term 7.2 %; ~0 where the residual is the
-  record's noise).  A parameter is flagged not identifiable when
+  contact-step lead above).  Added in quadrature where the residual is more
+  the model's error than noise, **the misfit term**: the residual's part
+  that repeats every drive period over each dashpot's force signature, the
+  change of ``ln cd`` a misfit along that signature would make (noise-free
+  16:1 at cd 100 kg/s, 0.5 ns: cd +11.8 % at a Jacobian 1-sigma of 0.44 %,
+  the term 9.4 %).  A parameter is flagged not identifiable when
   its 1-sigma exceeds 100 %, when it sits at a bound, when the fit stopped
   far from converged, or when the fitted dashpot does not act within the
   record (its force signature within a tap is below 10x the RMS residual:

@@ -172,13 +172,13 @@ def systematic_misfit(res, idx, period: int, floor: float) -> tuple[float, float
 def misfit_term(rms: float, k_inf: float, arms, t_contact: float, t_free: float, gradients: dict, n: int) -> dict:
     """Relative 1-sigma of each quantity from **the misfit term** (where the misfit exceeds the
     record's noise: :meth:`~.method.FullFit._result`): the residual the model does not
-    explain (``rms``, relative to the peak force, the noise taken out: :func:`systematic_misfit`), were it to lie along
+    explain (``rms``, relative to the peak force: what repeats every period, :func:`systematic_misfit`), were it to lie along
     a dashpot's force signature, moves that dashpot's ``ln cd_i`` by ``rms / signature_i``
     (:func:`arm_signature`; ``cd_i`` column ``2 + 2 i`` of the fit vector, ``n`` long); propagated as
     :func:`propagate` does, the arms independent.  What the Jacobian's error does not hold: a noise-free
     record's residual is the model's own error, not white noise (a 16:1 record at cd 100 kg/s, 0.5 ns,
     signature 8.6e-7 of the peak against an RMS residual of 7.1e-8: cd +11.8 % at a Jacobian 1-sigma of 0.44 %;
-    this term: 7.2 %).  Where the signature is below ``SIGNATURE`` times the misfit the quantity is
+    this term: 9.4 %).  Where the signature is below ``SIGNATURE`` times the misfit the quantity is
     flagged anyway (:func:`identifiability`)."""
     kg = k_inf + sum(k for k, _ in arms)
     var = np.zeros(n)
