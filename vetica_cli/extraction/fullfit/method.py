@@ -483,11 +483,12 @@ class FullFit(ExtractionMethod):
         # the residual's part the record's noise does not explain (the model's misfit) is what a dashpot's
         # signature is held against; the noise's part is in the error bars (relative to the peak force, as res)
         rms = math.sqrt(float(np.mean(res**2)))
-        misfit = math.sqrt(max(rms**2 - (noise_floor(record.f) / model.scale) ** 2, 0.0))
+        floor = noise_floor(record.f) / model.scale
+        misfit = math.sqrt(max(rms**2 - floor**2, 0.0))
         # the misfit term where the residual is more the model's own error (it repeats every period) than
         # noise (a noise-free record: there the Jacobian's error, scaled by that residual, holds none of it);
         # on a noisy record the tap-robust error holds a misfit that repeats with the tap: left out
-        repeats, rest = systematic_misfit(res, model.steady.idx, round(taps.spacing), noise_floor(record.f) / model.scale)
+        repeats, rest = systematic_misfit(res, model.steady.idx, round(taps.spacing), floor)
         sigma_misfit = misfit_term(repeats, k_inf, list(zip(k, cd)), contact_s, free_s, grads, len(cov)) \
             if repeats > rest else {}
         sigma = {q: math.hypot(max(v, sigma_taps[q]), sigma_z1.get(q, 0.0), sigma_misfit.get(q, 0.0))
@@ -531,8 +532,9 @@ class FullFit(ExtractionMethod):
         info["fit"]["uncertainty"] = {
             "source": "the larger of the Jacobian-and-residual error (white residuals) and the tap-robust sandwich "
                       "(delete-one-tap jackknife of the linearised fit, the approach tap bias-reduced; t-scaled), and "
-                      "in quadrature Z1's reading error through the fitted surface height and the misfit term (the RMS "
-                      "misfit over each dashpot's force signature)",
+                      "in quadrature Z1's reading error through the fitted surface height and, where the residual's part "
+                      "that repeats every drive period exceeds the rest, the misfit term (that part over each "
+                      "dashpot's force signature)",
             "groups": n_groups,
             "white": {k: finite_or_none(v) for k, v in sigma_white.items()},
             "taps": {k: finite_or_none(v) for k, v in sigma_taps.items()},

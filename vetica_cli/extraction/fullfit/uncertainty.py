@@ -170,8 +170,8 @@ def systematic_misfit(res, idx, period: int, floor: float) -> tuple[float, float
 
 
 def misfit_term(rms: float, k_inf: float, arms, t_contact: float, t_free: float, gradients: dict, n: int) -> dict:
-    """Relative 1-sigma of each quantity from **the misfit term** (where the misfit exceeds the
-    record's noise: :meth:`~.method.FullFit._result`): the residual the model does not
+    """Relative 1-sigma of each quantity from **the misfit term** (applied where the residual's part
+    that repeats every period exceeds the rest: :meth:`~.method.FullFit._result`): the residual the model does not
     explain (``rms``, relative to the peak force: what repeats every period, :func:`systematic_misfit`), were it to lie along
     a dashpot's force signature, moves that dashpot's ``ln cd_i`` by ``rms / signature_i``
     (:func:`arm_signature`; ``cd_i`` column ``2 + 2 i`` of the fit vector, ``n`` long); propagated as
