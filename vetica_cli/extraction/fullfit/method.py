@@ -24,12 +24,13 @@ from .fit import HAMAKER_BOUNDS, OFFSET_UNIT, FitVector, fit_surface, solve
 from .model import SurfaceFit
 from .start import starting_point
 from .uncertainty import (
-    covariance, gn_gain, height_sensitivity, identifiability, misfit_term, propagate, systematic_misfit, tap_covariance,
-    tap_groups,
+    covariance, gn_gain, height_sensitivity, identifiability, misfit_term, propagate, release_significant,
+    systematic_misfit, tap_covariance, tap_groups,
 )
 
 STATES = ("auto", "periodic", "free")  # dashpot state at the window start
 FREE_NFEV = 25  # evaluation budget of the free-start-state stage (whole window)
+RELEASE_P = 1e-3  # 'auto' also frees the start state where the linearised step's gain is this unlikely as noise
 SUB_PERIODS = 1  # drive periods of the first (coarse) fit stage
 PINNED_NFEV = 30  # whole-window evaluations once the height, pinned to Z1 on the first periods, is freed
 ARM_TAU_STEPS = (1e-3, 1e-2, 1e-1, 10.0, 100.0, 1000.0)  # a new arm's tau relative to the nearest arm's
@@ -129,13 +130,15 @@ def _stages(make, n, taps, theta0, opts, bounds, n_arms, pin=False):
     stages.append(fit_surface(model, theta0, bounds, fit_hamaker=fit_hamaker, scan=scan and not coarse, s0=s0_start,
                               s0_ref=s0_ref, xtol=1e-8 if coarse else 1e-10, max_nfev=nfev))  # fmt: skip
     stages[-1]["model"] = model
-    # the periodic state is an assumption (a record taken before the surface settled breaks it):
-    # 'auto' releases it -- fits the dashpot positions at the window start too -- when the
-    # linearised model says that would remove more than half the residual; 'free' always does
-    gain = gn_gain(stages[-1]["residual"], stages[-1]["jac_free"])
-    if opts["state"] == "free" or (opts["state"] == "auto" and gain > 0.5):
+    # the periodic state is an assumption (a record taken before the surface settled breaks it, and
+    # thermal motion does on every record): 'auto' releases it -- fits the dashpot positions at the
+    # window start too -- when the linearised model says that would remove more than half the
+    # residual, or more than the noise could (an F test); 'free' always does
+    last = stages[-1]
+    gain = gn_gain(last["residual"], last["jac_free"])
+    significant = release_significant(last["residual"], last["jac"], last["jac_free"], gain, RELEASE_P)
+    if opts["state"] == "free" or (opts["state"] == "auto" and (gain > 0.5 or significant)):
         # on the whole window: one period holds too little of a slow dashpot's creep
-        last = stages[-1]
         stages.append(fit_surface(model, last["theta"], bounds, fit_hamaker=fit_hamaker, scan=False, s0=last["s0"],
                                   s0_ref=s0_ref, xd0=last["xd0"], xtol=1e-8, max_nfev=FREE_NFEV))  # fmt: skip
         stages[-1]["model"] = model

@@ -20,6 +20,25 @@ def gn_gain(res, jac) -> float:
     return 1.0 - float(np.sum((res + jac @ step) ** 2)) / r0 if r0 > 0 else 0.0
 
 
+def release_significant(res, jac, jac_free, gain: float, p_value: float) -> bool:
+    """Whether freeing the window's start state (the columns ``jac_free`` adds to ``jac``)
+    removes more of the residual than noise would: the F statistic
+    ``(gain / (1 - gain)) (n - p_free) / q`` of the linearised step against the chi-square
+    quantile ``chi2_q(1 - p_value) / q`` (q added columns).  A thermal record is never
+    periodic (the tip's thermal motion moves the dashpots), and on a noisy one the noise
+    hides that misfit from a "half the residual" test while the periodic state still biases
+    the answer: stripped 300 K records of a 46:1 surface (1 pm, 0.1 nN) removed 0.8-36 % of
+    the residual (F 100-7600) and held k_inf 0.09 % off against a 0.03 % sigma; the noise-free
+    record removed 3e-5 (F 0.46)."""
+    n, p_free = jac_free.shape
+    q = p_free - jac.shape[1]
+    if q <= 0 or n <= p_free or not 0.0 < gain < 1.0:
+        return False
+    from scipy.special import chdtri  # lazy, as the fit's scipy.optimize
+
+    return gain / (1.0 - gain) * (n - p_free) / q > float(chdtri(q, p_value)) / q
+
+
 def normalised(jac):
     """``(jac / norm, norm)``: the Jacobian with unit columns (a zero column kept as it is)."""
     norm = np.sqrt(np.sum(jac**2, axis=0))
