@@ -27,7 +27,10 @@ Checks, each against something the record itself shows:
   own propagated sigma says (seen: tau_c at 1.04 sigma, cd +26 % at 6 % sigma, unflagged).
 * **residual against the noise floor** -- the model must explain the force to the
   record's noise: stage 2's force residual (VETICA: largest over taps) or the
-  whole-cycle fit's RMS residual above ``RESIDUAL_FACTOR`` x the force noise floor
+  whole-cycle fit's RMS residual above ``RESIDUAL_FACTOR`` x the noise (the force's
+  floor and, in quadrature, the position's floor times the method's Kg: a model driven by
+  the measured tip predicts a force with the tip's noise in it; 10 pm on a 68 N/m surface,
+  ~1 nN, had flagged every fit of those records, leaving wrong tap-method k0 unrefereed)
   plus ``MODEL_FLOOR`` of the peak force means the model does not describe the
   record (e.g. VETICA without the pre-stress on a surface that feels the pull), and
   its estimates carry a bias the 1-sigma does not.  Noise floor: the white part of
@@ -151,8 +154,13 @@ def check(res: ExtractionResult, record, options: dict | None = None, method=Non
     peak = float(np.max(np.abs(f))) or 1.0
     floor_f = noise_floor(f)
     floor_z = noise_floor(record.z)
-    limit = RESIDUAL_FACTOR * floor_f + MODEL_FLOOR * peak
-    info = {"force_noise_floor_n": floor_f, "position_noise_floor_m": floor_z, "residual_limit_n": limit}
+    # the force a model driven by the measured tip predicts carries the tip's position noise, through the
+    # contact stiffness (the method's own Kg; a bound: the samples out of contact carry almost none of it)
+    kg = getattr(res.estimates.get("k_g"), "value", None)
+    floor_zf = kg * floor_z if kg is not None and math.isfinite(kg) and kg > 0 else 0.0
+    limit = RESIDUAL_FACTOR * math.hypot(floor_f, floor_zf) + MODEL_FLOOR * peak
+    info = {"force_noise_floor_n": floor_f, "position_noise_floor_m": floor_z, "position_noise_force_n": floor_zf,
+            "residual_limit_n": limit}  # fmt: skip
     if method is not None:
         method.checks(res, record, options or {}, info)
     if method is None or method.reads_force:

@@ -68,8 +68,9 @@ def fit_checks(method, res: ExtractionResult, record, options: dict, info: dict)
         rms = pct / 100.0 * peak
         info["residual_n"] = rms
         if rms > limit:
+            noise = math.hypot(floor_f, info.get("position_noise_force_n") or 0.0)
             flag(res, list(est), f"the fit's RMS residual {rms:.3g} N exceeds {RESIDUAL_FACTOR:g} x the noise "
-                                  f"({floor_f:.3g} N) + {MODEL_FLOOR:g} x the peak force")  # fmt: skip
+                                  f"({noise:.3g} N) + {MODEL_FLOOR:g} x the peak force")  # fmt: skip
     tau_c = val.get("tau_c")
     if fit.get("surface_height_source") == "fitted (steady window)" and tau_c and tau_c > 0:
         from ...signals.taps import find_taps
