@@ -266,6 +266,15 @@ def model_band(res: ExtractionResult, record, method, options, narrower=None) ->
     return {"source": "model", "bias": bias, "sigma": sigma, "model_step": d_model, "record_step": d_rec}
 
 
+def band_limited(record) -> bool:
+    """Whether the record's force is low-passed below the Nyquist frequency (a cut-off chosen from its
+    noise, declared with the force): where :func:`band_term` applies."""
+    from ..signals import noise as nz
+
+    d = nz.declared(record.f)
+    return d is not None and d[2] > 1.5 and bool(record.info.get("cutoff_hz"))
+
+
 def band_term(res: ExtractionResult, record, method, options) -> dict:
     """The **band term** of a force low-passed below the Nyquist frequency (the cut-off chosen
     from a noisy record's noise, :mod:`vetica_cli.signals.noise`): ``{"source", "bias": {quantity:
@@ -291,10 +300,7 @@ def band_term(res: ExtractionResult, record, method, options) -> dict:
 
     Added to sigma in quadrature (an error bar of the record's answer against the noise-free one
     at the whole band), and compared with the tolerance by the flags (:mod:`.sanity`)."""
-    from ..signals import noise as nz
-
-    d = nz.declared(record.f)
-    if d is None or d[2] <= 1.5 or not record.info.get("cutoff_hz"):
+    if not band_limited(record):
         return {}
     narrower = _narrower_runs(record, method, options, res)
     if getattr(method, "band_model", None) or getattr(method, "referee", None):
