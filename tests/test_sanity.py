@@ -159,6 +159,35 @@ def test_a_force_read_in_noise_flags_every_quantity_of_a_tap_method(worked_examp
             assert e.identifiable is False and "oscillation cycles of the tip" in e.reason, (q, e.reason)
 
 
+@pytest.mark.parametrize("method", ["vetica", "vetica-prestress"])
+def test_taps_at_irregular_intervals_flag_every_quantity_of_a_tap_method(worked_example, method):
+    """A steady record has one tap a drive period, its force peaks a period apart (the worked
+    example's intervals within 1e-3 of their median, measured; the check allows 25 %).  The same
+    record with one tap's force replaced by the free force around it (a tap the force does not
+    show, as in a record whose noise hides some taps and invents others: a `lab` record had 11 taps
+    in 10 cycles at 0.47-2.3 x their median interval) has fewer taps than cycles, so the count
+    check passes, but one interval of two periods: every quantity is flagged for it."""
+    from vetica_cli.extraction import extract
+
+    run = worked_example()
+    df, meta = run.frame(), run.metadata()
+    clean = extract(df, meta, force="true", method=method)
+    assert clean.info["sanity"]["tap_spacing_spread"] < 1e-3
+    steady = np.flatnonzero((df["segment"] == "steady").to_numpy())
+    f = df["f_ts"].to_numpy()[steady]
+    taps = find_taps(f)
+    mid = len(taps.contact) // 2
+    a, b = int(taps.contact[mid]) - 50, int(taps.separation[mid]) + 50
+    hole = df.copy()
+    hole.loc[steady[a:b], "f_ts"] = float(np.median(f[taps.separation[mid - 1] + 100 : taps.contact[mid] - 100]))
+    res = extract(hole, meta, force="true", method=method)
+    sanity = res.info["sanity"]
+    assert sanity["taps"] < sanity["oscillation_cycles"] and sanity["tap_spacing_spread"] > 0.9
+    for q, e in res.estimates.items():
+        if e.value is not None:
+            assert e.identifiable is False and "tap intervals" in e.reason, (q, e.reason)
+
+
 @pytest.mark.slow
 def test_the_fits_residual_limit_counts_the_tips_position_noise():
     """The whole-cycle fit drives its surface with the measured tip, so its force carries the tip's

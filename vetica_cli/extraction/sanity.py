@@ -43,7 +43,9 @@ Checks, each against something the record itself shows:
   noise (seen: a force reconstructed from a paddle signal with 1 pm of detector noise, noise
   floor 0.2 mN against an 80 nN tap, ~300 "taps" in 6 cycles, VETICA's Kg off by 1e3-1e5 %
   at a 1-sigma of 50-75 %): every quantity of a method that reads taps (``TAP_READERS``) is
-  flagged.
+  flagged; so is a tap at an interval more than 25 % from the taps' median one (a `lab` record
+  with 11 taps in 10 cycles at 0.47-2.3 x their median interval: vetica-prestress's Kg +1047 % at
+  a 35 % sigma).
 * **surface height fitted, dashpot that hardly creeps** -- the whole-cycle fit with the
   surface height free tells ``k_inf`` from the Maxwell arm only by the creep between
   taps; below ``CREEP_MIN`` of it (``1 - exp(-t_free/tau_c)``, t_free the time out of
