@@ -418,12 +418,12 @@ def test_release_significance_is_the_f_test_of_the_added_state_column():
         ssr1 = float(np.sum((y - jac_free @ np.linalg.lstsq(jac_free, y, rcond=None)[0]) ** 2))
         f = (ssr0 - ssr1) / (ssr1 / (n - 3))
         assert gain / (1 - gain) * (n - 3) == pytest.approx(f, rel=1e-9, abs=1e-8)  # F meets 10.8: SSR_0 - SSR_1 of ~2000 each rounds at ~1e-10
-        fired += release_significant(res, jac, jac_free, gain, 1e-3)
-        assert release_significant(res, jac, jac_free, gain, 1e-3) == (f > 10.828)
+        fired += release_significant(jac, jac_free, gain, 1e-3)
+        assert release_significant(jac, jac_free, gain, 1e-3) == (f > 10.828)
     assert fired == 0
     for _ in range(20):
         y = rng.normal(0.0, 1.0, n) + 0.2 * state / np.sqrt(np.mean(state**2))
         res = y - jac @ np.linalg.lstsq(jac, y, rcond=None)[0]
         gain = gn_gain(res, jac_free)
-        assert gain < 0.5 and release_significant(res, jac, jac_free, gain, 1e-3)
-    assert not release_significant(res, jac, jac, gain, 1e-3)  # no column added: nothing to release
+        assert gain < 0.5 and release_significant(jac, jac_free, gain, 1e-3)
+    assert not release_significant(jac, jac, gain, 1e-3)  # no column added: nothing to release

@@ -24,8 +24,8 @@ from .fit import HAMAKER_BOUNDS, OFFSET_UNIT, FitVector, fit_surface, solve
 from .model import SurfaceFit
 from .start import starting_point
 from .uncertainty import (
-    covariance, gn_gain, height_sensitivity, identifiability, misfit_term, propagate, release_significant,
-    systematic_misfit, tap_covariance, tap_groups,
+    covariance, gn_gain, height_sensitivity, identifiability, misfit_term, own_sigma, propagate,
+    release_significant, systematic_misfit, tap_covariance, tap_groups,
 )
 
 STATES = ("auto", "periodic", "free")  # dashpot state at the window start
@@ -136,7 +136,7 @@ def _stages(make, n, taps, theta0, opts, bounds, n_arms, pin=False):
     # residual, or more than the noise could (an F test); 'free' always does
     last = stages[-1]
     gain = gn_gain(last["residual"], last["jac_free"])
-    significant = release_significant(last["residual"], last["jac"], last["jac_free"], gain, RELEASE_P)
+    significant = release_significant(last["jac"], last["jac_free"], gain, RELEASE_P)
     if opts["state"] == "free" or (opts["state"] == "auto" and (gain > 0.5 or significant)):
         # on the whole window: one period holds too little of a slow dashpot's creep
         stages.append(fit_surface(model, last["theta"], bounds, fit_hamaker=fit_hamaker, scan=False, s0=last["s0"],
@@ -317,10 +317,10 @@ class FullFit(ExtractionMethod):
         own = {q: e.sigma for q, e in res.estimates.items() if e.value is not None and e.sigma is not None}
         unc = (res.info.get("fit") or {}).get("uncertainty") or {}
         if unc.get("misfit") and band_limited(record):
-            parts = [unc.get(k) or {} for k in ("white", "taps", "z1")]
+            white, taps, z1 = (unc.get(k) or {} for k in ("white", "taps", "z1"))
             for q in list(own):
-                if q in unc["misfit"] and all(p.get(q) is not None for p in parts[:2]):
-                    own[q] = math.hypot(max(parts[0][q], parts[1][q]), parts[2].get(q) or 0.0)
+                if q in unc["misfit"] and white.get(q) is not None and taps.get(q) is not None:
+                    own[q] = own_sigma(white[q], taps[q], z1.get(q) or 0.0)
             info["misfit_term"] = "left out: the band term holds the repeating misfit of a low-passed force"
         alt = pinned_fit(self, res, record, options)
         if alt is None:
@@ -509,7 +509,7 @@ class FullFit(ExtractionMethod):
         repeats, rest = systematic_misfit(res, model.steady.idx, round(taps.spacing), floor)
         sigma_misfit = misfit_term(repeats, k_inf, list(zip(k, cd)), contact_s, free_s, grads, len(cov)) \
             if repeats > rest else {}
-        sigma = {q: math.hypot(max(v, sigma_taps[q]), sigma_z1.get(q, 0.0), sigma_misfit.get(q, 0.0))
+        sigma = {q: own_sigma(v, sigma_taps[q], sigma_z1.get(q, 0.0), sigma_misfit.get(q, 0.0))
                  for q, v in sigma_white.items()}  # fmt: skip
         sigma_model = propagate(cov_model, grads)
         units = {q: v.unit for q, v in self.quantities(surface).items()}

@@ -20,7 +20,7 @@ def gn_gain(res, jac) -> float:
     return 1.0 - float(np.sum((res + jac @ step) ** 2)) / r0 if r0 > 0 else 0.0
 
 
-def release_significant(res, jac, jac_free, gain: float, p_value: float) -> bool:
+def release_significant(jac, jac_free, gain: float, p_value: float) -> bool:
     """Whether freeing the window's start state (the columns ``jac_free`` adds to ``jac``)
     removes more of the residual than noise would: the F statistic
     ``(gain / (1 - gain)) (n - p_free) / q`` of the linearised step against the chi-square
@@ -37,6 +37,12 @@ def release_significant(res, jac, jac_free, gain: float, p_value: float) -> bool
     from scipy.special import chdtri  # lazy, as the fit's scipy.optimize
 
     return gain / (1.0 - gain) * (n - p_free) / q > float(chdtri(q, p_value)) / q
+
+
+def own_sigma(white: float, taps: float, z1: float = 0.0, misfit: float = 0.0) -> float:
+    """A quantity's relative 1-sigma from the fit's terms: the larger of the white and tap-robust
+    errors, and in quadrature Z1's reading error and the misfit term."""
+    return math.hypot(max(white, taps), z1, misfit)
 
 
 def normalised(jac):

@@ -183,15 +183,16 @@ def taps_against_cycles(res: ExtractionResult, record, info: dict, floor_f: floa
 
     cycles = oscillation_cycles(record.z)
     try:
-        n = len(find_taps(record.f).contact)
+        taps = find_taps(record.f)
     except InputError:  # fewer than two taps: the method itself refused or said so
         return
+    n = len(taps.contact)
     info["taps"], info["oscillation_cycles"] = n, cycles
     if n > cycles + 1:
         flag(res, list(res.estimates), f"{n} taps in {cycles} oscillation cycles of the tip: taps read in noise (noise "
                                         f"{floor_f:.3g} N, peak {peak:.3g} N)")  # fmt: skip
         return
-    spacing = np.diff(find_taps(record.f).peak)
+    spacing = np.diff(taps.peak)
     if len(spacing) >= 2:
         mid = float(np.median(spacing))
         spread = float(np.max(np.abs(spacing - mid))) / mid if mid > 0 else math.inf
