@@ -25,17 +25,21 @@ FREE = {"operation.base_height": 1e-6, "probe.q1": 1.0, "probe.q2": 1.0, "numeri
         "numerics.print_step": 10e-9, "numerics.record_cycles": 1000}  # fmt: skip
 
 
-@pytest.fixture(scope="module")
-def free_runs():
-    clean = simulate(load(None, FREE))
-    cfg = load(None, {**FREE, "numerics.temperature": 300.0, "numerics.noise_seed": 3})
+@pytest.fixture(scope="module", params=["verlet", "hybrid"])
+def free_runs(request):
+    """Both thermal recordings: fine Verlet steps with a random force each (``verlet``) and, far from
+    the surface as this probe always is, one exact step a print step with each mode's sampled
+    Ornstein-Uhlenbeck increment (``hybrid``): two formulations of the same process."""
+    ov = {**FREE, "numerics.integrator": request.param}
+    clean = simulate(load(None, ov))
+    cfg = load(None, {**ov, "numerics.temperature": 300.0, "numerics.noise_seed": 3})
     return cfg, clean, simulate(cfg)
 
 
 def test_free_probe_variance_matches_equipartition(free_runs):
     """Deflection minus the noise-free periodic motion: variance kB T/k within 5 % for the
     cantilever (k1 = 10 N/m, 20 pm RMS) and 3 % for the paddle (k2 = 700 N/m, 2.4 pm RMS);
-    standard errors ~2 % and ~0.5 %."""
+    standard errors ~2 % and ~0.5 %; with either integrator."""
     cfg, clean, noisy = free_runs
     assert noisy.steady.shape == clean.steady.shape
     for col, k, rtol in ((IC, cfg.probe.k1, 0.05), (IP, cfg.probe.k2, 0.03)):
@@ -81,6 +85,29 @@ def test_noisy_kernel_at_negligible_temperature_reproduces_the_orbit(surface):
     assert np.abs(a[:, IF] - b[:, IF]).max() < 1e-4 * np.abs(a[:, IF]).max()
 
 
+def test_hybrid_and_verlet_tapping_records_carry_the_same_noise():
+    """A tapping record (worked example, contacts every period): the hybrid recording (fine steps only
+    in contact and within d_switch, exact far steps with the sampled noise elsewhere) against the
+    all-fine Verlet one, 48 replicas each (the same seeds, so the same equipartition start): the mean
+    variance of z_paddle, z_cantilever and f_ts about the noise-free record agrees within 25 %.  The
+    replica-to-replica spread of a variance is ~60 % of its mean here (the cantilever's wander over
+    its 32-period ring-down), so each mean has a standard error of ~9 % and the ratio ~12 %: 25 % is
+    2 of them.  Measured at 150 replicas: the paddle's RMS 4.01 pm (hybrid) against 3.83 (verlet),
+    the cantilever's 31.7 against 30.2 pm, the force's 0.211 against 0.194 nN.  Leaving out the far
+    steps' noise drops the paddle's variance several-fold (most of the period is far steps)."""
+    from vetica_cli.simulation.simulate import replicas
+
+    ov = {"numerics.record_cycles": 2, "numerics.dt": 0.05e-9, "numerics.print_step": 0.5e-9}
+    clean = simulate(load(None, ov)).steady
+    seeds = list(range(1, 49))
+    got = {}
+    for integ in ("verlet", "hybrid"):
+        runs = replicas(load(None, {**ov, "numerics.integrator": integ, "numerics.temperature": 300.0}), seeds)
+        got[integ] = [np.mean([np.var(r.steady[:, c] - clean[:, c]) for r in runs]) for c in (IP, IC, IF)]
+    for v, h in zip(got["verlet"], got["hybrid"]):
+        assert h / v == pytest.approx(1.0, abs=0.25)
+
+
 def test_thermal_noise_is_seeded_and_the_default_is_none():
     """Same seed, same record; another seed, another record; temperature 0 leaves the run
     as it was (bit for bit)."""
@@ -93,10 +120,12 @@ def test_thermal_noise_is_seeded_and_the_default_is_none():
     np.testing.assert_array_equal(one.steady, again.steady)
     np.testing.assert_array_equal(one.approach, again.approach)
     assert not np.array_equal(one.steady[:, IF], other.steady[:, IF])
-    # the paddle's thermal motion (2.4 pm RMS free; the contacts stiffen it for a tenth of
-    # each period) is what the force read from the paddle, k2 zp, carries as ~1.7 nN noise
+    # the paddle's thermal motion (2.4 pm RMS free) is what the force read from the paddle, k2 zp,
+    # carries as noise; about the noise-free orbit one period of one seed reads 0.32-3.1x it (40 seeds,
+    # measured: the orbit's own wander adds, the contacts stiffen it; the mean over replicas is
+    # test_hybrid_and_verlet_tapping_records_carry_the_same_noise's claim)
     rms_paddle = math.sqrt(thermal.KB * 300 / 700)
-    assert np.std(one.steady[:, IP] - clean.steady[:, IP]) == pytest.approx(rms_paddle, rel=0.3, abs=0.0)
+    assert 0.2 * rms_paddle < np.std(one.steady[:, IP] - clean.steady[:, IP]) < 5.0 * rms_paddle
     assert np.std(one.steady[:, IF] - clean.steady[:, IF]) > 1e-12  # the true force feels it too
     assert one.observables == clean.observables  # observables from the noise-free orbit
 

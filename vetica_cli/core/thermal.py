@@ -22,9 +22,15 @@ surface, the rule before, snapped 45 pm lower at Kg = 10.5 N/m); in contact
 target; contact when the gap reaches ``a0``, separation when the surface would
 have to hold the tip with more than the adhesion -- the rules of the SLS and Wiechert models.
 
-Only for the recorded periods of a run at ``numerics.temperature > 0``: one
-period costs ``steps_per_period`` fine steps (no far-field propagation, whose
-exact flow has no room for a random force).
+Only for the recorded periods of a run at ``numerics.temperature > 0``.  Two integrators, as
+for the noise-free record: :func:`brownian_steps` (and its batch twin) takes fine steps all the
+way (``numerics.integrator: verlet``); :func:`brownian_hybrid` (the default) takes them only in
+contact and within ``d_switch`` of the surface, and farther out one exact step of a print step:
+the noise-free far step (each mode's exact linear flow, the attraction as two half kicks, the
+arms' exact creep) plus each free mode's sampled Ornstein-Uhlenbeck increment over the step,
+``(dz, dv) = L (e1, e2)``, ``L L^T`` the increment's covariance (Van Loan's block exponential,
+:func:`vetica_cli.simulation.thermal.sampled_flow`): exact for the linear modes by
+superposition, since the random force enters additively.
 """
 
 import math
@@ -33,8 +39,8 @@ import numpy as np
 from numba import njit
 
 from .coefficients import (
-    A_G, A_K, A_LIN, A_OMER, P_A0, P_C1, P_C2, P_COSDT, P_DT, P_F0, P_FA0, P_FAC, P_FASEP, P_INVKG, P_K1,
-    P_K2, P_KINF, P_M1, P_HR6, P_IHR6, P_VDW, P_M2, P_NT, P_OMEGA, P_SEPTHR, P_SINDT,
+    A_G, A_K, A_LIN, A_OMER, L_H, L_N, P_A0, P_C1, P_C2, P_COSDT, P_DSW, P_DT, P_F0, P_FA0, P_FAC, P_FASEP,
+    P_INVKG, P_K1, P_K2, P_KINF, P_M1, P_HR6, P_IHR6, P_VDW, P_M2, P_NT, P_OMEGA, P_SEPTHR, P_SINDT,
 )  # fmt: skip
 from . import probe as PR
 from .probe import S_CONTACT, S_IDX, S_VC, S_VP, S_XD, S_ZB, S_ZC, S_ZP
@@ -290,6 +296,204 @@ def brownian_steps_batch(s, z1, z2, sig, p, a, emi, buf, stride, origin, pos):
         s[r, S_CONTACT] = 1.0 if contact_r[r] else 0.0
         for i in range(n_arms):
             s[r, S_XD + i] = xd[r, i]
+
+
+@njit(cache=True)
+def brownian_hybrid(s, rng, sig1, sig2, lc, p, a, emi, lad, lemi, lg, buf, stride, origin, pos, n_steps):
+    """``n_steps`` fine steps' worth of time from the state ``s`` (updated in place) with the
+    Brownian forces drawn from the generator ``rng`` (module docstring): fine Verlet steps with
+    the forces ``0.0 + sig1 * e``, ``0.0 + sig2 * e`` [N] (``e`` standard normal, the cantilever's
+    then the paddle's) in contact and within ``d_switch`` of the surface; farther out, from a
+    point of the recording grid (``origin`` + multiples of ``stride``), one far step of the
+    recording ladder ``lad[0]`` (one print step) where the noise-free far step accepts it (gap
+    above ``d_switch`` at its end and its ends' tip heights: decided on the noise-free flow, so
+    the decision does not select draws), with each mode's thermal increment ``lc[mode] @ (e1,
+    e2)`` added to its end state.  Samples as :func:`brownian_steps` writes them (``buf[pos]``
+    on the grid; ``pos`` < 0 or beyond the buffer: nothing).  Returns the next ``pos``."""
+    n_arms = len(s) - S_XD
+    dt = p[P_DT]
+    hdt = 0.5 * dt
+    m1, m2, k1, k2, c1, c2 = p[P_M1], p[P_M2], p[P_K1], p[P_K2], p[P_C1], p[P_C2]
+    f0 = p[P_F0]
+    a0, fa0, fa_c, sep_thr, fa_sep, invkg = p[P_A0], p[P_FA0], p[P_FAC], p[P_SEPTHR], p[P_FASEP], p[P_INVKG]
+    kinf = p[P_KINF]
+    hr6, ihr6, vdw = p[P_HR6], p[P_IHR6], p[P_VDW] > 0.0
+    cr, sr = p[P_COSDT], p[P_SINDT]
+    dsw = p[P_DSW]
+    den1 = 1.0 + hdt * c1 / m1
+    den2 = 1.0 + hdt * c2 / m2
+    k_arm = a[A_K]
+    omer = a[A_OMER]
+    lin = a[A_LIN]
+    g = a[A_G]
+    f = PR.far_constants(p)
+    far = lad.shape[0] > 0
+    h_far = lad[0, L_H] if far else 0.0
+    hh = 0.5 * h_far
+    n_far = int(lad[0, L_N]) if far else 0
+    o = np.zeros(64)  # far_accept reads no output in recording mode
+    xd = s[S_XD:].copy()
+    tmp = np.empty(n_arms)
+    xd_new = np.empty(n_arms)
+    n, zc, vc, zp, vp, zb, contact, th = PR.load(s, p)
+    cw, sw = math.cos(th), math.sin(th)
+    z_tip = zb + zc + zp
+    fa = fa0
+    if contact:
+        x = z_tip - a0
+        fts = -contact_force(x, xd, p, a) - fa_c
+    else:
+        x, fa = _surface_position(z_tip, xd, p, a, False)
+        fts = -fa
+    n_buf = buf.shape[0]
+    n_end = n + n_steps
+    while n < n_end:
+        if far and not contact and (n - origin) % stride == 0 and n + n_far <= n_end and z_tip - x > dsw:
+            # the noise-free far step (tapping.far_steps in recording mode) decides
+            vc1, vp1, zpart0, vpart0, cw1, sw1, zc1, vc2, zp1, vp2, zb1, z1 = PR.far_flow(
+                f, lad, 0, hh, fa, zc, vc, zp, vp, zb, 0.0, cw, sw)
+            xs = 0.0
+            for i in range(n_arms):
+                acc = lg[0, i] * fa
+                for k in range(n_arms):
+                    acc += lemi[0, i, k] * xd[k]
+                xs += k_arm[i] * (xd[i] + acc)
+            fa1 = fa
+            x1 = (xs + (fa1 if vdw else 0.0)) * invkg
+            for _ in range(4):
+                d1 = z1 - x1
+                if d1 <= 0.0:
+                    break
+                fa_new = vdw_force(d1, fa1, hr6, ihr6)
+                converged = abs(fa_new - fa1) <= 1e-12 * fa_new
+                fa1 = fa_new
+                if not vdw:
+                    break
+                x1 = (xs + fa1) * invkg
+                if converged:
+                    break
+            d1 = z1 - x1
+            ok, _qmn, _qmx = PR.far_accept(o, f, p, True, h_far, dsw, zc, zc1, zp, vc1, vp1, vc2, vp2, cw, sw, z_tip,
+                                           zb, z1, zb1, x, x1, d1)  # fmt: skip
+            if ok:
+                # each free mode's thermal increment over the step (exact: the linear flow superposes it)
+                e1 = rng.standard_normal()
+                e2 = rng.standard_normal()
+                e3 = rng.standard_normal()
+                e4 = rng.standard_normal()
+                zc1 += lc[0, 0, 0] * e1 + lc[0, 0, 1] * e2
+                vc2 += lc[0, 1, 0] * e1 + lc[0, 1, 1] * e2
+                zp1 += lc[1, 0, 0] * e3 + lc[1, 0, 1] * e4
+                vp2 += lc[1, 1, 0] * e3 + lc[1, 1, 1] * e4
+                z1 = zb1 + zc1 + zp1
+                for _ in range(4):  # the end attraction at the moved tip
+                    d1 = z1 - x1
+                    if d1 <= 0.0:
+                        break
+                    fa_new = vdw_force(d1, fa1, hr6, ihr6)
+                    converged = abs(fa_new - fa1) <= 1e-12 * fa_new
+                    fa1 = fa_new
+                    if not vdw:
+                        break
+                    x1 = (xs + fa1) * invkg
+                    if converged:
+                        break
+                vc3, vp3 = PR.far_close(f, hh, fa1, vc2, vp2)
+                fm = 0.5 * (fa + fa1)  # exact creep with the mean attraction of the step
+                xs = 0.0
+                for i in range(n_arms):
+                    acc = lg[0, i] * fm
+                    for k in range(n_arms):
+                        acc += lemi[0, i, k] * xd[k]
+                    xd_new[i] = xd[i] + acc
+                    xs += k_arm[i] * xd_new[i]
+                for i in range(n_arms):
+                    xd[i] = xd_new[i]
+                x = (xs + (fa1 if vdw else 0.0)) * invkg
+                zc, vc, zp, vp, zb = zc1, vc3, zp1, vp3, zb1
+                z_tip, fa, fts = z1, fa1, -fa1
+                cw, sw = cw1, sw1
+                n += n_far
+                if 0 <= pos < n_buf:
+                    buf[pos, 0] = n * dt
+                    buf[pos, 1] = z_tip
+                    buf[pos, 2] = zc
+                    buf[pos, 3] = zp
+                    buf[pos, 4] = zb
+                    buf[pos, 5] = fts
+                    buf[pos, 6] = x
+                    for i in range(n_arms):
+                        buf[pos, 7 + i] = xd[i]
+                    pos += 1
+                continue
+        # fine steps to the next grid point (brownian_steps' step, its forces drawn here)
+        m = stride - (n - origin) % stride
+        if m > n_end - n:
+            m = n_end - n
+        for _j in range(m):
+            f1 = 0.0 + sig1 * rng.standard_normal()
+            f2 = 0.0 + sig2 * rng.standard_normal()
+            vc += hdt * (-k1 * zc - c1 * vc + f0 * cw + fts + f1) / m1
+            vp += hdt * (-k2 * zp - c2 * vp + fts + f2) / m2
+            zc += dt * vc
+            zp += dt * vp
+            cw, sw = cw * cr - sw * sr, sw * cr + cw * sr
+            n += 1
+            z_tip = zb + zc + zp
+            x_last = x
+            if not contact:
+                d = z_tip - x
+                if d > a0:
+                    fa = vdw_force(d, fa, hr6, ihr6)
+                    for i in range(n_arms):
+                        acc = g[i] * fa
+                        for k in range(n_arms):
+                            acc += emi[i, k] * xd[k]
+                        tmp[i] = acc
+                    xs = 0.0
+                    for i in range(n_arms):
+                        xd[i] += tmp[i]
+                        xs += k_arm[i] * xd[i]
+                    x = (xs + fa) * invkg if vdw else xs * invkg
+                    fts = -fa
+                else:
+                    contact = True
+            if contact:
+                x = z_tip - a0
+                for i in range(n_arms):
+                    xd[i] += omer[i] * (x - xd[i]) - lin[i] * (x - x_last)
+                f_sls = kinf * x
+                for i in range(n_arms):
+                    f_sls += k_arm[i] * (x - xd[i])
+                if f_sls > sep_thr:
+                    contact = False
+                    xs = 0.0
+                    for i in range(n_arms):
+                        xs += k_arm[i] * xd[i]
+                    x = (xs + fa_sep) * invkg
+                    fts = -fa0
+                    fa = fa0
+                else:
+                    fts = -f_sls - fa_c
+            vc = (vc + hdt * (-k1 * zc + f0 * cw + fts + f1) / m1) / den1
+            vp = (vp + hdt * (-k2 * zp + fts + f2) / m2) / den2
+            if (n - origin) % stride == 0 and 0 <= pos < n_buf:
+                buf[pos, 0] = n * dt
+                buf[pos, 1] = z_tip
+                buf[pos, 2] = zc
+                buf[pos, 3] = zp
+                buf[pos, 4] = zb
+                buf[pos, 5] = fts
+                buf[pos, 6] = x
+                for i in range(n_arms):
+                    buf[pos, 7 + i] = xd[i]
+                pos += 1
+    s[S_ZC], s[S_VC], s[S_ZP], s[S_VP] = zc, vc, zp, vp
+    s[S_IDX] = n
+    s[S_CONTACT] = 1.0 if contact else 0.0
+    for i in range(n_arms):
+        s[S_XD + i] = xd[i]
+    return pos
 
 
 @njit(cache=True)

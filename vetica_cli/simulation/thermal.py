@@ -3,7 +3,8 @@
 At ``numerics.temperature`` T > 0 each probe mode (stiffness k, mass m, quality
 factor Q, angular resonance w0 = sqrt(k/m)) feels a white random force of one-sided
 power spectral density ``S_F = 4 kB T m w0 / Q`` (fluctuation-dissipation); the
-kernel draws it per fine step as a Gaussian of variance ``S_F / (2 dt)``
+kernel draws it per fine step as a Gaussian of variance ``S_F / (2 dt)`` and, over a far
+step of the hybrid integrator, as each mode's exact sampled Ornstein-Uhlenbeck increment
 (:mod:`vetica_cli.core.thermal`).  A free mode then fluctuates with
 ``<z^2> = kB T / k`` (equipartition) and the Lorentzian spectrum
 ``S_z(f) = S_F |1/(k (1 - (w/w0)^2 + i w/(Q w0)))|^2``.
@@ -49,6 +50,7 @@ import numpy as np
 
 from ..core import prescribed, session, tapping
 from ..core import thermal as kernel
+from ..core.coefficients import L_H
 
 KB = 1.380649e-23  # Boltzmann constant [J/K] (SI, exact)
 SETTLE_CYCLES = 2  # noisy periods run before the recorded ones
@@ -167,6 +169,17 @@ def thermal_records(kern, s0, cfgs, d, rngs) -> list[np.ndarray]:
         sig[r] = [step_sigma(m, k, q, cfg.numerics.temperature, st.dt) for (m, k, q) in modes(cfg, d)]
     nt = kern.nt
     buf = np.zeros((n_rep, d.n_steady, 7 + kern.n_arms))
+    lad, lemi, lg = kern.coef[6], kern.coef[7], kern.coef[8]  # the recording ladder: one print step
+    if st.hybrid and lad.shape[0] > 0:  # fine steps near the surface, exact far steps with the sampled noise
+        pos = np.full(n_rep, -1, np.int64)
+        h = float(lad[0, L_H])
+        for r, (cfg, rng) in enumerate(zip(cfgs, rngs)):
+            lc = np.array([_sqrt_psd(sampled_flow(m, k, q, cfg.numerics.temperature, h)[1]) for (m, k, q) in modes(cfg, d)])
+            for steps, start in ((SETTLE_CYCLES * nt, -1), (record_cycles_n(cfgs) * nt, 0)):
+                origin = session.step_index(s[r])
+                pos[r] = kernel.brownian_hybrid(s[r], rng, sig[r, 0], sig[r, 1], lc, p, a, emi, lad, lemi, lg, buf[r],
+                                                st.stride, origin, start, steps)  # fmt: skip
+        return [buf[r, : pos[r]] for r in range(n_rep)]
     z1, z2 = np.empty((n_rep, nt)), np.empty((n_rep, nt))
     pos = np.full(n_rep, -1, np.int64)
     origin = np.zeros(n_rep, np.int64)
@@ -183,6 +196,11 @@ def thermal_records(kern, s0, cfgs, d, rngs) -> list[np.ndarray]:
         else:
             kernel.brownian_steps_batch(s, z1, z2, sig, p, a, emi, buf, st.stride, origin, pos)
     return [buf[r, : pos[r]] for r in range(n_rep)]
+
+
+def record_cycles_n(cfgs) -> int:
+    """The recorded periods of a batch (one number: checked by :func:`thermal_records`)."""
+    return int(cfgs[0].numerics.record_cycles)
 
 
 def thermal_record(kern, s0, cfg, d, rng) -> np.ndarray:
