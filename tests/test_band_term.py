@@ -5,7 +5,7 @@ Reference: the same method's answer on the same noise-free record read through t
 a band-limited record is a claim about.  The record is low-passed at 30 and 15 MHz (the cut-offs
 the automatic rule chose at 300 K: 23-55 MHz), which biases VETICA's tau_c by -5 % and -15 % and
 dmt-fit's adhesion by -18 % and -30 % (measured).  The model band term reads that bias on the
-whole-cycle fit's surface and divides it out; the test asks that the corrected answer lie
+whole-cycle fit's surface (the fit's own too) and divides it out; the test asks that the corrected answer lie
 within 2 sigma of the whole-band answer (2 % where sigma is smaller: the fit's misfit on a
 noise-free record, 0.3-0.9 % measured) and that the correction remove at least two thirds of
 every bias above 3 %.
@@ -88,7 +88,7 @@ def test_the_low_pass_is_the_transform_of_the_segment_and_its_mirror_image(n, pe
 
 
 def test_a_narrower_band_declares_the_records_noise_through_it(monkeypatch):
-    """The band term's narrower bands (fc/sqrt(2), fc/2) carry the record's noise as white noise
+    """The band term's narrower bands (fc/sqrt(2), and fc/2 for Richardson's) carry the record's noise as white noise
     through a narrower band would: its RMS by sqrt(fc2/fc), its white equivalent (the density) as
     it was, the smear by the step.  Measured afresh on the low-passed force the noise read ~1e-25 N
     (the spectrum's bands above fc2 are empty), and a narrower band then took noise 127 nm above
@@ -107,11 +107,39 @@ def test_a_narrower_band_declares_the_records_noise_through_it(monkeypatch):
     monkeypatch.setattr(uncertainty, "band_record", spy)
     run = simulate(load(None, {"numerics.temperature": 300, "numerics.record_cycles": 4, "numerics.print_step": 0.5e-9}))
     extract_many(run.frame(), run.metadata(), "reconstructed", {"full": {}})
-    assert {step for _, step, *_ in made} == {math.sqrt(2.0), 2.0}
+    # the fit's band term is read on its surface: the record is re-read once, at fc/sqrt(2) (Richardson's
+    # re-runs, for a method without a fitted surface, re-read it at fc/2 too: the same function)
+    assert {step for _, step, *_ in made} == {math.sqrt(2.0)}
     for rec, step, out, d, d2 in made:
         assert d is not None and d[0] > 1e-11  # 300 K through the paddle: ~0.2 nN
         assert d2 == pytest.approx((d[0] / math.sqrt(step), d[1], d[2] * step), rel=1e-12, abs=0)
         assert abs(out.z1 - rec.z1) < 0.1e-9  # the well stays where the record has it, within a smear's travel
+
+
+@pytest.mark.parametrize("cutoff", [3e7, 1.5e7])
+def test_the_fit_reads_its_band_term_on_its_own_surface(record, cutoff):
+    """The whole-cycle fit's band term is read on its own fitted surface (the model band term, as
+    for the tap methods on the fit's surface), not by Richardson's re-runs on the noisy record: on
+    300 K records of soft surfaces those left a -0.2 % bias of k_g and k0 under a band sigma that swung
+    1e-4 .. 9e-3 with the noise (draw 19 of scripts/trust.py).  On the noise-free worked example the
+    low-pass biases the fit only by 0.01-0.1 % (measured: k0 -0.050 % at 30 MHz, -0.105 % at 15 MHz);
+    the correction removes more than half of every bias above 0.02 % (measured: 60-88 %), and the
+    corrected answer lies within 2 sigma of the whole-band one."""
+    df, meta = record
+    whole = extract_many(df, meta, "reconstructed", {"full": {}})["full"]
+    low = extract_many(df, meta, "reconstructed", {"full": {}}, cutoff_hz=cutoff)["full"]
+    band = low.info["uncertainty"]["band"]
+    assert band["source"] == "model"
+    corrected = 0
+    for q in ("tau_c", "k_g", "k0", "k_inf", "cd", "tau_r"):
+        e, w = low.estimates[q], whole.estimates[q].value
+        after = e.value / w - 1.0
+        before = (1.0 + band["bias"][q]) * e.value / w - 1.0
+        assert abs(after) <= 2.0 * e.sigma, (q, after, e.sigma)
+        if abs(before) > 2e-4:
+            assert abs(after) < abs(before) / 2.0, (q, before, after)
+            corrected += 1
+    assert corrected >= 3
 
 
 def test_the_fits_misfit_term_is_left_to_the_band_term_on_a_low_passed_force(record):

@@ -222,7 +222,14 @@ def model_band(res: ExtractionResult, record, method, options, narrower=None) ->
 
     narrower = narrower or _narrower_runs(record, method, options)
 
-    est, fwd = fit_on(record, method.band_model or method.referee)
+    key = method.band_model or method.referee
+    if key == method.key:  # the fit on its own surface: its answer and forward model, no second fit
+        est, fwd = res.estimates, record.memo.get(("forward", method.key, id(record.f), record.z1))
+        more = method.continuation(res)  # the model's records fitted from the answer, as the narrower bands are
+        if more:
+            options = method.options({**options, **more})
+    else:
+        est, fwd = fit_on(record, key)
     kg = est.get("k_g") if est else None
     if fwd is None or kg is None or kg.identifiable is False:
         return None
@@ -284,13 +291,15 @@ def band_term(res: ExtractionResult, record, method, options) -> dict:
     the initial slope is read later; these biases do not average over taps and are not in the
     answer at the whole band.
 
-    * ``model`` (a method with a referee whose fit reproduces the record, :func:`model_band`):
+    * ``model`` (a method with a referee whose fit reproduces the record, or the whole-cycle fit on
+      its own fitted surface, :func:`model_band`):
       the bias read on the fitted surface's force, divided out of the answer by
       :func:`calibrate`; its sigma is the measured disagreement of the model's band response with
       the record's.  On the 300 K worked-example family (k0:k_inf 47, cd 2.9e-4 kg/s, 31 MHz) the
       record's k_inf and cd were -12 % and -16 % off the whole-band answer, the model said -11.8 %
       and -15.7 %, and the corrected answers were within 1 %.
-    * ``richardson`` (any other method or record): measured on the record itself by Richardson's
+    * ``richardson`` (any other method or record, e.g. where the fitted surface's k_g is flagged or its
+      model records are refused): measured on the record itself by Richardson's
       extrapolation: the method re-run on its own force low-passed once more at ``fc/sqrt(2)`` and
       ``fc/2`` (no more noise), the changes ``D1``, ``D2`` fitted by a bias growing as ``fc^-p``
       (``D2/D1 = 2^(p/2) + 1``, ``p`` clamped to 1..4), and the bias at ``fc`` is
