@@ -53,100 +53,6 @@ from .tapping import contact_force, surface_position
 _surface_position = njit(inline="always")(surface_position.py_func)
 
 
-@njit(inline="always")
-def _constants(p, a):
-    """The fine Brownian step's constants (:func:`_fine_step`) from the coefficient arrays."""
-    dt = p[P_DT]
-    hdt = 0.5 * dt
-    m1, m2, c1, c2 = p[P_M1], p[P_M2], p[P_C1], p[P_C2]
-    return (dt, hdt, m1, m2, p[P_K1], p[P_K2], c1, p[P_F0], p[P_A0], p[P_FA0], p[P_FAC], p[P_SEPTHR], p[P_FASEP],
-            p[P_INVKG], p[P_KINF], p[P_HR6], p[P_IHR6], p[P_VDW] > 0.0, p[P_COSDT], p[P_SINDT],
-            1.0 + hdt * c1 / m1, 1.0 + hdt * c2 / m2, c2)  # fmt: skip
-
-
-@njit(inline="always")
-def _fine_step(c, k_arm, omer, lin, g, emi, xd, tmp, zc, vc, zp, vp, zb, cw, sw, x, fa, fts, contact, f1, f2):
-    """One velocity-Verlet step with the Brownian forces ``f1, f2`` [N] held over it (module
-    docstring; ``c`` = :func:`_constants`): returns ``(zc, vc, zp, vp, cw, sw, z_tip, x, fa, fts,
-    contact)``, the arms ``xd`` updated in place (``tmp`` scratch).  The one step of every thermal
-    kernel: the same arithmetic in each."""
-    (dt, hdt, m1, m2, k1, k2, c1, f0, a0, fa0, fa_c, sep_thr, fa_sep, invkg, kinf, hr6, ihr6, vdw, cr, sr, den1,
-     den2, c2) = c  # fmt: skip
-    n_arms = len(xd)
-    # first half kick with the forces at the start of the step
-    vc += hdt * (-k1 * zc - c1 * vc + f0 * cw + fts + f1) / m1
-    vp += hdt * (-k2 * zp - c2 * vp + fts + f2) / m2
-    zc += dt * vc
-    zp += dt * vp
-    cw, sw = cw * cr - sw * sr, sw * cr + cw * sr
-    z_tip = zb + zc + zp
-    x_last = x
-    if not contact:
-        # the fine kernel's rule (tapping.fine_steps): the attraction at the gap to the last
-        # step's surface, then the arms and the surface with it
-        d = z_tip - x
-        if d > a0:
-            fa = vdw_force(d, fa, hr6, ihr6)
-            for i in range(n_arms):
-                acc = g[i] * fa
-                for k in range(n_arms):
-                    acc += emi[i, k] * xd[k]
-                tmp[i] = acc
-            xs = 0.0
-            for i in range(n_arms):
-                xd[i] += tmp[i]
-                xs += k_arm[i] * xd[i]
-            x = (xs + fa) * invkg if vdw else xs * invkg
-            fts = -fa
-        else:
-            contact = True
-    if contact:
-        x = z_tip - a0
-        for i in range(n_arms):
-            xd[i] += omer[i] * (x - xd[i]) - lin[i] * (x - x_last)
-        f_sls = kinf * x
-        for i in range(n_arms):
-            f_sls += k_arm[i] * (x - xd[i])
-        if f_sls > sep_thr:
-            contact = False
-            xs = 0.0
-            for i in range(n_arms):
-                xs += k_arm[i] * xd[i]
-            x = (xs + fa_sep) * invkg
-            fts = -fa0
-            fa = fa0
-        else:
-            fts = -f_sls - fa_c
-    # second half kick, damping implicit
-    vc = (vc + hdt * (-k1 * zc + f0 * cw + fts + f1) / m1) / den1
-    vp = (vp + hdt * (-k2 * zp + fts + f2) / m2) / den2
-    return zc, vc, zp, vp, cw, sw, z_tip, x, fa, fts, contact
-
-
-@njit(inline="always")
-def _store(buf, pos, n, dt, z_tip, zc, zp, zb, fts, x, xd):
-    """Write one sample (``t, z_tip, zc, zp, zb, Fts, X, Xd_1..N``) to ``buf[pos]``."""
-    buf[pos, 0] = n * dt
-    buf[pos, 1] = z_tip
-    buf[pos, 2] = zc
-    buf[pos, 3] = zp
-    buf[pos, 4] = zb
-    buf[pos, 5] = fts
-    buf[pos, 6] = x
-    for i in range(len(xd)):
-        buf[pos, 7 + i] = xd[i]
-
-
-@njit(inline="always")
-def _save(s, zc, vc, zp, vp, n, contact, xd):
-    """Write a replica's probe, step index, contact flag and arms back to its state ``s``."""
-    s[S_ZC], s[S_VC], s[S_ZP], s[S_VP] = zc, vc, zp, vp
-    s[S_IDX] = n
-    s[S_CONTACT] = 1.0 if contact else 0.0
-    for i in range(len(xd)):
-        s[S_XD + i] = xd[i]
-
-
 @njit(cache=True)
 def brownian_steps(s, fb1, fb2, p, a, emi, buf, stride, origin, pos, sig1=1.0, sig2=1.0, scaled=False):
     """``len(fb1)`` Verlet steps from the state ``s`` (updated in place) with the
@@ -159,8 +65,16 @@ def brownian_steps(s, fb1, fb2, p, a, emi, buf, stride, origin, pos, sig1=1.0, s
     The one-replica twin of :func:`brownian_steps_batch` (the same arithmetic, the state in
     registers; tests/test_thermal_batch.py holds the two to the same records bit for bit)."""
     n_arms = len(s) - S_XD
-    c = _constants(p, a)
-    dt = c[0]
+    dt = p[P_DT]
+    hdt = 0.5 * dt
+    m1, m2, k1, k2, c1, c2 = p[P_M1], p[P_M2], p[P_K1], p[P_K2], p[P_C1], p[P_C2]
+    f0 = p[P_F0]
+    a0, fa0, fa_c, sep_thr, fa_sep, invkg = p[P_A0], p[P_FA0], p[P_FAC], p[P_SEPTHR], p[P_FASEP], p[P_INVKG]
+    kinf = p[P_KINF]
+    hr6, ihr6, vdw = p[P_HR6], p[P_IHR6], p[P_VDW] > 0.0
+    cr, sr = p[P_COSDT], p[P_SINDT]
+    den1 = 1.0 + hdt * c1 / m1
+    den2 = 1.0 + hdt * c2 / m2
     k_arm = a[A_K]
     omer = a[A_OMER]
     lin = a[A_LIN]
@@ -170,10 +84,10 @@ def brownian_steps(s, fb1, fb2, p, a, emi, buf, stride, origin, pos, sig1=1.0, s
     n, zc, vc, zp, vp, zb, contact, th = PR.load(s, p)
     cw, sw = math.cos(th), math.sin(th)
     z_tip = zb + zc + zp
-    fa = p[P_FA0]
+    fa = fa0
     if contact:
-        x = z_tip - p[P_A0]
-        fts = -contact_force(x, xd, p, a) - p[P_FAC]
+        x = z_tip - a0
+        fts = -contact_force(x, xd, p, a) - fa_c
     else:
         x, fa = _surface_position(z_tip, xd, p, a, False)
         fts = -fa
@@ -185,13 +99,70 @@ def brownian_steps(s, fb1, fb2, p, a, emi, buf, stride, origin, pos, sig1=1.0, s
         else:
             f1 = fb1[j]
             f2 = fb2[j]
-        zc, vc, zp, vp, cw, sw, z_tip, x, fa, fts, contact = _fine_step(
-            c, k_arm, omer, lin, g, emi, xd, tmp, zc, vc, zp, vp, zb, cw, sw, x, fa, fts, contact, f1, f2)
+        # first half kick with the forces at the start of the step
+        vc += hdt * (-k1 * zc - c1 * vc + f0 * cw + fts + f1) / m1
+        vp += hdt * (-k2 * zp - c2 * vp + fts + f2) / m2
+        zc += dt * vc
+        zp += dt * vp
+        cw, sw = cw * cr - sw * sr, sw * cr + cw * sr
         n += 1
+        z_tip = zb + zc + zp
+        x_last = x
+        if not contact:
+            # the fine kernel's rule (tapping.fine_steps): the attraction at the gap to the last
+            # step's surface, then the arms and the surface with it
+            d = z_tip - x
+            if d > a0:
+                fa = vdw_force(d, fa, hr6, ihr6)
+                for i in range(n_arms):
+                    acc = g[i] * fa
+                    for k in range(n_arms):
+                        acc += emi[i, k] * xd[k]
+                    tmp[i] = acc
+                xs = 0.0
+                for i in range(n_arms):
+                    xd[i] += tmp[i]
+                    xs += k_arm[i] * xd[i]
+                x = (xs + fa) * invkg if vdw else xs * invkg
+                fts = -fa
+            else:
+                contact = True
+        if contact:
+            x = z_tip - a0
+            for i in range(n_arms):
+                xd[i] += omer[i] * (x - xd[i]) - lin[i] * (x - x_last)
+            f_sls = kinf * x
+            for i in range(n_arms):
+                f_sls += k_arm[i] * (x - xd[i])
+            if f_sls > sep_thr:
+                contact = False
+                xs = 0.0
+                for i in range(n_arms):
+                    xs += k_arm[i] * xd[i]
+                x = (xs + fa_sep) * invkg
+                fts = -fa0
+                fa = fa0
+            else:
+                fts = -f_sls - fa_c
+        # second half kick, damping implicit
+        vc = (vc + hdt * (-k1 * zc + f0 * cw + fts + f1) / m1) / den1
+        vp = (vp + hdt * (-k2 * zp + fts + f2) / m2) / den2
         if (n - origin) % stride == 0 and 0 <= pos < n_buf:
-            _store(buf, pos, n, dt, z_tip, zc, zp, zb, fts, x, xd)
+            buf[pos, 0] = n * dt
+            buf[pos, 1] = z_tip
+            buf[pos, 2] = zc
+            buf[pos, 3] = zp
+            buf[pos, 4] = zb
+            buf[pos, 5] = fts
+            buf[pos, 6] = x
+            for i in range(n_arms):
+                buf[pos, 7 + i] = xd[i]
             pos += 1
-    _save(s, zc, vc, zp, vp, n, contact, xd)
+    s[S_ZC], s[S_VC], s[S_ZP], s[S_VP] = zc, vc, zp, vp
+    s[S_IDX] = n
+    s[S_CONTACT] = 1.0 if contact else 0.0
+    for i in range(n_arms):
+        s[S_XD + i] = xd[i]
     return pos
 
 
@@ -211,9 +182,16 @@ def brownian_steps_batch(s, z1, z2, sig, p, a, emi, buf, stride, origin, pos):
     is :func:`brownian_steps`'s job)."""
     n_rep = s.shape[0]
     n_arms = s.shape[1] - S_XD
-    c = _constants(p, a)
-    dt = c[0]
-    a0, fa0, fa_c = p[P_A0], p[P_FA0], p[P_FAC]
+    dt = p[P_DT]
+    hdt = 0.5 * dt
+    m1, m2, k1, k2, c1, c2 = p[P_M1], p[P_M2], p[P_K1], p[P_K2], p[P_C1], p[P_C2]
+    f0 = p[P_F0]
+    a0, fa0, fa_c, sep_thr, fa_sep, invkg = p[P_A0], p[P_FA0], p[P_FAC], p[P_SEPTHR], p[P_FASEP], p[P_INVKG]
+    kinf = p[P_KINF]
+    hr6, ihr6, vdw = p[P_HR6], p[P_IHR6], p[P_VDW] > 0.0
+    cr, sr = p[P_COSDT], p[P_SINDT]
+    den1 = 1.0 + hdt * c1 / m1
+    den2 = 1.0 + hdt * c2 / m2
     k_arm = a[A_K]
     omer = a[A_OMER]
     lin = a[A_LIN]
@@ -249,15 +227,66 @@ def brownian_steps_batch(s, z1, z2, sig, p, a, emi, buf, stride, origin, pos):
             n, zc, vc, zp, vp, zb, contact = nn[r], zc_r[r], vc_r[r], zp_r[r], vp_r[r], zb_r[r], contact_r[r]
             cw, sw, x, fts, fa = cw_r[r], sw_r[r], x_r[r], fts_r[r], fa_r[r]
             xr = xd[r]
-            zc, vc, zp, vp, cw, sw, z_tip, x, fa, fts, contact = _fine_step(
-                c, k_arm, omer, lin, g, emi, xr, tmp[r], zc, vc, zp, vp, zb, cw, sw, x, fa, fts, contact, f1, f2)
+            # first half kick with the forces at the start of the step
+            vc += hdt * (-k1 * zc - c1 * vc + f0 * cw + fts + f1) / m1
+            vp += hdt * (-k2 * zp - c2 * vp + fts + f2) / m2
+            zc += dt * vc
+            zp += dt * vp
+            cw, sw = cw * cr - sw * sr, sw * cr + cw * sr
             n += 1
+            z_tip = zb + zc + zp
+            x_last = x
+            if not contact:  # the fine kernel's rule, as in brownian_steps
+                d = z_tip - x
+                if d > a0:
+                    fa = vdw_force(d, fa, hr6, ihr6)
+                    for i in range(n_arms):
+                        acc = g[i] * fa
+                        for k in range(n_arms):
+                            acc += emi[i, k] * xr[k]
+                        tmp[r, i] = acc
+                    xs = 0.0
+                    for i in range(n_arms):
+                        xr[i] += tmp[r, i]
+                        xs += k_arm[i] * xr[i]
+                    x = (xs + fa) * invkg if vdw else xs * invkg
+                    fts = -fa
+                else:
+                    contact = True
+            if contact:
+                x = z_tip - a0
+                for i in range(n_arms):
+                    xr[i] += omer[i] * (x - xr[i]) - lin[i] * (x - x_last)
+                f_sls = kinf * x
+                for i in range(n_arms):
+                    f_sls += k_arm[i] * (x - xr[i])
+                if f_sls > sep_thr:
+                    contact = False
+                    xs = 0.0
+                    for i in range(n_arms):
+                        xs += k_arm[i] * xr[i]
+                    x = (xs + fa_sep) * invkg
+                    fts = -fa0
+                    fa = fa0
+                else:
+                    fts = -f_sls - fa_c
+            # second half kick, damping implicit
+            vc = (vc + hdt * (-k1 * zc + f0 * cw + fts + f1) / m1) / den1
+            vp = (vp + hdt * (-k2 * zp + fts + f2) / m2) / den2
             left[r] -= 1
             if left[r] == 0:  # (n - origin) a multiple of stride
                 left[r] = stride
                 ps = pos[r]
                 if 0 <= ps < n_buf:
-                    _store(buf[r], ps, n, dt, z_tip, zc, zp, zb, fts, x, xr)
+                    buf[r, ps, 0] = n * dt
+                    buf[r, ps, 1] = z_tip
+                    buf[r, ps, 2] = zc
+                    buf[r, ps, 3] = zp
+                    buf[r, ps, 4] = zb
+                    buf[r, ps, 5] = fts
+                    buf[r, ps, 6] = x
+                    for i in range(n_arms):
+                        buf[r, ps, 7 + i] = xr[i]
                     pos[r] = ps + 1
             nn[r], zc_r[r], vc_r[r], zp_r[r], vp_r[r], contact_r[r] = n, zc, vc, zp, vp, contact
             cw_r[r], sw_r[r], x_r[r], fts_r[r], fa_r[r] = cw, sw, x, fts, fa
@@ -267,26 +296,6 @@ def brownian_steps_batch(s, z1, z2, sig, p, a, emi, buf, stride, origin, pos):
         s[r, S_CONTACT] = 1.0 if contact_r[r] else 0.0
         for i in range(n_arms):
             s[r, S_XD + i] = xd[r, i]
-
-
-@njit(inline="always")
-def _end_attraction(z1, x1, fa1, xs, hr6, ihr6, invkg, vdw):
-    """``(Fa, X)`` at a far step's end: the attraction consistent with the surface it pulls (the
-    fixed point of :func:`.tapping.far_steps`, at most four iterations from ``fa1``; ``xs`` the
-    arms' pull ``sum k_i Xd_i``; without the pull one evaluation is exact)."""
-    for _ in range(4):
-        d1 = z1 - x1
-        if d1 <= 0.0:
-            break
-        fa_new = vdw_force(d1, fa1, hr6, ihr6)
-        converged = abs(fa_new - fa1) <= 1e-12 * fa_new
-        fa1 = fa_new
-        if not vdw:
-            break
-        x1 = (xs + fa1) * invkg
-        if converged:
-            break
-    return fa1, x1
 
 
 @njit(cache=True)
@@ -302,11 +311,17 @@ def brownian_hybrid(s, rng, sig1, sig2, lc, p, a, emi, lad, lemi, lg, buf, strid
     e2)`` added to its end state.  Samples as :func:`brownian_steps` writes them (``buf[pos]``
     on the grid; ``pos`` < 0 or beyond the buffer: nothing).  Returns the next ``pos``."""
     n_arms = len(s) - S_XD
-    c = _constants(p, a)
-    dt = c[0]
-    a0, fa0, fa_c, invkg = p[P_A0], p[P_FA0], p[P_FAC], p[P_INVKG]
+    dt = p[P_DT]
+    hdt = 0.5 * dt
+    m1, m2, k1, k2, c1, c2 = p[P_M1], p[P_M2], p[P_K1], p[P_K2], p[P_C1], p[P_C2]
+    f0 = p[P_F0]
+    a0, fa0, fa_c, sep_thr, fa_sep, invkg = p[P_A0], p[P_FA0], p[P_FAC], p[P_SEPTHR], p[P_FASEP], p[P_INVKG]
+    kinf = p[P_KINF]
     hr6, ihr6, vdw = p[P_HR6], p[P_IHR6], p[P_VDW] > 0.0
+    cr, sr = p[P_COSDT], p[P_SINDT]
     dsw = p[P_DSW]
+    den1 = 1.0 + hdt * c1 / m1
+    den2 = 1.0 + hdt * c2 / m2
     k_arm = a[A_K]
     omer = a[A_OMER]
     lin = a[A_LIN]
@@ -345,7 +360,18 @@ def brownian_hybrid(s, rng, sig1, sig2, lc, p, a, emi, lad, lemi, lg, buf, strid
                 xs += k_arm[i] * (xd[i] + acc)
             fa1 = fa
             x1 = (xs + (fa1 if vdw else 0.0)) * invkg
-            fa1, x1 = _end_attraction(z1, x1, fa1, xs, hr6, ihr6, invkg, vdw)
+            for _ in range(4):
+                d1 = z1 - x1
+                if d1 <= 0.0:
+                    break
+                fa_new = vdw_force(d1, fa1, hr6, ihr6)
+                converged = abs(fa_new - fa1) <= 1e-12 * fa_new
+                fa1 = fa_new
+                if not vdw:
+                    break
+                x1 = (xs + fa1) * invkg
+                if converged:
+                    break
             d1 = z1 - x1
             ok, _qmn, _qmx = PR.far_accept(o, f, p, True, h_far, dsw, zc, zc1, zp, vc1, vp1, vc2, vp2, cw, sw, z_tip,
                                            zb, z1, zb1, x, x1, d1)  # fmt: skip
@@ -360,7 +386,18 @@ def brownian_hybrid(s, rng, sig1, sig2, lc, p, a, emi, lad, lemi, lg, buf, strid
                 zp1 += lc[1, 0, 0] * e3 + lc[1, 0, 1] * e4
                 vp2 += lc[1, 1, 0] * e3 + lc[1, 1, 1] * e4
                 z1 = zb1 + zc1 + zp1
-                fa1, x1 = _end_attraction(z1, x1, fa1, xs, hr6, ihr6, invkg, vdw)  # at the moved tip
+                for _ in range(4):  # the end attraction at the moved tip
+                    d1 = z1 - x1
+                    if d1 <= 0.0:
+                        break
+                    fa_new = vdw_force(d1, fa1, hr6, ihr6)
+                    converged = abs(fa_new - fa1) <= 1e-12 * fa_new
+                    fa1 = fa_new
+                    if not vdw:
+                        break
+                    x1 = (xs + fa1) * invkg
+                    if converged:
+                        break
                 vc3, vp3 = PR.far_close(f, hh, fa1, vc2, vp2)
                 fm = 0.5 * (fa + fa1)  # exact creep with the mean attraction of the step
                 xs = 0.0
@@ -378,7 +415,15 @@ def brownian_hybrid(s, rng, sig1, sig2, lc, p, a, emi, lad, lemi, lg, buf, strid
                 cw, sw = cw1, sw1
                 n += n_far
                 if 0 <= pos < n_buf:
-                    _store(buf, pos, n, dt, z_tip, zc, zp, zb, fts, x, xd)
+                    buf[pos, 0] = n * dt
+                    buf[pos, 1] = z_tip
+                    buf[pos, 2] = zc
+                    buf[pos, 3] = zp
+                    buf[pos, 4] = zb
+                    buf[pos, 5] = fts
+                    buf[pos, 6] = x
+                    for i in range(n_arms):
+                        buf[pos, 7 + i] = xd[i]
                     pos += 1
                 continue
         # fine steps to the next grid point (brownian_steps' step, its forces drawn here)
@@ -388,13 +433,66 @@ def brownian_hybrid(s, rng, sig1, sig2, lc, p, a, emi, lad, lemi, lg, buf, strid
         for _j in range(m):
             f1 = 0.0 + sig1 * rng.standard_normal()
             f2 = 0.0 + sig2 * rng.standard_normal()
-            zc, vc, zp, vp, cw, sw, z_tip, x, fa, fts, contact = _fine_step(
-                c, k_arm, omer, lin, g, emi, xd, tmp, zc, vc, zp, vp, zb, cw, sw, x, fa, fts, contact, f1, f2)
+            vc += hdt * (-k1 * zc - c1 * vc + f0 * cw + fts + f1) / m1
+            vp += hdt * (-k2 * zp - c2 * vp + fts + f2) / m2
+            zc += dt * vc
+            zp += dt * vp
+            cw, sw = cw * cr - sw * sr, sw * cr + cw * sr
             n += 1
+            z_tip = zb + zc + zp
+            x_last = x
+            if not contact:
+                d = z_tip - x
+                if d > a0:
+                    fa = vdw_force(d, fa, hr6, ihr6)
+                    for i in range(n_arms):
+                        acc = g[i] * fa
+                        for k in range(n_arms):
+                            acc += emi[i, k] * xd[k]
+                        tmp[i] = acc
+                    xs = 0.0
+                    for i in range(n_arms):
+                        xd[i] += tmp[i]
+                        xs += k_arm[i] * xd[i]
+                    x = (xs + fa) * invkg if vdw else xs * invkg
+                    fts = -fa
+                else:
+                    contact = True
+            if contact:
+                x = z_tip - a0
+                for i in range(n_arms):
+                    xd[i] += omer[i] * (x - xd[i]) - lin[i] * (x - x_last)
+                f_sls = kinf * x
+                for i in range(n_arms):
+                    f_sls += k_arm[i] * (x - xd[i])
+                if f_sls > sep_thr:
+                    contact = False
+                    xs = 0.0
+                    for i in range(n_arms):
+                        xs += k_arm[i] * xd[i]
+                    x = (xs + fa_sep) * invkg
+                    fts = -fa0
+                    fa = fa0
+                else:
+                    fts = -f_sls - fa_c
+            vc = (vc + hdt * (-k1 * zc + f0 * cw + fts + f1) / m1) / den1
+            vp = (vp + hdt * (-k2 * zp + fts + f2) / m2) / den2
             if (n - origin) % stride == 0 and 0 <= pos < n_buf:
-                _store(buf, pos, n, dt, z_tip, zc, zp, zb, fts, x, xd)
+                buf[pos, 0] = n * dt
+                buf[pos, 1] = z_tip
+                buf[pos, 2] = zc
+                buf[pos, 3] = zp
+                buf[pos, 4] = zb
+                buf[pos, 5] = fts
+                buf[pos, 6] = x
+                for i in range(n_arms):
+                    buf[pos, 7 + i] = xd[i]
                 pos += 1
-    _save(s, zc, vc, zp, vp, n, contact, xd)
+    s[S_ZC], s[S_VC], s[S_ZP], s[S_VP] = zc, vc, zp, vp
+    s[S_IDX] = n
+    s[S_CONTACT] = 1.0 if contact else 0.0
+    for i in range(n_arms):
+        s[S_XD + i] = xd[i]
     return pos
 
 
