@@ -39,6 +39,7 @@ def _alias_method_modules() -> None:
 _alias_method_modules()
 from .material import MATERIAL_UNITS, ContactModel, contact_metadata, contact_model, material_entries, tap_contact
 from .record import FORCES, RECORD_KEYS, SOURCES, Record, RecordInputs, build_record
+from .referee import memo_key
 
 RECORD_COLUMNS = ("t", "z_tip", "f_ts", "z_paddle", "segment")  # what any method reads of a run table
 MATERIAL_NAMES = tuple(MATERIAL_UNITS)  # the thesis's material units (E_dmt, E_glassy, E_rubbery, viscosity)
@@ -137,7 +138,7 @@ def extract_many(df, meta: dict | None, force: str, methods: dict, *, contact=No
         calibrate(res, record, m, opts[key])  # a standard error for every estimate (.uncertainty)
         check(res, record, opts[key], m)  # identifiability and sanity checks: no silent wrong answer (.sanity)
         if key in referees and opts[key] == m.options({}):  # the referee's verdict on its defaults, for the others
-            record.memo[("referee", key, id(record.f), record.z1)] = res.estimates
+            record.memo[memo_key("referee", key, record)] = res.estimates
         add_material(res, record, cm, radius_source)
         out[key] = res
     return {key: out[key] for key in ms}

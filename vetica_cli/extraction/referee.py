@@ -7,6 +7,19 @@ answers (:func:`.uncertainty.band_term`)."""
 from __future__ import annotations
 
 
+def memo_key(kind: str, key: str, record) -> tuple:
+    """The ``record.memo`` key of what the method ``key``'s fit on ``record`` left there: ``kind``
+    ``"referee"`` (its estimates on its default options, checked) or ``"forward"`` (its fitted
+    surface's forward model); tied to the record's force array and Z1, so a copy of the record with
+    another force (a narrower band, a model record) finds none."""
+    return (kind, key, id(record.f), record.z1)
+
+
+def forward_on(record, key: str):
+    """The forward model the method ``key``'s fit on its default options left on ``record``, or None."""
+    return record.memo.get(memo_key("forward", key, record))
+
+
 def referee_fit(method, record) -> tuple[dict, object]:
     """``(estimates, forward)`` of ``method.referee``'s fit on ``record`` (:func:`fit_on`)."""
     return fit_on(record, method.referee)
@@ -24,7 +37,7 @@ def fit_on(record, key: str | None) -> tuple[dict, object]:
     model = getattr(record, "model", None)
     if full is None or model is None or model.key not in full.surface_models or not hasattr(record, "memo"):
         return {}, None
-    key = ("referee", full.key, id(record.f), record.z1)
+    key = memo_key("referee", full.key, record)
     if key not in record.memo:
         try:
             fit = full.run(record, full.options({}))
@@ -32,4 +45,4 @@ def fit_on(record, key: str | None) -> tuple[dict, object]:
             record.memo[key] = fit.estimates
         except Exception:  # noqa: BLE001 - the fit refuses the record: no referee
             record.memo[key] = {}
-    return record.memo[key], record.memo.get(("forward", full.key, id(record.f), record.z1))
+    return record.memo[key], forward_on(record, full.key)

@@ -218,13 +218,13 @@ def model_band(res: ExtractionResult, record, method, options, narrower=None) ->
     once more (each computed once for both terms)."""
     from ..signals import noise as nz
     from ..signals.taps import first_contact_minimum
-    from .referee import fit_on
+    from .referee import fit_on, forward_on
 
     narrower = narrower or _narrower_runs(record, method, options)
 
     key = method.band_model or method.referee
     if key == method.key:  # the fit on its own surface: its answer and forward model, no second fit
-        est, fwd = res.estimates, record.memo.get(("forward", method.key, id(record.f), record.z1))
+        est, fwd = res.estimates, forward_on(record, method.key)
         more = method.continuation(res)  # the model's records fitted from the answer, as the narrower bands are
         if more:
             options = method.options({**options, **more})

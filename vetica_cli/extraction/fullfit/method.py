@@ -18,6 +18,7 @@ from ...signals.taps import find_taps
 from ...surfaces import COMMON_KEYS
 from ..base import KG_POINTS, ExtractionMethod, Option, register
 from ..record import Record
+from ..referee import memo_key
 from ..result import ExtractionResult, estimates, finite_or_none
 from ..uncertainty import approach_jitter, t_factor
 from .fit import HAMAKER_BOUNDS, OFFSET_UNIT, FitVector, fit_surface, solve
@@ -386,7 +387,7 @@ class FullFit(ExtractionMethod):
         for r in results:
             r.__dict__.pop("forward", None)
         if forward is not None and hasattr(record, "memo") and dict(options) == self.options({}):
-            record.memo[("forward", self.key, id(record.f), record.z1)] = forward  # (uncertainty.band_term)
+            record.memo[memo_key("forward", self.key, record)] = forward  # (uncertainty.band_term)
         if len(results) > 1:  # the surface pull was unknown: both fitted, the better one kept
             rms = {("on" if r.info["fit"]["vdw_on_surface"] else "off"): r.info["fit"]["residual_rms_pct"]
                    for r in results}  # fmt: skip
