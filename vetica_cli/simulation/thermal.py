@@ -160,6 +160,7 @@ def thermal_records(kern, s0, cfgs, d, rngs) -> list[np.ndarray]:
     record_cycles = {c.numerics.record_cycles for c in cfgs}
     if len(record_cycles) != 1:
         raise ValueError("thermal_records: the replicas of a batch record the same number of periods")
+    cycles = record_cycles.pop()
     st = kern.setup
     p, a, emi = kern.coef[0], kern.coef[1], kern.coef[2]
     s = np.tile(np.array(s0, float), (n_rep, 1))
@@ -175,7 +176,7 @@ def thermal_records(kern, s0, cfgs, d, rngs) -> list[np.ndarray]:
         h = float(lad[0, L_H])
         for r, (cfg, rng) in enumerate(zip(cfgs, rngs)):
             lc = np.array([_sqrt_psd(sampled_flow(m, k, q, cfg.numerics.temperature, h)[1]) for (m, k, q) in modes(cfg, d)])
-            for steps, start in ((SETTLE_CYCLES * nt, -1), (record_cycles_n(cfgs) * nt, 0)):
+            for steps, start in ((SETTLE_CYCLES * nt, -1), (cycles * nt, 0)):
                 origin = session.step_index(s[r])
                 pos[r] = kernel.brownian_hybrid(s[r], rng, sig[r, 0], sig[r, 1], lc, p, a, emi, lad, lemi, lg, buf[r],
                                                 st.stride, origin, start, steps)  # fmt: skip
@@ -183,7 +184,7 @@ def thermal_records(kern, s0, cfgs, d, rngs) -> list[np.ndarray]:
     z1, z2 = np.empty((n_rep, nt)), np.empty((n_rep, nt))
     pos = np.full(n_rep, -1, np.int64)
     origin = np.zeros(n_rep, np.int64)
-    for cyc in range(SETTLE_CYCLES + record_cycles.pop()):
+    for cyc in range(SETTLE_CYCLES + cycles):
         if cyc == SETTLE_CYCLES:
             pos[:] = 0
             origin[:] = [session.step_index(s[r]) for r in range(n_rep)]
@@ -196,11 +197,6 @@ def thermal_records(kern, s0, cfgs, d, rngs) -> list[np.ndarray]:
         else:
             kernel.brownian_steps_batch(s, z1, z2, sig, p, a, emi, buf, st.stride, origin, pos)
     return [buf[r, : pos[r]] for r in range(n_rep)]
-
-
-def record_cycles_n(cfgs) -> int:
-    """The recorded periods of a batch (one number: checked by :func:`thermal_records`)."""
-    return int(cfgs[0].numerics.record_cycles)
 
 
 def thermal_record(kern, s0, cfg, d, rng) -> np.ndarray:
