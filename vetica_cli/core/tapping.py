@@ -430,6 +430,26 @@ def fine_steps_one_arm(s, n_end, zb_step, p, a, emi, buf, r, o, energy, far_ok):
     _ = kinf
 
 
+@njit(inline="always")
+def end_attraction(z1, x1, fa1, xs, hr6, ihr6, invkg, vdw):
+    """``(Fa, X)`` at a far step's end (:func:`far_steps`, :func:`.thermal.brownian_hybrid`): the
+    attraction consistent with the surface it pulls, at most four fixed-point iterations from ``fa1``
+    (``xs`` the arms' pull ``sum k_i Xd_i``; without the pull one evaluation is exact)."""
+    for _ in range(4):
+        d1 = z1 - x1
+        if d1 <= 0.0:
+            break
+        fa_new = vdw_force(d1, fa1, hr6, ihr6)
+        converged = abs(fa_new - fa1) <= 1e-12 * fa_new
+        fa1 = fa_new
+        if not vdw:
+            break
+        x1 = (xs + fa1) * invkg
+        if converged:
+            break
+    return fa1, x1
+
+
 EPS_STEP = 0.05  # far step <= EPS_STEP * gap / |tip speed|: the attraction changes < 5 % over a step
 
 
@@ -503,18 +523,7 @@ def far_steps(s, n_end, zb_step, p, a, lad, lemi, lg, buf, r, o, energy, rec_mod
             x1 = (xs + (fa1 if vdw else 0.0)) * invkg
             # the attraction at the end, consistent with the surface it pulls (fixed point; the
             # gain 2 Fa/(d Kg) is small this far out; without the pull one evaluation is exact)
-            for _ in range(4):
-                d1 = z1 - x1
-                if d1 <= 0.0:
-                    break
-                fa_new = vdw_force(d1, fa1, hr6, ihr6)
-                converged = abs(fa_new - fa1) <= 1e-12 * fa_new
-                fa1 = fa_new
-                if not vdw:
-                    break
-                x1 = (xs + fa1) * invkg
-                if converged:
-                    break
+            fa1, x1 = end_attraction(z1, x1, fa1, xs, hr6, ihr6, invkg, vdw)
             d1 = z1 - x1
             vc3, vp3 = PR.far_close(f, hh, fa1, vc2, vp2)
             # extrema of q = zc + zp inside the step where they could matter

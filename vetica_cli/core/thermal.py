@@ -45,7 +45,7 @@ from .coefficients import (
 from . import probe as PR
 from .probe import S_CONTACT, S_IDX, S_VC, S_VP, S_XD, S_ZB, S_ZC, S_ZP
 from .sls import vdw_force
-from .tapping import contact_force, surface_position
+from .tapping import contact_force, end_attraction, surface_position
 
 
 # :func:`.tapping.surface_position`'s own body, compiled into the recording kernel (the start state's surface; a call no
@@ -360,18 +360,7 @@ def brownian_hybrid(s, rng, sig1, sig2, lc, p, a, emi, lad, lemi, lg, buf, strid
                 xs += k_arm[i] * (xd[i] + acc)
             fa1 = fa
             x1 = (xs + (fa1 if vdw else 0.0)) * invkg
-            for _ in range(4):
-                d1 = z1 - x1
-                if d1 <= 0.0:
-                    break
-                fa_new = vdw_force(d1, fa1, hr6, ihr6)
-                converged = abs(fa_new - fa1) <= 1e-12 * fa_new
-                fa1 = fa_new
-                if not vdw:
-                    break
-                x1 = (xs + fa1) * invkg
-                if converged:
-                    break
+            fa1, x1 = end_attraction(z1, x1, fa1, xs, hr6, ihr6, invkg, vdw)
             d1 = z1 - x1
             ok, _qmn, _qmx = PR.far_accept(o, f, p, True, h_far, dsw, zc, zc1, zp, vc1, vp1, vc2, vp2, cw, sw, z_tip,
                                            zb, z1, zb1, x, x1, d1)  # fmt: skip
@@ -386,18 +375,7 @@ def brownian_hybrid(s, rng, sig1, sig2, lc, p, a, emi, lad, lemi, lg, buf, strid
                 zp1 += lc[1, 0, 0] * e3 + lc[1, 0, 1] * e4
                 vp2 += lc[1, 1, 0] * e3 + lc[1, 1, 1] * e4
                 z1 = zb1 + zc1 + zp1
-                for _ in range(4):  # the end attraction at the moved tip
-                    d1 = z1 - x1
-                    if d1 <= 0.0:
-                        break
-                    fa_new = vdw_force(d1, fa1, hr6, ihr6)
-                    converged = abs(fa_new - fa1) <= 1e-12 * fa_new
-                    fa1 = fa_new
-                    if not vdw:
-                        break
-                    x1 = (xs + fa1) * invkg
-                    if converged:
-                        break
+                fa1, x1 = end_attraction(z1, x1, fa1, xs, hr6, ihr6, invkg, vdw)  # at the moved tip
                 vc3, vp3 = PR.far_close(f, hh, fa1, vc2, vp2)
                 fm = 0.5 * (fa + fa1)  # exact creep with the mean attraction of the step
                 xs = 0.0
