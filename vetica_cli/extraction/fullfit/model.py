@@ -207,6 +207,15 @@ class SurfaceFit:
         dfa[nd - 1] = fa_sep
         return k, inv, fa_sep, dk, -dkg * inv * inv, dfa
 
+    def pinned_offset(self, theta) -> float:
+        """The surface height [m] an evaluation without a fitted one uses (:meth:`evaluate`): the
+        undeformed surface's where the record says it (``height``), else from Z1 (:meth:`z1_offset`).
+        (The fit once reported the latter on an eq.-84 record, whose evaluations used the former: its
+        forward model then stood 68 pm off the fit on a 300 K record of a snapping surface.)"""
+        if self.height is not None:
+            return self.height
+        return self.z1_offset(theta, tangents=False)[0]
+
     def initial_offset(self, theta) -> float:
         """Starting surface height [m]: from Z1 (:meth:`z1_offset`) when known, else the
         reference tip height at contact less the relaxed surface's lift (:meth:`_contact_lift`)."""
