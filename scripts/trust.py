@@ -82,7 +82,7 @@ def condition_overrides(condition: str, print_step: float, cycles: int) -> dict:
     return {**base, "numerics.temperature": 300.0, "numerics.print_step": print_step}
 
 
-def answers(run, condition: str, rng=None, cutoff_hz=None) -> dict:
+def answers(run, condition: str, rng=None, cutoff_hz=None, methods=METHODS) -> dict:
     """``{method: ExtractionResult or the refusal's text}`` on one run under ``condition``
     (``cutoff_hz``: the reconstruction's low-pass, default the automatic one)."""
     out = {}
@@ -96,7 +96,7 @@ def answers(run, condition: str, rng=None, cutoff_hz=None) -> dict:
     else:
         args = (run.frame(), run.metadata(), "reconstructed")
         kw = {} if cutoff_hz is None else {"cutoff_hz": cutoff_hz}
-    for m in METHODS:
+    for m in methods:
         if condition == "stripped" and m == "observables":
             continue  # amplitude and phase need the drive: not in a stripped record
         try:
@@ -107,18 +107,18 @@ def answers(run, condition: str, rng=None, cutoff_hz=None) -> dict:
 
 
 def material_rows(material: dict, index: int, condition: str, replicas_n: int, draw_seed: int,
-                  print_step: float, cycles: int) -> list[dict]:  # fmt: skip
+                  print_step: float, cycles: int, methods=METHODS) -> list[dict]:  # fmt: skip
     """Rows of one material under one condition: every replica, method and quantity."""
     t0 = time.perf_counter()
     ov = {**condition_overrides(condition, print_step, cycles), **{f"surface.{k}": v for k, v in material.items()}}
     truth = SLS().theory(material)
     faint = replicas(load(None, {**ov, "numerics.temperature": 1e-9, "numerics.detector_noise_density": 0.0,
                                  "numerics.adc_resolution": 0.0}), [0])[0]  # fmt: skip
-    ref_full = answers(faint, condition)
+    ref_full = answers(faint, condition, methods=methods)
     seeds = np.random.default_rng([draw_seed, index, CONDITIONS.index(condition)]).integers(1, 2**31, replicas_n)
     runs = replicas(load(None, ov), [int(s) for s in seeds])
     rng0 = [np.random.default_rng([int(seed), 5]) for seed in seeds]
-    got_all = [answers(run, condition, rng) for run, rng in zip(runs, rng0)]
+    got_all = [answers(run, condition, rng, methods=methods) for run, rng in zip(runs, rng0)]
     # the same-band reference: the noise-free record read through the band the noisy records' noise chose
     ref = ref_full  # the error bar (noise and the band's bias) is a claim about the noise-free answer at the whole band
     rows = []
@@ -197,6 +197,7 @@ def main(argv=None):
     ap.add_argument("--print-step", type=float, default=0.5e-9, help="thermal and stripped conditions [s]")
     ap.add_argument("--cycles", type=int, default=10, help="recorded periods")
     ap.add_argument("--jobs", type=int, default=2)
+    ap.add_argument("--methods", nargs="*", default=list(METHODS), choices=METHODS, help="methods extracted (default all)")
     ap.add_argument("--out", default="trust.parquet")
     ap.add_argument("--md", default=None, help="also write the summary as a Markdown table to this file")
     args = ap.parse_args(argv)
@@ -206,7 +207,8 @@ def main(argv=None):
     tasks = [(mat, i, c) for c in args.conditions for i, mat in enumerate(mats)]
     t0 = time.perf_counter()
     parts = Parallel(n_jobs=args.jobs)(delayed(material_rows)(mat, i, c, args.replicas, args.draw_seed,
-                                                              args.print_step, args.cycles) for mat, i, c in tasks)  # fmt: skip
+                                                              args.print_step, args.cycles, tuple(args.methods))
+                               for mat, i, c in tasks)  # fmt: skip
     table = pd.DataFrame([r for p in parts for r in p])
     table.to_parquet(args.out)
     stamp(args.out)  # units and descriptions in the metadata

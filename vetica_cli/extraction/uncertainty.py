@@ -201,7 +201,7 @@ def _narrower_runs(record, method, options, res=None):
     return run
 
 
-def model_band(res: ExtractionResult, record, method, options, narrower=None) -> dict | None:
+def model_band(res: ExtractionResult, record, method, options, narrower=None, linear=True) -> dict | None:
     """The band term read on the referee's fitted surface (:mod:`.referee`): its force through
     the whole band at every sample of the record (and of the approach), and the same low-passed
     as the record's force was (``fc``) and once more (``fc/sqrt(2)``); the method on each.  The
@@ -223,7 +223,8 @@ def model_band(res: ExtractionResult, record, method, options, narrower=None) ->
     narrower = narrower or _narrower_runs(record, method, options)
 
     key = method.band_model or method.referee
-    if key == method.key:  # the fit on its own surface: its answer and forward model, no second fit
+    own = key == method.key
+    if own:  # the fit on its own surface: its answer and forward model, no second fit
         est, fwd = res.estimates, forward_on(record, method.key)
         more = method.continuation(res)  # the model's records fitted from the answer, as the narrower bands are
         if more:
@@ -240,6 +241,9 @@ def model_band(res: ExtractionResult, record, method, options, narrower=None) ->
     from_approach = record.approach is not None and str(record.info.get("z1_source", "")).startswith("approach")
     fa = fwd.approach(record.approach[0]) if from_approach else None
     spec_s, spec_a = Spectrum(fs), Spectrum(fa, False) if from_approach else None  # each transformed once for the bands fc and fc/sqrt(2)
+    lin = getattr(fwd, "linear", None) if own and linear else None
+    if lin is not None and lin.ok and (not from_approach or lin.approach_rows is not None):
+        return _linear_band(record, lin, fs, fa, spec_s, spec_a, h, fc)
 
     def model_record(cut, noise):  # the whole band without noise (as the answer it is compared with), or a band
         f2 = fs.copy() if cut is None else lowpass(fs, h, cut, spectrum=spec_s)
@@ -273,6 +277,32 @@ def model_band(res: ExtractionResult, record, method, options, narrower=None) ->
     return {"source": "model", "bias": bias, "sigma": sigma, "model_step": d_model, "record_step": d_rec}
 
 
+def _linear_band(record, lin, fs, fa, spec_s, spec_a, h: float, fc: float) -> dict:
+    """:func:`model_band` of the whole-cycle fit on its own surface, from its linearisation
+    (:class:`~.fullfit.method.BandLinearisation`) rather than four re-fits: the fitted surface's
+    force ``fs`` (approach ``fa``, None when Z1 is not the approach's) low-passed at ``fc`` moves the
+    answer by the bias; the record's step to ``fc/sqrt(2)`` (:func:`band_record`) against the
+    model's is the correction's error, as there.  A re-fit's answer differs from the linear one by
+    the second order of the band's change (measured: ``scripts/band_linear.py``)."""
+    app = fa is not None
+
+    def cut(c):
+        return lowpass(fs, h, c, spectrum=spec_s), (lowpass(fa, h, c, periodic=False, spectrum=spec_a) if app else None)
+
+    low_s, low_a = cut(fc)
+    bias = lin.shift(low_s - fs, low_a - fa if app else None)
+    d_model, d_rec = {}, {}
+    rec2 = band_record(record, BAND_STEPS[0])
+    if rec2 is not None:
+        low2_s, low2_a = cut(rec2.info["cutoff_hz"])
+        d_model = lin.shift(low2_s - low_s, low2_a - low_a if app else None)
+        d_rec = lin.shift(rec2.f - record.f, rec2.approach[1] - record.approach[1] if app else None)
+    sigma = {q: abs(d_rec[q] - d_model[q]) / (math.sqrt(2.0) - 1.0) if q in d_rec and q in d_model else abs(b)
+             for q, b in bias.items()}  # fmt: skip
+    return {"source": "model", "how": "linearised", "bias": bias, "sigma": sigma, "model_step": d_model,
+            "record_step": d_rec}  # fmt: skip
+
+
 def band_limited(record) -> bool:
     """Whether the record's force is low-passed below the Nyquist frequency (a cut-off chosen from its
     noise, declared with the force): where :func:`band_term` applies."""
@@ -297,7 +327,11 @@ def band_term(res: ExtractionResult, record, method, options) -> dict:
       :func:`calibrate`; its sigma is the measured disagreement of the model's band response with
       the record's.  On the 300 K worked-example family (k0:k_inf 47, cd 2.9e-4 kg/s, 31 MHz) the
       record's k_inf and cd were -12 % and -16 % off the whole-band answer, the model said -11.8 %
-      and -15.7 %, and the corrected answers were within 1 %.
+      and -15.7 %, and the corrected answers were within 1 %.  The fit on its own surface reads it
+      from its linearisation (:func:`_linear_band`: a linear solve, no re-fit): four re-fits of the
+      model's records a record made its band sigma swing with the re-fits' convergence (on soft 300 K
+      surfaces 0.36-5.8 % where the linear reading gives 0.02-0.4 %, widths 1.0-3.4 against 0.57-1.8
+      on dev draw 19: ``scripts/band_linear.py``, ``scripts/trust.py``) and cost 60 % of the extraction.
     * ``richardson`` (any other method or record, e.g. where the fitted surface's k_g is flagged or its
       model records are refused): measured on the record itself by Richardson's
       extrapolation: the method re-run on its own force low-passed once more at ``fc/sqrt(2)`` and

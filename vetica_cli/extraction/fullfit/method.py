@@ -239,7 +239,8 @@ class FullFit(ExtractionMethod):
     key = "full"
     # the band term of a low-passed force read on its own fitted surface (uncertainty.model_band), as the tap methods
     # read theirs on it: Richardson's re-runs on the noisy record itself left a -0.2 % bias of k_g and k0 on soft
-    # surfaces at 300 K (cut-off 23-31 MHz) under a band sigma that swung 1e-4 .. 9e-3 with the noise (draw 19)
+    # surfaces at 300 K (cut-off 23-31 MHz) under a band sigma that swung 1e-4 .. 9e-3 with the noise (draw 19);
+    # read from the fit's linearisation at its optimum (BandLinearisation), not by re-fitting the model's records
     band_model = "full"
     description = (
         "whole-cycle model inversion (SLS, Wiechert or Hertzian surface): the surface driven by the measured tip, "
@@ -462,14 +463,16 @@ class FullFit(ExtractionMethod):
         last = stages[-1]
         forward = ForwardForce(model, last["theta"], last["s0"], last["xd0"], model._state[1])
         info["start"] = {"source": source, **start_sls}
-        result = self._result(record, surface, model, stages, taps, h, radius, opts_run, info, warnings, consts, vdw)
+        result = self._result(record, surface, model, stages, taps, h, radius, opts_run, info, warnings, consts, vdw,
+                              forward)  # fmt: skip
+        forward.linear = BandLinearisation(model, last, result.__dict__.pop("_band_gradients"))
         result.forward = forward  # taken off the result by run() and kept on the record
         result.info["fit"]["substeps_source"] = substeps_source
         result.timing_s = {"reconstruction": record.reconstruction_s, "start": t_start_done - record.t_force,
                            "fit": t_fit - t_start_done, "total": time.perf_counter() - record.t_start}  # fmt: skip
         return result
 
-    def _result(self, record, surface, model, stages, taps, h, radius, opts, info, warnings, consts, vdw):
+    def _result(self, record, surface, model, stages, taps, h, radius, opts, info, warnings, consts, vdw, forward=None):
         """Values, uncertainties, identifiability and diagnostics of the final stage."""
         fit = stages[-1]
         names, res = list(fit["names"]), fit["residual"]
@@ -497,6 +500,14 @@ class FullFit(ExtractionMethod):
         params = surface.from_arms(k_inf, k, cd)
         values = surface.theory(params)
         grads = surface.log_gradients(params)
+        # d ln q / d x over the fit vector's own columns (arms in the fit's order): the band term's linearisation
+        band_g = {}
+        for q, g in grads.items():
+            v = np.zeros(len(fit["x"]))
+            v[order[: len(g)]] = g
+            band_g[q] = v
+        if opts["fit_hamaker"]:
+            band_g["hamaker_radius"] = band_g["hamaker"] = np.eye(len(fit["x"]))[p]
         sigma_white, sigma_taps = propagate(cov, grads), propagate(cov_taps, grads)
         # Z1's reading error (the approach's force minimum under the force noise): the fitted height
         # follows it, and every quantity follows the height as the fit's covariance says
@@ -507,7 +518,11 @@ class FullFit(ExtractionMethod):
         # signature is held against; the noise's part is in the error bars (relative to the peak force, as res)
         rms = math.sqrt(float(np.mean(res**2)))
         floor = noise_floor(record.f) / model.scale
-        misfit = math.sqrt(max(rms**2 - floor**2, 0.0))
+        # a low-passed force's residual holds the band's smear of the contact (the model's force is not low-passed):
+        # the fitted surface's own smear is taken off before the misfit is measured (the band term holds it)
+        smear = band_smear(record, model, forward, h)
+        rms_model = math.sqrt(float(np.mean((res[: len(smear)] + smear) ** 2))) if smear is not None else rms
+        misfit = math.sqrt(max(rms_model**2 - floor**2, 0.0))
         # the misfit term where the residual is more the model's own error (it repeats every period) than
         # noise (a noise-free record: there the Jacobian's error, scaled by that residual, holds none of it);
         # on a noisy record the tap-robust error holds a misfit that repeats with the tap: left out
@@ -576,9 +591,11 @@ class FullFit(ExtractionMethod):
             )
         if fit["status"] <= 0:
             warnings.append(f"least squares did not converge: {fit['message']}")
-        return ExtractionResult(method=self.key, force=record.force, taps=len(taps.contact), estimates=est,
-                                model=surface.key, fitted=tuple(ident), info=info,
-                                warnings=warnings + record.meta_warnings)  # fmt: skip
+        out = ExtractionResult(method=self.key, force=record.force, taps=len(taps.contact), estimates=est,
+                               model=surface.key, fitted=tuple(ident), info=info,
+                               warnings=warnings + record.meta_warnings)  # fmt: skip
+        out.__dict__["_band_gradients"] = band_g  # for the forward model's linearisation (not a field)
+        return out
 
     @staticmethod
     def _tap_covariance(model, taps, res, jac):
@@ -653,14 +670,75 @@ class ForwardForce:
     def __init__(self, model, theta, s0, xd0, contact0):
         self.model, self.theta, self.s0 = model, np.asarray(theta, float), float(s0)
         self.xd0, self.contact0 = np.atleast_1d(np.asarray(xd0, float)), bool(contact0)
+        self.linear = None  # the answer's linear dependence on the fitted force (BandLinearisation)
+        self._steady = None
 
     def steady(self, z) -> np.ndarray:
-        """Force [N] at the tip positions ``z`` of the steady window (in its fitted start state)."""
-        return self.model.force_everywhere(self.theta, self.s0, self.xd0, self.contact0, z)
+        """Force [N] at the tip positions ``z`` of the steady window (in its fitted start state); the last
+        ``z`` asked for is remembered (the misfit and the band term read the same)."""
+        if self._steady is None or self._steady[0] is not z:
+            self._steady = (z, self.model.force_everywhere(self.theta, self.s0, self.xd0, self.contact0, z))
+        return self._steady[1]
 
     def approach(self, z) -> np.ndarray:
         """Force [N] at the tip positions ``z`` of the approach (the surface undeformed at its start)."""
         return self.model.force_everywhere(self.theta, self.s0, None, False, z, start=False)
+
+
+def band_smear(record, model, forward, h: float) -> np.ndarray | None:
+    """``(L f - f)/scale`` at the steady residual rows: what the record's low-pass ``L`` (its declared
+    cut-off) does to the fitted surface's force ``f`` (``forward``), relative to the peak as the
+    residuals are; None for a force not low-passed below the Nyquist frequency."""
+    from ..uncertainty import band_limited, lowpass
+
+    if forward is None or not band_limited(record):
+        return None
+    fs = forward.steady(record.z)
+    low = lowpass(fs, h, float(record.info["cutoff_hz"]))
+    return (low - fs)[model.steady.idx] / model.scale
+
+
+class BandLinearisation:
+    """The fit's answer as a linear function of the force it was fitted to, at its optimum: a change
+    ``d`` of the force at the residual rows moves the fit vector by ``J^+ d / scale`` (the least
+    squares' normal equations, ``J^T r = 0``, linearised), and each quantity by ``exp(g . dx) - 1``
+    (``g = d ln q / dx``).  What a low-pass does to the answer (``uncertainty.model_band``) is then
+    a linear solve, not a re-fit: the fit's model of its own fitted surface low-passed moves it by
+    ``J^+ (L f - f)``.  Parameters at a bound are held there (a re-fit keeps them)."""
+
+    def __init__(self, model, fit: dict, gradients: dict):
+        x, lo, hi = (np.asarray(fit[k], float) for k in ("x", "lo", "hi"))
+        self.free = ~((x - lo < 1e-6) | (hi - x < 1e-6))
+        self.steady_rows = model.steady.idx.copy()
+        self.approach_rows = model.approach.idx.copy() if model.approach is not None else None
+        self.scale = float(model.scale)
+        self.gradients = {q: np.asarray(g, float)[self.free] for q, g in gradients.items()}
+        self._jac, self._qr = np.asarray(fit["jac"], float), None  # factorised when first asked (a band-limited force)
+
+    @property
+    def ok(self) -> bool:
+        """Whether the linearisation holds: every residual row has its Jacobian row, and the free
+        columns are of full rank."""
+        if self._qr is None:
+            n_rows = len(self.steady_rows) + (len(self.approach_rows) if self.approach_rows is not None else 0)
+            good = self._jac.shape[0] == n_rows and bool(self.free.any()) and bool(np.all(np.isfinite(self._jac)))
+            q, r = np.linalg.qr(self._jac[:, self.free]) if good else (None, None)
+            good = good and np.linalg.matrix_rank(r) == r.shape[1]
+            self._qr = (q, r) if good else False
+        return self._qr is not False
+
+    def shift(self, d_steady, d_approach=None) -> dict:
+        """``{quantity: relative change}`` of the answer when the force changes by ``d_steady`` at every
+        sample of the steady window and ``d_approach`` at every sample of the approach (None: unchanged) [N]."""
+        if not self.ok:
+            raise ValueError("the fit's linearisation does not hold")
+        d = np.asarray(d_steady, float)[self.steady_rows]
+        if self.approach_rows is not None:
+            da = np.zeros(len(self.approach_rows)) if d_approach is None else np.asarray(d_approach)[self.approach_rows]
+            d = np.concatenate([d, da])
+        q, r = self._qr
+        dx = np.linalg.solve(r, q.T @ (d / self.scale))
+        return {q: math.expm1(float(g @ dx)) for q, g in self.gradients.items()}
 
 
 def _sls_start(start: dict | None) -> dict | None:
