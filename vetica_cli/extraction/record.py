@@ -88,6 +88,19 @@ class Record:
         return (self.t_force - self.t_start) if self.force == "reconstructed" else 0.0
 
 
+def _fast_approach(approach: pd.DataFrame | None) -> pd.DataFrame | None:
+    """The approach segment without its first few samples (at most 3 %, where the tip is farthest
+    from the surface) when that makes its length one the FFT is fast on
+    (:func:`~vetica_cli.signals.spectral.fast_length`): its force is transformed several times
+    over (reconstruction, the band term's low-passes), and an awkward length cost 20x a nearby one."""
+    from ..signals.spectral import fast_length
+
+    if approach is None:
+        return None
+    m = fast_length(len(approach))
+    return approach if m == len(approach) else approach.iloc[len(approach) - m :]
+
+
 def segment(df: pd.DataFrame, name: str) -> pd.DataFrame | None:
     """Rows of one segment, or None if the table has no such rows.  A categorical column
     is compared by its codes, not through a string copy of the whole column."""
@@ -560,7 +573,7 @@ def build_record(
     force = resolve_force(df, force)
     t_start = time.perf_counter()
     steady = _steady_segment(df)
-    approach = segment(df, "approach")
+    approach = _fast_approach(segment(df, "approach"))
     t = column(steady, "t", "the steady record")
     check_time(t, "the steady record")
     z = column(steady, "z_tip", "the steady record")

@@ -152,6 +152,19 @@ def _smooth(n: int) -> bool:
     return n == 1
 
 
+def fast_length(n: int, keep: float = 0.97) -> int:
+    """The largest length ``m <= n`` whose FFT is fast (no prime factor beyond :data:`FFT_RADICES`)
+    with ``m >= keep n``; ``n`` itself when it is fast, short, or no such ``m`` exists.  An approach
+    segment of 3 x 10813 samples costs 3.3 ms a DCT against 0.15 ms at 32400 (measured), and the
+    extraction of a 300 K pixel record transforms its approach several times over."""
+    if n < SCIPY_FFT_MIN or _smooth(n):
+        return n
+    for m in range(n - 1, int(math.ceil(keep * n)) - 1, -1):
+        if _smooth(m):
+            return m
+    return n
+
+
 def rfft(x: np.ndarray) -> np.ndarray:
     """``numpy.fft.rfft(x)``; a length of ``SCIPY_FFT_MIN`` or more with a large prime factor (an
     approach segment of 3 x 10813 samples: 8 ms against 0.3 ms at a nearby length) goes to

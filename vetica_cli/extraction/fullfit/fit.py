@@ -112,11 +112,12 @@ class FitVector:
         return x
 
 
-def scan_cd(vec: FitVector, steps: int = 1) -> tuple[np.ndarray, list]:
+def scan_cd(vec: FitVector, steps: int = 1, whole: bool = False) -> tuple[np.ndarray, list]:
     """Starting cd of one arm: scan ``CD_SCAN`` (and the start) with ``steps`` Gauss-Newton steps
     on the other parameters at each cd (a cheap profile: a wrong starting k_inf must not make
     the glassy plateau of large cd look best); after a good start (``GOOD_START_RMS``) only the
-    grid's cd within two decades of it.  When a start that is not good leaves the frozen end of
+    grid's cd within two decades of it (``whole``: the whole grid, whatever the start).  When a start
+    that is not good leaves the frozen end of
     the grid best -- a plateau where cd has no gradient and a fit cannot leave -- the scan is taken
     again with ``PLATEAU_STEPS`` steps: one step from the generic start of a stripped noise-free
     record of a snapping surface (k_inf 1.22, k0 12.3 N/m, cd 8.4e-4 kg/s, H R fitted) left every
@@ -128,7 +129,7 @@ def scan_cd(vec: FitVector, steps: int = 1) -> tuple[np.ndarray, list]:
     cd0 = math.exp(vec.x0[2])
     good = False
     for cd in [cd0] + list(CD_SCAN):
-        good = bool(scanned) and scanned[0][0] <= GOOD_START_RMS**2 * len(vec.model.f)
+        good = bool(scanned) and not whole and scanned[0][0] <= GOOD_START_RMS**2 * len(vec.model.f)
         if good and abs(math.log10(cd / cd0)) > 2.0:
             continue  # a good start: its regime is right, a cd decades away is not tried (GOOD_START_RMS)
         x = vec.x0.copy()
@@ -138,7 +139,7 @@ def scan_cd(vec: FitVector, steps: int = 1) -> tuple[np.ndarray, list]:
     vec.model.reset()
     best = min(scanned, key=lambda c: c[0])[1]
     if steps < PLATEAU_STEPS and not good and best[2] >= min(math.log(CD_SCAN[-1]), hi[2] - 1e-9) - 1e-9:
-        return scan_cd(vec, PLATEAU_STEPS)
+        return scan_cd(vec, PLATEAU_STEPS, whole)
     return best, scanned
 
 
@@ -151,7 +152,7 @@ def _profile(vec: FitVector, x, steps: int) -> tuple[float, np.ndarray]:
 
 def fit_surface(
     model: SurfaceFit, theta0, bounds: dict, fit_hamaker=False, scan=True, max_nfev=60, xtol=1e-10, s0=None, xd0=None,
-    s0_ref=None,
+    s0_ref=None, whole_scan=False,
 ) -> dict:  # fmt: skip
     """Bounded least squares of the force residuals (trust-region reflective).
 
@@ -163,10 +164,10 @@ def fit_surface(
     periodic state at the window start, else the starting dashpot positions [m] of a
     fitted start state (``state='free'``).  ``scan`` (one arm): first replace the
     starting cd by the best of ``CD_SCAN`` (and itself) at the starting stiffnesses
-    (:func:`scan_cd`).  Returns the fit (parameters, residuals, Jacobian, counts).
+    (:func:`scan_cd`; ``whole_scan``: the whole grid however good the start).  Returns the fit (parameters, residuals, Jacobian, counts).
     """
     vec = FitVector(model, theta0, bounds, fit_hamaker, s0, xd0, s0_ref)
-    x0, scanned = scan_cd(vec) if scan and model.n_arms == 1 else (vec.x0, [])
+    x0, scanned = scan_cd(vec, whole=whole_scan) if scan and model.n_arms == 1 else (vec.x0, [])
     return solve(vec, x0, max_nfev, xtol, scanned)
 
 
