@@ -13,8 +13,9 @@ compiled, and the error bars and checks re-run only the stages that move with Z1
   contact-location term (the stiff record's k_g sigma 2.79 -> 2.83 %; values unchanged), and by the
   version whose whole-cycle fit frees the start state on an F test (the soft record's reconstructed-force
   band correction, read on the referee's surface: tau_c +1.9 %), and by the version whose thermal
-  recording takes exact far steps (the records' noise drawn anew): a regression reference there, not the
-  Python path's;
+  recording takes exact far steps (the records' noise drawn anew), and by the version whose records drop
+  the approach's first samples to a length the FFT is fast on (the stiff record's reconstructed-force
+  tau_c +0.22 %): a regression reference there, not the Python path's;
 * the same functions on the same record with the Python loops (a stage 1 measured without the
   record's times carries no contacts, and the stages then run tap by tap in Python), and whole
   re-runs of the method at the moved Z1 and Kg.
