@@ -167,6 +167,23 @@ def test_the_fits_linearised_band_term_is_its_refits(record, cutoff, monkeypatch
             assert abs(b - a) <= 0.3 * abs(a) + 5e-5, (q, part, a, b)
 
 
+def test_a_band_change_too_large_for_the_fits_linearisation_is_fitted(record, monkeypatch):
+    """Where the linearised band term would move a quantity by more than ``LINEAR_BAND_MAX`` in its
+    logarithm (a column of the Jacobian near zero: on a 300 K worked-example record it moved cd by
+    e^700, and the extraction failed on the overflow), the model's records are fitted instead, as
+    before the linearisation; reference: the band term's own source and its finite numbers."""
+    from vetica_cli.extraction import uncertainty
+    from vetica_cli.extraction.fullfit.method import BandLinearisation
+
+    df, meta = record
+    monkeypatch.setattr(BandLinearisation, "shift", lambda self, d, a=None: {q: 700.0 for q in self.gradients})
+    low = extract_many(df, meta, "reconstructed", {"full": {}}, cutoff_hz=3e7)["full"]
+    band = low.info["uncertainty"]["band"]
+    assert band["source"] == "model" and band.get("how") is None
+    assert all(math.isfinite(v) for v in band["bias"].values())
+    assert uncertainty.LINEAR_BAND_MAX < 1.0
+
+
 def test_the_fits_misfit_term_is_left_to_the_band_term_on_a_low_passed_force(record):
     """On a force low-passed below the Nyquist frequency the part of the fit's residual that repeats
     every period is the band's smear of the contact (its model force is not low-passed), which the

@@ -75,6 +75,9 @@ def approach_jitter(z, f, i, sf: float | None = None) -> float:
     return float(np.ptp(rivals)) / math.sqrt(12.0) if len(rivals) > 1 else 0.0
 
 
+# the largest change of ln(quantity) the fit's linearised band term is trusted with (model_band falls back to fitting
+# the model's records beyond it); the low-pass's biases of the fit measured 1e-4 .. 5e-3 (worked example, draws 19-20)
+LINEAR_BAND_MAX = 0.1
 BAND_STEPS = (math.sqrt(2.0), 2.0)  # the band term re-reads the record low-passed once more at fc / each
 
 
@@ -243,7 +246,9 @@ def model_band(res: ExtractionResult, record, method, options, narrower=None, li
     spec_s, spec_a = Spectrum(fs), Spectrum(fa, False) if from_approach else None  # each transformed once for the bands fc and fc/sqrt(2)
     lin = getattr(fwd, "linear", None) if own and linear else None
     if lin is not None and lin.ok and (not from_approach or lin.approach_rows is not None):
-        return _linear_band(record, lin, fs, fa, spec_s, spec_a, h, fc)
+        out = _linear_band(record, lin, fs, fa, spec_s, spec_a, h, fc)
+        if out is not None:
+            return out
 
     def model_record(cut, noise):  # the whole band without noise (as the answer it is compared with), or a band
         f2 = fs.copy() if cut is None else lowpass(fs, h, cut, spectrum=spec_s)
@@ -279,7 +284,8 @@ def model_band(res: ExtractionResult, record, method, options, narrower=None, li
 
 def _linear_band(record, lin, fs, fa, spec_s, spec_a, h: float, fc: float) -> dict:
     """:func:`model_band` of the whole-cycle fit on its own surface, from its linearisation
-    (:class:`~.fullfit.method.BandLinearisation`) rather than four re-fits: the fitted surface's
+    (:class:`~.fullfit.method.BandLinearisation`) rather than four re-fits (None where a quantity would
+    move by more than :data:`LINEAR_BAND_MAX` in its logarithm: then the re-fits): the fitted surface's
     force ``fs`` (approach ``fa``, None when Z1 is not the approach's) low-passed at ``fc`` moves the
     answer by the bias; the record's step to ``fc/sqrt(2)`` (:func:`band_record`) against the
     model's is the correction's error, as there.  A re-fit's answer differs from the linear one by
@@ -289,14 +295,22 @@ def _linear_band(record, lin, fs, fa, spec_s, spec_a, h: float, fc: float) -> di
     def cut(c):
         return lowpass(fs, h, c, spectrum=spec_s), (lowpass(fa, h, c, periodic=False, spectrum=spec_a) if app else None)
 
+    def relative(log_change):  # None where a change is too large for the linearisation
+        ok = all(math.isfinite(v) and abs(v) <= LINEAR_BAND_MAX for v in log_change.values())
+        return {q: math.expm1(v) for q, v in log_change.items()} if ok else None
+
     low_s, low_a = cut(fc)
-    bias = lin.shift(low_s - fs, low_a - fa if app else None)
+    bias = relative(lin.shift(low_s - fs, low_a - fa if app else None))
+    if bias is None:
+        return None
     d_model, d_rec = {}, {}
     rec2 = band_record(record, BAND_STEPS[0])
     if rec2 is not None:
         low2_s, low2_a = cut(rec2.info["cutoff_hz"])
-        d_model = lin.shift(low2_s - low_s, low2_a - low_a if app else None)
-        d_rec = lin.shift(rec2.f - record.f, rec2.approach[1] - record.approach[1] if app else None)
+        d_model = relative(lin.shift(low2_s - low_s, low2_a - low_a if app else None))
+        d_rec = relative(lin.shift(rec2.f - record.f, rec2.approach[1] - record.approach[1] if app else None))
+        if d_model is None or d_rec is None:
+            return None
     sigma = {q: abs(d_rec[q] - d_model[q]) / (math.sqrt(2.0) - 1.0) if q in d_rec and q in d_model else abs(b)
              for q, b in bias.items()}  # fmt: skip
     return {"source": "model", "how": "linearised", "bias": bias, "sigma": sigma, "model_step": d_model,

@@ -727,7 +727,10 @@ class BandLinearisation:
     squares' normal equations, ``J^T r = 0``, linearised), and each quantity by ``exp(g . dx) - 1``
     (``g = d ln q / dx``).  What a low-pass does to the answer (``uncertainty.model_band``) is then
     a linear solve, not a re-fit: the fit's model of its own fitted surface low-passed moves it by
-    ``J^+ (L f - f)``.  Parameters at a bound are held there (a re-fit keeps them)."""
+    ``J^+ (L f - f)``.  Parameters at a bound are held there (a re-fit keeps them).  Where a quantity
+    would move by more than ``uncertainty.LINEAR_BAND_MAX`` the linearisation is not trusted and the
+    model's records are fitted (a column of J near zero: a dashpot that hardly acts, on a 300 K
+    worked-example record, moved cd by e^700)."""
 
     def __init__(self, model, fit: dict, gradients: dict):
         x, lo, hi = (np.asarray(fit[k], float) for k in ("x", "lo", "hi"))
@@ -751,8 +754,9 @@ class BandLinearisation:
         return self._qr is not False
 
     def shift(self, d_steady, d_approach=None) -> dict:
-        """``{quantity: relative change}`` of the answer when the force changes by ``d_steady`` at every
-        sample of the steady window and ``d_approach`` at every sample of the approach (None: unchanged) [N]."""
+        """``{quantity: change of its logarithm}`` of the answer when the force changes by ``d_steady`` at
+        every sample of the steady window and ``d_approach`` at every sample of the approach (None:
+        unchanged) [N]; the caller judges whether a change is small enough for the linearisation to hold."""
         if not self.ok:
             raise ValueError("the fit's linearisation does not hold")
         d = np.asarray(d_steady, float)[self.steady_rows]
@@ -761,7 +765,8 @@ class BandLinearisation:
             d = np.concatenate([d, da])
         q, r = self._qr
         dx = np.linalg.solve(r, q.T @ (d / self.scale))
-        return {q: math.expm1(float(g @ dx)) for q, g in self.gradients.items()}
+        with np.errstate(all="ignore"):
+            return {q: float(g @ dx) for q, g in self.gradients.items()}
 
 
 def _sls_start(start: dict | None) -> dict | None:
