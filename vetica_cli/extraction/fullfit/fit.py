@@ -18,7 +18,6 @@ CD_SCAN = np.logspace(-10, 2, 7)  # [kg/s] starting-cd scan, every two decades
 # force: every start this good either won the whole scan or lost to such a neighbour, by 1.4x at
 # cd = 1e-3 kg/s, 16:1; the next-best far candidate cost >= 3.3x the start's)
 GOOD_START_RMS = 0.05
-PLATEAU_STEPS = 2  # Gauss-Newton steps of the profile at each cd when one left the frozen plateau best (scan_cd)
 HAMAKER_BOUNDS = (1e-24, 1e-14)  # [J] fit range of the Hamaker constant (fit_hamaker)
 OFFSET_UNIT = 1e-10  # [m] unit of the surface height in the fit vector
 OFFSET_RANGE = 5e-9  # [m] the fitted surface height stays within this of its reference (Z1 or the start)
@@ -112,18 +111,15 @@ class FitVector:
         return x
 
 
-def scan_cd(vec: FitVector, steps: int = 1, whole: bool = False) -> tuple[np.ndarray, list]:
-    """Starting cd of one arm: scan ``CD_SCAN`` (and the start) with ``steps`` Gauss-Newton steps
-    on the other parameters at each cd (a cheap profile: a wrong starting k_inf must not make
+def scan_cd(vec: FitVector, whole: bool = False, off_plateau: bool = False) -> tuple[np.ndarray, list, bool]:
+    """Starting cd of one arm: scan ``CD_SCAN`` (and the start) with one Gauss-Newton step on
+    the other parameters at each cd (a cheap profile: a wrong starting k_inf must not make
     the glassy plateau of large cd look best); after a good start (``GOOD_START_RMS``) only the
-    grid's cd within two decades of it (``whole``: the whole grid, whatever the start).  When a start
-    that is not good leaves the frozen end of
-    the grid best -- a plateau where cd has no gradient and a fit cannot leave -- the scan is taken
-    again with ``PLATEAU_STEPS`` steps: one step from the generic start of a stripped noise-free
-    record of a snapping surface (k_inf 1.22, k0 12.3 N/m, cd 8.4e-4 kg/s, H R fitted) left every
-    cd of the grid costlier than 100 kg/s, and the fit stopped on the plateau (cd 42 kg/s, RMS
-    misfit 0.6 % of the peak, every quantity flagged); after two, cd 1 kg/s was best and the fit
-    reached the surface within 1e-5.  Returns the best point and ``[(cost, x)]``."""
+    grid's cd within two decades of it (``whole``: the whole grid, whatever the start).
+    Returns the best point, ``[(cost, x)]`` and whether the best is the grid's frozen end after a
+    start that was not good -- a plateau where cd has no gradient, which a fit may not leave
+    (``off_plateau``: the best point below it instead; :func:`fit_surface`'s caller then fits
+    from both and keeps the better)."""
     lo, hi = vec.lo, vec.hi
     scanned = []
     cd0 = math.exp(vec.x0[2])
@@ -135,12 +131,15 @@ def scan_cd(vec: FitVector, steps: int = 1, whole: bool = False) -> tuple[np.nda
         x = vec.x0.copy()
         x[2] = np.clip(math.log(cd), lo[2] + 1e-9, hi[2] - 1e-9)
         vec.model.reset()
-        scanned.append(_profile(vec, x, steps))
+        scanned.append(_profile(vec, x, 1))
     vec.model.reset()
+    frozen = min(math.log(CD_SCAN[-1]), hi[2] - 1e-9) - 1e-9
     best = min(scanned, key=lambda c: c[0])[1]
-    if steps < PLATEAU_STEPS and not good and best[2] >= min(math.log(CD_SCAN[-1]), hi[2] - 1e-9) - 1e-9:
-        return scan_cd(vec, PLATEAU_STEPS, whole)
-    return best, scanned
+    plateau = not good and best[2] >= frozen
+    if plateau and off_plateau:
+        below = [c for c in scanned if c[1][2] < frozen]
+        best = min(below, key=lambda c: c[0])[1] if below else best
+    return best, scanned, plateau
 
 
 def _profile(vec: FitVector, x, steps: int) -> tuple[float, np.ndarray]:
@@ -152,7 +151,7 @@ def _profile(vec: FitVector, x, steps: int) -> tuple[float, np.ndarray]:
 
 def fit_surface(
     model: SurfaceFit, theta0, bounds: dict, fit_hamaker=False, scan=True, max_nfev=60, xtol=1e-10, s0=None, xd0=None,
-    s0_ref=None, whole_scan=False,
+    s0_ref=None, whole_scan=False, off_plateau=False,
 ) -> dict:  # fmt: skip
     """Bounded least squares of the force residuals (trust-region reflective).
 
@@ -164,11 +163,14 @@ def fit_surface(
     periodic state at the window start, else the starting dashpot positions [m] of a
     fitted start state (``state='free'``).  ``scan`` (one arm): first replace the
     starting cd by the best of ``CD_SCAN`` (and itself) at the starting stiffnesses
-    (:func:`scan_cd`; ``whole_scan``: the whole grid however good the start).  Returns the fit (parameters, residuals, Jacobian, counts).
+    (:func:`scan_cd`; ``whole_scan``: the whole grid however good the start; ``off_plateau``: the
+    best cd below the grid's frozen end where the frozen end is best after a poor start).  Returns the fit (parameters, residuals, Jacobian, counts).
     """
     vec = FitVector(model, theta0, bounds, fit_hamaker, s0, xd0, s0_ref)
-    x0, scanned = scan_cd(vec, whole=whole_scan) if scan and model.n_arms == 1 else (vec.x0, [])
-    return solve(vec, x0, max_nfev, xtol, scanned)
+    x0, scanned, plateau = scan_cd(vec, whole_scan, off_plateau) if scan and model.n_arms == 1 else (vec.x0, [], False)
+    out = solve(vec, x0, max_nfev, xtol, scanned)
+    out["plateau_start"] = plateau
+    return out
 
 
 def solve(vec: FitVector, x0, max_nfev=60, xtol=1e-10, scanned=()) -> dict:

@@ -42,6 +42,9 @@ ARM_NFEV = 40  # evaluations of the best candidate on the first period
 # surface's mean position <X> = -<Fts>/k_inf), which least squares follows slowly but surely; measured
 # (cd = 3e-4 kg/s, 16:1, stripped record): 25 evaluations stop at k_inf +375 %, 100 at +64 %, 300 at 1e-5
 FREE_HEIGHT_NFEV = 400
+# the first stage is fitted twice, the better kept, where the cd scan's best start is the grid's frozen end after a
+# poor start (fit.scan_cd: also from the best cd below it; a stripped noise-free record of a snapping surface, H R
+# fitted, stopped on the plateau at cd 42 kg/s, every quantity flagged, where the truth is 8.4e-4), or where
 # a first-stage fit whose RMS residual exceeds POOR_FIT x the force's noise floor and POOR_FIT_MIN of the peak,
 # after a scan that only looked near a good start, scans the whole cd grid and fits again (the better kept): on a
 # 300 K record (k_inf 5.04, k0 26.1 N/m, cd 4.3e-4 kg/s; draw 20) the generic start's Gauss-Newton step swapped
@@ -133,11 +136,17 @@ def _stages(make, n, taps, theta0, opts, bounds, n_arms, pin=False, noise=0.0):
         xtol = 1e-10 if sub.fit_offset and sub.approach is None else 1e-6
         stages.append(fit_surface(sub, theta0, bounds, fit_hamaker=fit_hamaker, scan=scan, xtol=xtol, max_nfev=nfev))
         stages[-1]["model"] = sub
-        if scan and len(stages[-1]["scan"]) < len(CD_SCAN) + 1 and _poor(stages[-1], noise):
-            # a start good enough to scan only near it, and a poor fit from it: the whole grid, the better fit kept
+        retry = None
+        if scan and stages[-1]["plateau_start"]:
+            # the scan's best start is the frozen plateau, which a fit may not leave: also from the best cd below it
+            retry = {"off_plateau": True}
+        elif scan and len(stages[-1]["scan"]) < len(CD_SCAN) + 1 and _poor(stages[-1], noise):
+            # a start good enough to scan only near it, and a poor fit from it: the whole grid
+            retry = {"whole_scan": True}
+        if retry:  # the better of the two first-stage fits is kept
             again = make(n_sub, n_arms, pin)
             fit = fit_surface(again, theta0, bounds, fit_hamaker=fit_hamaker, scan=True, xtol=xtol, max_nfev=nfev,
-                              whole_scan=True)  # fmt: skip
+                              **retry)  # fmt: skip
             fit["model"] = again
             fit["rescanned"] = True
             if fit["cost"] < stages[-1]["cost"]:
