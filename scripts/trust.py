@@ -35,9 +35,9 @@ what the error bar is a claim about.  Per condition, method and quantity:
     PYTHONPATH=. python scripts/trust.py --materials 6 --replicas 30 --draw-seed 2 --out trust.parquet
 
 The materials and seeds of a draw are not used by any test or other script; development has used
-draw seeds 1-19 (each version's held-out table became the next one's development draw); the committed
-table (results/noise/trust.md, trust.parquet) is ``--draw-seed 20 --materials 6 --replicas 20``, run
-once on the final code; the next fresh seed is 21.
+draw seeds 1-20 (each version's held-out table became the next one's development draw); the committed
+table (results/noise/trust.md, trust.parquet) is ``--draw-seed 21 --materials 6 --replicas 20``, run
+once on the final code; the next fresh seed is 22.
 """
 
 from __future__ import annotations
