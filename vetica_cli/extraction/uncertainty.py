@@ -243,7 +243,9 @@ def model_band(res: ExtractionResult, record, method, options, narrower=None, li
     fs = fwd.steady(record.z)
     from_approach = record.approach is not None and str(record.info.get("z1_source", "")).startswith("approach")
     fa = fwd.approach(record.approach[0]) if from_approach else None
-    spec_s, spec_a = Spectrum(fs), Spectrum(fa, False) if from_approach else None  # each transformed once for the bands fc and fc/sqrt(2)
+    # each transformed once for the bands fc and fc/sqrt(2) (the fit's forward model keeps its own, which its misfit used)
+    spec_s = fwd.steady_spectrum(record.z) if hasattr(fwd, "steady_spectrum") else Spectrum(fs)
+    spec_a = Spectrum(fa, False) if from_approach else None
     lin = getattr(fwd, "linear", None) if own and linear else None
     if lin is not None and lin.ok and (not from_approach or lin.approach_rows is not None):
         out = _linear_band(record, lin, fs, fa, spec_s, spec_a, h, fc)

@@ -131,7 +131,8 @@ def scan_cd(vec: FitVector, whole: bool = False, off_plateau: bool = False) -> t
         x = vec.x0.copy()
         x[2] = np.clip(math.log(cd), lo[2] + 1e-9, hi[2] - 1e-9)
         vec.model.reset()
-        scanned.append(_profile(vec, x, 1))
+        x = vec.gn_step(x, fixed=(2,))
+        scanned.append((vec.cost(x), x))
     vec.model.reset()
     frozen = min(math.log(CD_SCAN[-1]), hi[2] - 1e-9) - 1e-9
     best = min(scanned, key=lambda c: c[0])[1]
@@ -140,13 +141,6 @@ def scan_cd(vec: FitVector, whole: bool = False, off_plateau: bool = False) -> t
         below = [c for c in scanned if c[1][2] < frozen]
         best = min(below, key=lambda c: c[0])[1] if below else best
     return best, scanned, plateau
-
-
-def _profile(vec: FitVector, x, steps: int) -> tuple[float, np.ndarray]:
-    """``(cost, x)`` after ``steps`` Gauss-Newton steps from ``x`` with cd (component 2) held."""
-    for _ in range(steps):
-        x = vec.gn_step(x, fixed=(2,))
-    return vec.cost(x), x
 
 
 def fit_surface(

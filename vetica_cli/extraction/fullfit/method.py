@@ -703,14 +703,25 @@ class ForwardForce:
         self.model, self.theta, self.s0 = model, np.asarray(theta, float), float(s0)
         self.xd0, self.contact0 = np.atleast_1d(np.asarray(xd0, float)), bool(contact0)
         self.linear = None  # the answer's linear dependence on the fitted force (BandLinearisation)
-        self._steady = None
+        self._steady, self._spectrum = None, None
 
     def steady(self, z) -> np.ndarray:
         """Force [N] at the tip positions ``z`` of the steady window (in its fitted start state); the last
         ``z`` asked for is remembered (the misfit and the band term read the same)."""
         if self._steady is None or self._steady[0] is not z:
             self._steady = (z, self.model.force_everywhere(self.theta, self.s0, self.xd0, self.contact0, z))
+            self._spectrum = None
         return self._steady[1]
+
+    def steady_spectrum(self, z):
+        """The transform of :meth:`steady`'s force (``uncertainty.Spectrum``), taken once for every
+        low-pass of it: the misfit's band smear and the band term's cut-offs."""
+        from ..uncertainty import Spectrum
+
+        fs = self.steady(z)
+        if self._spectrum is None:
+            self._spectrum = Spectrum(fs)
+        return self._spectrum
 
     def approach(self, z) -> np.ndarray:
         """Force [N] at the tip positions ``z`` of the approach (the surface undeformed at its start)."""
@@ -726,7 +737,7 @@ def band_smear(record, model, forward, h: float) -> np.ndarray | None:
     if forward is None or not band_limited(record):
         return None
     fs = forward.steady(record.z)
-    low = lowpass(fs, h, float(record.info["cutoff_hz"]))
+    low = lowpass(fs, h, float(record.info["cutoff_hz"]), spectrum=forward.steady_spectrum(record.z))
     return (low - fs)[model.steady.idx] / model.scale
 
 
