@@ -80,4 +80,6 @@ def main(path: str) -> None:
 
 
 if __name__ == "__main__":
+    if len(sys.argv) != 2 or sys.argv[1].startswith("-"):
+        sys.exit(f"usage: python {sys.argv[0]} OUT.json  (e.g. tests/data/tap_pass_reference.json)")
     main(sys.argv[1])
