@@ -208,3 +208,23 @@ def test_the_fits_misfit_term_is_left_to_the_band_term_on_a_low_passed_force(rec
     assert wunc["misfit"]["cd"] > 0  # the whole band keeps it
     own = math.hypot(max(wunc["white"]["cd"], wunc["taps"]["cd"]), wunc["z1"].get("cd") or 0.0, wunc["misfit"]["cd"])
     assert whole.estimates["cd"].sigma == pytest.approx(own, rel=1e-12, abs=0)
+
+
+def test_the_band_correction_error_leaves_out_what_the_answers_own_noise_explains():
+    """:func:`step_sigma`: the record's step to fc/sqrt(2) against the model's, extrapolated by
+    1/(sqrt(2) - 1), less the answer's own sigma in quadrature (the noise the narrower band removes
+    is a part of the noise that sigma counts).  Closed forms: a difference within the answer's sigma
+    gives 0; a difference d with sigma s gives sqrt(d^2 - s^2)/(sqrt(2) - 1); without the record's
+    step the whole bias; an answer without a sigma keeps the whole difference."""
+    from types import SimpleNamespace
+
+    from vetica_cli.extraction.uncertainty import step_sigma
+
+    res = SimpleNamespace(estimates={"k_g": SimpleNamespace(sigma=0.03), "k0": SimpleNamespace(sigma=None)})
+    bias = {"k_g": -0.04, "k0": 0.02, "cd": 0.05}
+    got = step_sigma(bias, {"k_g": 0.05, "k0": 0.05}, {"k_g": 0.03, "k0": 0.01}, res)
+    assert got["k_g"] == 0.0  # |0.05 - 0.03| = 0.02 < 0.03: noise
+    assert got["k0"] == pytest.approx(0.04 / (math.sqrt(2.0) - 1.0), rel=1e-12, abs=0)
+    assert got["cd"] == pytest.approx(0.05, rel=1e-12, abs=0)  # no step measured: the whole bias
+    got = step_sigma(bias, {"k_g": 0.09}, {"k_g": 0.04}, res)
+    assert got["k_g"] == pytest.approx(0.04 / (math.sqrt(2.0) - 1.0), rel=1e-12, abs=0)  # sqrt(0.05^2 - 0.03^2) = 0.04

@@ -164,6 +164,17 @@ def fit_surface(
     x0, scanned, plateau = scan_cd(vec, whole_scan, off_plateau) if scan and model.n_arms == 1 else (vec.x0, [], False)
     out = solve(vec, x0, max_nfev, xtol, scanned)
     out["plateau_start"] = plateau
+    out["start_x"] = x0
+    return out
+
+
+def fit_from(model: SurfaceFit, theta0, bounds: dict, x0, fit_hamaker=False, max_nfev=60, xtol=1e-10) -> dict:
+    """:func:`fit_surface` from the fit vector ``x0`` (e.g. another of a scan's points, ``out['scan_x']``)
+    on a model whose vector is built from the same ``theta0`` and ``bounds`` (so the same height range)."""
+    vec = FitVector(model, theta0, bounds, fit_hamaker, None, None, None)
+    out = solve(vec, np.clip(np.asarray(x0, float), vec.lo + 1e-9, vec.hi - 1e-9), max_nfev, xtol, ())
+    out["plateau_start"] = False
+    out["start_x"] = np.asarray(x0, float)
     return out
 
 
@@ -218,5 +229,6 @@ def solve(vec: FitVector, x0, max_nfev=60, xtol=1e-10, scanned=()) -> dict:
         "status": int(sol.status),
         "message": str(sol.message),
         "scan": [(c, float(math.exp(x[2]))) for c, x in scanned],
+        "scan_x": [x for _, x in scanned],
         "dropped": dropped,
     }
