@@ -10,6 +10,8 @@ import numpy as np
 
 from ..surfaces.base import DEFAULT_MODEL
 
+SERIAL_MAX = 0.9  # the largest lag-one correlation Spread.serial_factor credits (a factor of 4.4)
+
 
 def finite_or_none(v) -> float | None:
     """``float(v)``, or None for None, NaN and infinities (JSON has no NaN)."""
@@ -37,21 +39,42 @@ class Spread:
     std: float | None = None
     min: float | None = None
     max: float | None = None
+    lag1: float | None = None  # correlation of each value with the next (tap order); None below 3 values
 
     @classmethod
     def of(cls, values) -> Spread:
-        """Spread of the finite ``values`` (standard deviation with ddof 1; 0 for one value)."""
+        """Spread of the finite ``values`` in their order (standard deviation with ddof 1; 0 for
+        one value; ``lag1`` the lag-one autocorrelation, ``sum (v_i - m)(v_i+1 - m) / sum (v_i - m)^2``)."""
         v = np.asarray(values, dtype=float)
         v = v[np.isfinite(v)]
         if len(v) == 0:
             return cls()
+        d = v - np.mean(v)
+        ss = float(d @ d)
         return cls(
             n=len(v),
             mean=float(np.mean(v)),
             std=float(np.std(v, ddof=1)) if len(v) > 1 else 0.0,
             min=float(np.min(v)),
             max=float(np.max(v)),
+            lag1=float(d[:-1] @ d[1:]) / ss if len(v) >= 3 and ss > 0 else None,
         )
+
+    def serial_factor(self) -> float:
+        """How much wider the standard error of the values' mean is than ``std/sqrt(n)`` when
+        neighbouring values are correlated as a lag-one autoregression of correlation ``r``: the
+        mean's variance is ``sigma^2/n (1 + 2 S)`` and the sample variance's expectation
+        ``sigma^2 (1 - 2 S/(n - 1))``, ``S = sum_k (1 - k/n) r^k`` (k = 1 .. n-1), so the factor is
+        ``sqrt((1 + 2 S)/(1 - 2 S/(n - 1)))``; ``r`` the lag-one autocorrelation corrected for its
+        small-sample bias (``E[r_hat] = r - (1 + 3 r)/n``, Marriott and Pope 1954:
+        ``r = (n r_hat + 1)/(n - 3)``), kept within 0..``SERIAL_MAX`` (an anticorrelation does not
+        narrow it); 1 below 5 values."""
+        n = self.n
+        if self.lag1 is None or n < 5:
+            return 1.0
+        r = min(max((n * self.lag1 + 1.0) / (n - 3), 0.0), SERIAL_MAX)
+        s = sum((1.0 - k / n) * r**k for k in range(1, n))
+        return math.sqrt((1.0 + 2.0 * s) / max(1.0 - 2.0 * s / (n - 1), 1e-3))
 
     def as_dict(self) -> dict:
         return {"n": self.n, "mean": self.mean, "std": self.std, "min": self.min, "max": self.max}
