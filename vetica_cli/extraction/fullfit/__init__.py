@@ -104,6 +104,11 @@ Choices (see the module functions for details):
   that fits to 5 % of the peak force after its own step has its dashpot's regime
   right, and only the grid's cd within two decades of it are tried (the same pick
   on every record measured, with about half the model passes on a scan pixel).
+  A first-period fit still poor (RMS residual above 3x the noise floor and 1 % of
+  the peak) is fitted again: after a near-only scan over the whole grid; from the
+  best cd below the frozen plateau where that end won; then from the scan's other
+  points in the order of their cost until one is not poor (the best kept each time:
+  ``method.POOR_FIT``, ``POOR_STARTS``).
 * **Uncertainty.**  ``cov = s^2 (J^T J)^-1`` with ``s^2`` the residual
   variance, J in log-parameters (square roots of the diagonal = relative
   1-sigma), with ``Xd0`` counted as unknown (conservative: it does not lean
