@@ -212,19 +212,30 @@ def test_the_fits_misfit_term_is_left_to_the_band_term_on_a_low_passed_force(rec
 
 def test_the_band_correction_error_leaves_out_what_the_answers_own_noise_explains():
     """:func:`step_sigma`: the record's step to fc/sqrt(2) against the model's, extrapolated by
-    1/(sqrt(2) - 1), less the answer's own sigma in quadrature (the noise the narrower band removes
-    is a part of the noise that sigma counts).  Closed forms: a difference within the answer's sigma
-    gives 0; a difference d with sigma s gives sqrt(d^2 - s^2)/(sqrt(2) - 1); without the record's
-    step the whole bias; an answer without a sigma keeps the whole difference."""
+    1/(sqrt(2) - 1), less in quadrature the answer's own sigma times the fraction of the noise power the
+    narrower band removes (``removed``).  Closed forms: with everything removed, a difference within the
+    answer's sigma gives 0 and a difference d with sigma s sqrt(d^2 - s^2)/(sqrt(2) - 1); with a fraction
+    r, sqrt(d^2 - r s^2)/(sqrt(2) - 1); without the record's step the whole bias; an answer without a
+    sigma keeps the whole difference.  :func:`removed_noise` of a white-noise declaration and its copy
+    low-passed to fc/sqrt(2): 1 - 1/sqrt(2)."""
     from types import SimpleNamespace
 
-    from vetica_cli.extraction.uncertainty import step_sigma
+    from vetica_cli.extraction.uncertainty import removed_noise, step_sigma
+    from vetica_cli.signals import noise as nz
 
+    r2 = math.sqrt(2.0) - 1.0
     res = SimpleNamespace(estimates={"k_g": SimpleNamespace(sigma=0.03), "k0": SimpleNamespace(sigma=None)})
     bias = {"k_g": -0.04, "k0": 0.02, "cd": 0.05}
-    got = step_sigma(bias, {"k_g": 0.05, "k0": 0.05}, {"k_g": 0.03, "k0": 0.01}, res)
+    got = step_sigma(bias, {"k_g": 0.05, "k0": 0.05}, {"k_g": 0.03, "k0": 0.01}, res, removed=1.0)
     assert got["k_g"] == 0.0  # |0.05 - 0.03| = 0.02 < 0.03: noise
-    assert got["k0"] == pytest.approx(0.04 / (math.sqrt(2.0) - 1.0), rel=1e-12, abs=0)
+    assert got["k0"] == pytest.approx(0.04 / r2, rel=1e-12, abs=0)
     assert got["cd"] == pytest.approx(0.05, rel=1e-12, abs=0)  # no step measured: the whole bias
-    got = step_sigma(bias, {"k_g": 0.09}, {"k_g": 0.04}, res)
-    assert got["k_g"] == pytest.approx(0.04 / (math.sqrt(2.0) - 1.0), rel=1e-12, abs=0)  # sqrt(0.05^2 - 0.03^2) = 0.04
+    got = step_sigma(bias, {"k_g": 0.09}, {"k_g": 0.04}, res, removed=1.0)
+    assert got["k_g"] == pytest.approx(0.04 / r2, rel=1e-12, abs=0)  # sqrt(0.05^2 - 0.03^2) = 0.04
+    got = step_sigma(bias, {"k_g": 0.09}, {"k_g": 0.04}, res, removed=0.5)
+    assert got["k_g"] == pytest.approx(math.sqrt(0.05**2 - 0.5 * 0.03**2) / r2, rel=1e-12, abs=0)
+    f, g = np.ones(8), np.ones(8)
+    nz.declare(f, 2e-10, 1e-9, 40.0)
+    nz.declare(g, 2e-10 / 2**0.25, 1e-9, 40.0 * 2**0.5)  # as band_record declares the step to fc/sqrt(2)
+    assert removed_noise(SimpleNamespace(f=f), SimpleNamespace(f=g)) == pytest.approx(1 - 2**-0.5, rel=1e-12, abs=0)
+    assert removed_noise(SimpleNamespace(f=f), None) == 0.0

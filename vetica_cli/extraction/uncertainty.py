@@ -277,20 +277,22 @@ def model_band(res: ExtractionResult, record, method, options, narrower=None, li
             d_rec, d_model = _relative(alt, res.estimates), _relative(lower, low)
         except Exception:  # noqa: BLE001 - the narrower band is refused: the correction's error unmeasured
             d_rec, d_model = {}, {}
-    sigma = step_sigma(bias, d_rec, d_model, res)
+    sigma = step_sigma(bias, d_rec, d_model, res, removed_noise(record, step[0]) if step is not None else 0.0)
     return {"source": "model", "bias": bias, "sigma": sigma, "model_step": d_model, "record_step": d_rec}
 
 
-def step_sigma(bias: dict, d_rec: dict, d_model: dict, res: ExtractionResult) -> dict:
+def step_sigma(bias: dict, d_rec: dict, d_model: dict, res: ExtractionResult, removed: float = 0.0) -> dict:
     """The band correction's standard error from the step to ``fc/sqrt(2)``: the record's change
     ``d_rec`` against the model's ``d_model``, their difference extrapolated to the whole band as
     Richardson's slowest bias growth (p = 1) would (``/(sqrt(2) - 1)``); without a step, the whole
-    bias.  The record's step also holds the noise the narrower band removes, a part of the noise
-    the answer's own sigma (``res``, before the band term) already counts: that sigma is taken out
-    of the difference in quadrature, so only a disagreement the noise cannot explain is the model's.
-    Counted again (and extrapolated, x2.4) it made VETICA's k_g sigma twice the replicas' scatter at
-    300 K: on dev draw 21 the record's step scattered 0.7-0.95x the answer's sigma over replicas of
-    one material while the model's held within 0.1-1.6 % and agreed with its mean within 0.3 %."""
+    bias.  The record's step also holds the noise the narrower band removes, the fraction ``removed``
+    of the noise power (:func:`removed_noise`) of which the answer's own sigma (``res``, before the
+    band term) is the whole: ``removed`` times that sigma squared is taken out of the difference's
+    square, so only a disagreement the noise cannot explain is the model's.  Counted in full (and
+    extrapolated, x2.4) it made VETICA's k_g sigma twice the replicas' scatter at 300 K (dev draw 21:
+    the record's step scattered 0.7-0.95x the answer's sigma over replicas of one material, the
+    model's within 0.1-1.6 %); the whole sigma taken out instead left dmt-fit's adhesion short on a
+    snapping surface whose band correction missed by 4 % (held-out draw 22, coverage 0.84)."""
     out = {}
     for q, b in bias.items():
         if q not in d_rec or q not in d_model:
@@ -299,8 +301,22 @@ def step_sigma(bias: dict, d_rec: dict, d_model: dict, res: ExtractionResult) ->
         e = res.estimates.get(q) if res is not None else None
         s = e.sigma if e is not None and e.sigma is not None and math.isfinite(e.sigma) else 0.0
         diff = d_rec[q] - d_model[q]
-        out[q] = math.sqrt(max(diff * diff - s * s, 0.0)) / (math.sqrt(2.0) - 1.0)
+        out[q] = math.sqrt(max(diff * diff - removed * s * s, 0.0)) / (math.sqrt(2.0) - 1.0)
     return out
+
+
+def removed_noise(record, narrower) -> float:
+    """The fraction of the record's force-noise power that its copy low-passed once more
+    (``narrower``, :func:`band_record`) no longer holds, ``1 - (rms_narrow / rms)^2`` from the noise
+    each declares (:func:`vetica_cli.signals.noise.declared`: white within the band, so 1 - 1/sqrt(2)
+    for the step to fc/sqrt(2)); 0 where either is unknown."""
+    from ..signals import noise as nz
+
+    a = nz.declared(record.f)
+    b = nz.declared(narrower.f) if narrower is not None else None
+    if not a or not b or not a[0] > 0:
+        return 0.0
+    return min(max(1.0 - (b[0] / a[0]) ** 2, 0.0), 1.0)
 
 
 def _linear_band(record, lin, fs, fa, spec_s, spec_a, h: float, fc: float, res=None) -> dict:
@@ -333,7 +349,7 @@ def _linear_band(record, lin, fs, fa, spec_s, spec_a, h: float, fc: float, res=N
         d_rec = relative(lin.shift(rec2.f - record.f, rec2.approach[1] - record.approach[1] if app else None))
         if d_model is None or d_rec is None:
             return None
-    sigma = step_sigma(bias, d_rec, d_model, res)
+    sigma = step_sigma(bias, d_rec, d_model, res, removed_noise(record, rec2))
     return {"source": "model", "how": "linearised", "bias": bias, "sigma": sigma, "model_step": d_model,
             "record_step": d_rec}  # fmt: skip
 
