@@ -23,7 +23,7 @@ import numpy as np
 import pandas as pd
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from trust import CONDITIONS, METHODS, answers, condition_overrides, draw_materials  # noqa: E402
+from trust import METHODS, answers, condition_overrides, draw_materials, noise_free, noise_seeds  # noqa: E402
 
 from vetica_cli.simulation.config import load  # noqa: E402
 from vetica_cli.simulation.simulate import replicas  # noqa: E402
@@ -32,10 +32,8 @@ from vetica_cli.simulation.simulate import replicas  # noqa: E402
 def rows_of(draw: int, index: int, material: dict, n: int, methods) -> list[dict]:
     """One material's replicas: a row per replica, method and quantity."""
     ov = {**condition_overrides("thermal", 0.5e-9, 10), **{f"surface.{k}": v for k, v in material.items()}}
-    faint = replicas(load(None, {**ov, "numerics.temperature": 1e-9, "numerics.detector_noise_density": 0.0,
-                                 "numerics.adc_resolution": 0.0}), [0])[0]  # fmt: skip
-    ref = answers(faint, "thermal", methods=methods)
-    seeds = np.random.default_rng([draw, index, CONDITIONS.index("thermal")]).integers(1, 2**31, n)
+    ref = answers(noise_free(ov), "thermal", methods=methods)
+    seeds = noise_seeds(draw, index, "thermal", n)
     out = []
     for r, run in enumerate(replicas(load(None, ov), [int(s) for s in seeds])):
         got = answers(run, "thermal", methods=methods)

@@ -84,6 +84,18 @@ def condition_overrides(condition: str, print_step: float, cycles: int) -> dict:
     return {**base, "numerics.temperature": 300.0, "numerics.print_step": print_step}
 
 
+def noise_free(ov: dict):
+    """The reference record of a condition's overrides ``ov``: the same recording path without noise (the
+    thermal kernel at 1e-9 K, no detector noise, no ADC)."""
+    return replicas(load(None, {**ov, "numerics.temperature": 1e-9, "numerics.detector_noise_density": 0.0,
+                                "numerics.adc_resolution": 0.0}), [0])[0]  # fmt: skip
+
+
+def noise_seeds(draw_seed: int, index: int, condition: str, n: int) -> np.ndarray:
+    """The ``n`` noise seeds of material ``index`` of a draw under ``condition``."""
+    return np.random.default_rng([draw_seed, index, CONDITIONS.index(condition)]).integers(1, 2**31, n)
+
+
 def answers(run, condition: str, rng=None, cutoff_hz=None, methods=METHODS) -> dict:
     """``{method: ExtractionResult or the refusal's text}`` on one run under ``condition``
     (``cutoff_hz``: the reconstruction's low-pass, default the automatic one)."""
@@ -114,10 +126,8 @@ def material_rows(material: dict, index: int, condition: str, replicas_n: int, d
     t0 = time.perf_counter()
     ov = {**condition_overrides(condition, print_step, cycles), **{f"surface.{k}": v for k, v in material.items()}}
     truth = SLS().theory(material)
-    faint = replicas(load(None, {**ov, "numerics.temperature": 1e-9, "numerics.detector_noise_density": 0.0,
-                                 "numerics.adc_resolution": 0.0}), [0])[0]  # fmt: skip
-    ref_full = answers(faint, condition, methods=methods)
-    seeds = np.random.default_rng([draw_seed, index, CONDITIONS.index(condition)]).integers(1, 2**31, replicas_n)
+    ref_full = answers(noise_free(ov), condition, methods=methods)
+    seeds = noise_seeds(draw_seed, index, condition, replicas_n)
     runs = replicas(load(None, ov), [int(s) for s in seeds])
     rng0 = [np.random.default_rng([int(seed), 5]) for seed in seeds]
     got_all = [answers(run, condition, rng, methods=methods) for run, rng in zip(runs, rng0)]

@@ -145,7 +145,7 @@ def scan_cd(vec: FitVector, whole: bool = False, off_plateau: bool = False) -> t
 
 def fit_surface(
     model: SurfaceFit, theta0, bounds: dict, fit_hamaker=False, scan=True, max_nfev=60, xtol=1e-10, s0=None, xd0=None,
-    s0_ref=None, whole_scan=False, off_plateau=False,
+    s0_ref=None, whole_scan=False, off_plateau=False, start=None,
 ) -> dict:  # fmt: skip
     """Bounded least squares of the force residuals (trust-region reflective).
 
@@ -158,23 +158,21 @@ def fit_surface(
     fitted start state (``state='free'``).  ``scan`` (one arm): first replace the
     starting cd by the best of ``CD_SCAN`` (and itself) at the starting stiffnesses
     (:func:`scan_cd`; ``whole_scan``: the whole grid however good the start; ``off_plateau``: the
-    best cd below the grid's frozen end where the frozen end is best after a poor start).  Returns the fit (parameters, residuals, Jacobian, counts).
+    best cd below the grid's frozen end where the frozen end is best after a poor start).  ``start``: a fit
+    vector to start from instead (no scan; e.g. another of a scan's points, ``out['scan']``, on a model built
+    from the same ``theta0`` and ``bounds``, so the same height range).  Returns the fit (parameters,
+    residuals, Jacobian, counts; ``scan`` the scan's ``[(cost, x)]``, ``start_x`` the vector it started from).
     """
     vec = FitVector(model, theta0, bounds, fit_hamaker, s0, xd0, s0_ref)
-    x0, scanned, plateau = scan_cd(vec, whole_scan, off_plateau) if scan and model.n_arms == 1 else (vec.x0, [], False)
+    if start is not None:
+        x0, scanned, plateau = np.clip(np.asarray(start, float), vec.lo + 1e-9, vec.hi - 1e-9), [], False
+    elif scan and model.n_arms == 1:
+        x0, scanned, plateau = scan_cd(vec, whole_scan, off_plateau)
+    else:
+        x0, scanned, plateau = vec.x0, [], False
     out = solve(vec, x0, max_nfev, xtol, scanned)
     out["plateau_start"] = plateau
     out["start_x"] = x0
-    return out
-
-
-def fit_from(model: SurfaceFit, theta0, bounds: dict, x0, fit_hamaker=False, max_nfev=60, xtol=1e-10) -> dict:
-    """:func:`fit_surface` from the fit vector ``x0`` (e.g. another of a scan's points, ``out['scan_x']``)
-    on a model whose vector is built from the same ``theta0`` and ``bounds`` (so the same height range)."""
-    vec = FitVector(model, theta0, bounds, fit_hamaker, None, None, None)
-    out = solve(vec, np.clip(np.asarray(x0, float), vec.lo + 1e-9, vec.hi - 1e-9), max_nfev, xtol, ())
-    out["plateau_start"] = False
-    out["start_x"] = np.asarray(x0, float)
     return out
 
 
@@ -228,7 +226,6 @@ def solve(vec: FitVector, x0, max_nfev=60, xtol=1e-10, scanned=()) -> dict:
         "njev": int(sol.njev or 0),
         "status": int(sol.status),
         "message": str(sol.message),
-        "scan": [(c, float(math.exp(x[2]))) for c, x in scanned],
-        "scan_x": [x for _, x in scanned],
+        "scan": list(scanned),
         "dropped": dropped,
     }

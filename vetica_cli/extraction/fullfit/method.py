@@ -21,7 +21,7 @@ from ..record import Record
 from ..referee import memo_key
 from ..result import ExtractionResult, estimates, finite_or_none
 from ..uncertainty import approach_jitter, t_factor
-from .fit import CD_SCAN, HAMAKER_BOUNDS, OFFSET_UNIT, FitVector, fit_from, fit_surface, solve
+from .fit import CD_SCAN, HAMAKER_BOUNDS, OFFSET_UNIT, FitVector, fit_surface, solve
 from .model import SurfaceFit
 from .start import starting_point
 from .uncertainty import (
@@ -161,16 +161,15 @@ def _stages(make, n, taps, theta0, opts, bounds, n_arms, pin=False, noise=0.0):
             # still poor: a local minimum of another split of Kg and surface height; fit from the scan's other
             # points in the order of their cost until one is not poor, the best kept (POOR_STARTS)
             tried = [stages[-1]["start_x"]]
-            for x in [x for _, x in sorted(zip(stages[-1]["scan"], stages[-1]["scan_x"]), key=lambda p: p[0][0])]:
+            for _, x in sorted(stages[-1]["scan"], key=lambda p: p[0]):
                 if len(tried) > POOR_STARTS or not _poor(stages[-1], noise):
                     break
                 if any(np.array_equal(x, t) for t in tried):
                     continue
                 tried.append(x)
                 again = make(n_sub, n_arms, pin)
-                fit = fit_from(again, theta0, bounds, x, fit_hamaker=fit_hamaker, max_nfev=nfev, xtol=xtol)
-                fit["model"], fit["rescanned"] = again, True
-                fit["scan"], fit["scan_x"] = stages[-1]["scan"], stages[-1]["scan_x"]
+                fit = fit_surface(again, theta0, bounds, fit_hamaker=fit_hamaker, xtol=xtol, max_nfev=nfev, start=x)
+                fit["model"], fit["rescanned"], fit["scan"] = again, True, stages[-1]["scan"]
                 if fit["cost"] < stages[-1]["cost"]:
                     stages[-1] = fit
     if stages:
