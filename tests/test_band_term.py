@@ -190,7 +190,8 @@ def test_the_fits_misfit_term_is_left_to_the_band_term_on_a_low_passed_force(rec
     band term measures; the fit's sigma then leaves its misfit term out (counted twice, the fit's cd
     and tau_r sigmas were 3.0-3.7 times the replicas' scatter at 300 K, 1.4-1.8 without it, held-out
     draw 16 of scripts/trust.py), and each quantity's sigma is the fit's own error (the larger of
-    the white and tap-robust errors, Z1's in quadrature) and the band term in quadrature.  At the
+    the band's noise and the tap-robust errors, the height's reading in quadrature) and the band term in
+    quadrature.  At the
     whole band (no band term) the misfit term stays.  The answer, corrected, still lies within
     max(2 sigma, 2 %) of the whole-band answer (the test above, for the fit)."""
     df, meta = record
@@ -200,13 +201,13 @@ def test_the_fits_misfit_term_is_left_to_the_band_term_on_a_low_passed_force(rec
     assert unc["misfit"], "the noise-free record's residual repeats: the term is computed"
     assert "left out" in low.info["uncertainty"]["misfit_term"]
     for q in ("cd", "tau_c", "tau_r", "k0", "k_inf"):
-        own = math.hypot(max(unc["white"][q], unc["taps"][q]), unc["z1"].get(q) or 0.0)
+        own = math.hypot(max((unc["noise"] or unc["white"])[q], unc["taps"][q]), unc["height"].get(q) or 0.0)
         assert low.estimates[q].sigma == pytest.approx(math.hypot(own, band["sigma"][q]), rel=1e-12, abs=0), q
         after = low.estimates[q].value / whole.estimates[q].value - 1.0
         assert abs(after) <= max(2.0 * low.estimates[q].sigma, 0.02), (q, after)
     wunc = whole.info["fit"]["uncertainty"]
     assert wunc["misfit"]["cd"] > 0  # the whole band keeps it
-    own = math.hypot(max(wunc["white"]["cd"], wunc["taps"]["cd"]), wunc["z1"].get("cd") or 0.0, wunc["misfit"]["cd"])
+    own = math.hypot(max(wunc["white"]["cd"], wunc["taps"]["cd"]), wunc["height"].get("cd") or 0.0, wunc["misfit"]["cd"])
     assert whole.estimates["cd"].sigma == pytest.approx(own, rel=1e-12, abs=0)
 
 

@@ -20,13 +20,13 @@ from ..base import KG_POINTS, ExtractionMethod, Option, register
 from ..record import Record
 from ..referee import memo_key
 from ..result import ExtractionResult, estimates, finite_or_none
-from ..uncertainty import approach_jitter, t_factor
+from ..uncertainty import t_factor
 from .fit import CD_SCAN, HAMAKER_BOUNDS, OFFSET_UNIT, FitVector, fit_surface, solve
 from .model import SurfaceFit
 from .start import starting_point
 from .uncertainty import (
-    covariance, gn_gain, height_sensitivity, identifiability, misfit_term, own_sigma, propagate,
-    release_significant, systematic_misfit, tap_covariance, tap_groups,
+    band_noise_meat, covariance, gn_gain, height_sensitivity, identifiability, misfit_term, own_sigma,
+    propagate, release_significant, sandwich, systematic_misfit, tap_covariance, tap_groups,
 )
 
 STATES = ("auto", "periodic", "free")  # dashpot state at the window start
@@ -374,7 +374,8 @@ class FullFit(ExtractionMethod):
         own = {q: e.sigma for q, e in res.estimates.items() if e.value is not None and e.sigma is not None}
         unc = (res.info.get("fit") or {}).get("uncertainty") or {}
         if unc.get("misfit") and band_limited(record):
-            white, taps, z1 = (unc.get(k) or {} for k in ("white", "taps", "z1"))
+            white, taps, z1 = (unc.get(k) or {} for k in ("white", "taps", "height"))
+            white = unc.get("noise") or white  # the band's noise through the cost's Hessian, where it was read
             for q in list(own):
                 if q in unc["misfit"] and white.get(q) is not None and taps.get(q) is not None:
                     own[q] = own_sigma(white[q], taps[q], z1.get(q) or 0.0)
@@ -562,9 +563,12 @@ class FullFit(ExtractionMethod):
         if opts["fit_hamaker"]:
             band_g["hamaker_radius"] = band_g["hamaker"] = np.eye(len(fit["x"]))[p]
         sigma_white, sigma_taps = propagate(cov, grads), propagate(cov_taps, grads)
-        # Z1's reading error (the approach's force minimum under the force noise): the fitted height
-        # follows it, and every quantity follows the height as the fit's covariance says
-        s_z1, sigma_z1 = self._z1_term(record, model, res, names, cov, grads)
+        # a force low-passed below the Nyquist frequency: its noise is the band's (rows closer than the band's
+        # correlation length share it), not white residuals (_band_noise_cov)
+        cov_noise = self._band_noise_cov(record, fit, model, res)
+        sigma_noise = propagate(cov_noise[np.ix_(idx, idx)], grads) if cov_noise is not None else None
+        # the height's reading error: the approach tap pins the height alone, and reads it as one steady tap does
+        s_h, sigma_h = self._height_term(model, taps, res, fit["jac_free"], names, cov, grads)
         contact_s = float(np.median(taps.separation - taps.contact)) * h
         free_s = float(taps.spacing) * h - contact_s
         # the residual's part the record's noise does not explain (the model's misfit) is what a dashpot's
@@ -582,8 +586,8 @@ class FullFit(ExtractionMethod):
         repeats, rest = systematic_misfit(res, model.steady.idx, round(taps.spacing), floor)
         sigma_misfit = misfit_term(repeats, k_inf, list(zip(k, cd)), contact_s, free_s, grads, len(cov)) \
             if repeats > rest else {}
-        sigma = {q: own_sigma(v, sigma_taps[q], sigma_z1.get(q, 0.0), sigma_misfit.get(q, 0.0))
-                 for q, v in sigma_white.items()}  # fmt: skip
+        sigma = {q: own_sigma(v, sigma_taps[q], sigma_h.get(q, 0.0), sigma_misfit.get(q, 0.0))
+                 for q, v in (sigma_noise or sigma_white).items()}  # fmt: skip
         sigma_model = propagate(cov_model, grads)
         units = {q: v.unit for q, v in self.quantities(surface).items()}
         hr = 6.0 * float(theta[p])  # H R [J m]
@@ -621,16 +625,18 @@ class FullFit(ExtractionMethod):
             est["hamaker"] = replace(est["hamaker"], identifiable=bool(ok), reason=reason)
         info["fit"] = _fit_info(model, stages, cov, sigma_model, opts, perm)
         info["fit"]["uncertainty"] = {
-            "source": "the larger of the Jacobian-and-residual error (white residuals) and the tap-robust sandwich "
-                      "(delete-one-tap jackknife of the linearised fit, the approach tap bias-reduced; t-scaled), and "
-                      "in quadrature Z1's reading error through the fitted surface height and, where the residual's part "
+            "source": "the larger of the Jacobian-and-residual error (white residuals; on a low-passed force the band's "
+                      "noise through the fit, 'noise') and the tap-robust sandwich (delete-one-tap jackknife of the "
+                      "linearised fit, the approach tap bias-reduced; t-scaled), and in quadrature the height's reading "
+                      "error (one steady tap's, the approach tap's) and, where the residual's part "
                       "that repeats every drive period exceeds the rest, the misfit term (that part over each "
                       "dashpot's force signature)",
             "groups": n_groups,
             "white": {k: finite_or_none(v) for k, v in sigma_white.items()},
+            "noise": {k: finite_or_none(v) for k, v in sigma_noise.items()} if sigma_noise is not None else None,
             "taps": {k: finite_or_none(v) for k, v in sigma_taps.items()},
-            "z1": {k: finite_or_none(v) for k, v in sigma_z1.items()},
-            "z1_sigma_m": finite_or_none(s_z1),
+            "height": {k: finite_or_none(v) for k, v in sigma_h.items()},
+            "height_sigma_m": finite_or_none(s_h),
             "misfit": {k: finite_or_none(v) for k, v in sigma_misfit.items()},
         }  # fmt: skip
         info["fit"]["vdw_on_surface"] = vdw
@@ -665,22 +671,61 @@ class FullFit(ExtractionMethod):
         return (cov * t_factor(g) ** 2, g) if g >= MIN_GROUPS else (zero, g)
 
     @staticmethod
-    def _z1_term(record, model, res, names, cov, grads):
-        """``(sigma_Z1 [m], {quantity: relative sigma})``: the approach tap pins the surface height
-        where its force minimum (Z1) is, and the force noise moves that minimum: the fitted
-        height follows it (seen with the force reconstructed from the paddle at 300 K: from
-        replica to replica the height moves with Z1, far beyond its Jacobian error).  Its
-        1-sigma is the minimum's jitter (``approach_jitter``) with the force noise taken as the RMS misfit of
-        the approach tap's samples (noise of any colour, which the white noise floor misses
-        for a reconstructed force); each quantity follows the height by
-        :func:`.uncertainty.height_sensitivity`.  Nothing without an approach tap in the fit."""
-        if model.approach is None or record.approach is None or "s0" not in names:
-            return None, {}
+    def _band_noise_cov(record, fit, model, res):
+        """Covariance of the fit vector (with the window's start state, as ``jac_free``) under the noise
+        of a force low-passed below the Nyquist frequency, ``M^-1 J^T Sigma J M^-1`` (``M = J^T J``):
+        ``Sigma`` the record's declared noise, white within the band (:func:`.uncertainty.band_noise_meat`;
+        a 300 K record's reconstruction error is that: white and stationary within the band, its RMS
+        within 7 % of the declared one).  None for a whole-band force or a record without declared noise.
+
+        Measured on 300 K records (dev draws 21-22 of ``scripts/trust.py``, 12 replicas of 6 surfaces):
+        the white residual error (:func:`.uncertainty.covariance`) was 2.2-2.5 times short of this term,
+        and refits of records with that noise added scattered as this term says (0.95-1.05 of it)."""
+        from ...signals import noise as nz
+        from ..uncertainty import band_limited
+
+        declared = nz.declared(record.f)
+        if not band_limited(record) or declared is None or not declared[1] > 0:
+            return None
+        jac = fit["jac_free"]
         ns = len(model.steady.idx)
-        sf = float(np.sqrt(np.mean(res[ns:] ** 2))) * model.scale if len(res) > ns else 0.0
-        s_z1 = approach_jitter(*record.approach, sf=sf)
-        per_m = height_sensitivity(cov, names.index("s0"), grads)
-        return s_z1, {q: abs(g) * s_z1 / OFFSET_UNIT if math.isfinite(s_z1) else math.inf for q, g in per_m.items()}
+        segments = [(slice(0, ns), model.steady.idx, len(model.steady.want))]
+        if model.approach is not None and len(res) > ns:
+            segments.append((slice(ns, len(res)), model.approach.idx, len(model.approach.want)))
+        meat = band_noise_meat(jac, segments, declared[1] / model.scale, float(model.h), float(record.info["cutoff_hz"]))
+        return sandwich(jac.T @ jac, meat)
+
+    @staticmethod
+    def _height_term(model, taps, res, jac, names, cov, grads):
+        """``(sigma_h [m], {quantity: relative sigma})``: the approach tap pins the surface height
+        almost alone, and one tap reads the height no better than the steady taps' own readings
+        scatter.  Each steady tap's reading is its Gauss-Newton step on the height alone (its residual
+        rows, every other parameter held); their standard deviation is one tap's height error, the
+        approach tap's, and each quantity follows the height as the fit's covariance says
+        (:func:`.uncertainty.height_sensitivity`).  On 300 K records the approach's first tap is not
+        read as independent noise would be (``scripts/approach_noise.py``: the cantilever's thermal
+        motion takes it from no repulsion to twice its noise-free depth) and the residuals' error
+        leaves that out; the steady taps go through the same.  Measured on dev draws 21-22 of
+        ``scripts/trust.py`` (12 replicas of 6 surfaces): one tap's reading 0.24-1.46 pm where the
+        fitted height scattered 0.28-1.32 pm from replica to replica (Z1's jitter, the term this
+        replaces, assumed 3-8 pm: tau_c, k_inf, k_r covered 1.00 at widths 3-5).  Nothing without an
+        approach tap in the fit, or with fewer than three steady taps."""
+        if model.approach is None or "s0" not in names:
+            return None, {}
+        j = names.index("s0")
+        ns = len(model.steady.idx)
+        groups = tap_groups(model.steady.idx, taps.contact, taps.spacing)
+        reads = []
+        for g in np.unique(groups):
+            col = jac[:ns][groups == g, j]
+            norm = float(col @ col)
+            if norm > 0.0:
+                reads.append(-float(col @ res[:ns][groups == g]) / norm)
+        if len(reads) < 3:
+            return None, {}
+        s_h = float(np.std(reads, ddof=1)) * OFFSET_UNIT
+        per_m = height_sensitivity(cov, j, grads)
+        return s_h, {q: abs(g) * s_h / OFFSET_UNIT if math.isfinite(g) else math.inf for q, g in per_m.items()}
 
     def detail_lines(self, res: ExtractionResult) -> list[str]:
         """What was fitted and what known or assumed (the constants of the attraction, the

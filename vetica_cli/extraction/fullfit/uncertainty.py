@@ -279,3 +279,48 @@ def height_sensitivity(cov, j: int, gradients: dict) -> dict:
         return {q: math.inf for q in gradients}
     b = col / cov[j, j]
     return {q: float(np.dot(np.asarray(g, float), b[: len(g)])) for q, g in gradients.items()}
+
+
+def band_noise_meat(jac, segments, white: float, h: float, fc: float) -> np.ndarray:
+    """``J^T Sigma J`` for the noise of a force low-passed at ``fc`` [Hz]: white within the band and
+    none above it, ``Sigma = white^2 P`` (``white`` its declared white equivalent in residual units,
+    :func:`vetica_cli.signals.noise.declare`; ``P`` the ideal low-pass), so ``J^T Sigma J =
+    white^2 (P J)^T (P J)``, read on each stretch's transform (Parseval over the bins below ``fc``).
+    ``segments``: ``[(rows, idx, n)]`` per stretch of the record the residuals come from (the steady
+    window, the approach): its residual rows, their sample indices in it and its length.  Residual
+    rows closer than the band's correlation length ``1/(2 fc)`` carry the same noise; white residuals
+    (:func:`covariance`) count them as independent (on 300 K records 2.2-2.5 times short)."""
+    import scipy.fft  # lazy, as the fit's scipy.optimize
+
+    jac = np.asarray(jac, float)
+    p = jac.shape[1]
+    out = np.zeros((p, p))
+    for rows, idx, n in segments:
+        if not len(idx):
+            continue
+        e = np.zeros((int(n), p))
+        e[np.asarray(idx, int)] = jac[rows]
+        spec = scipy.fft.rfft(e, axis=0)
+        keep = np.fft.rfftfreq(int(n), h) < fc
+        s = spec[keep]
+        w = np.full(len(s), 2.0)  # each bin stands for its mirror image too; the mean and Nyquist bins for themselves
+        w[0] = 1.0
+        if n % 2 == 0 and keep[-1]:
+            w[-1] = 1.0
+        out += ((s.conj().T * w) @ s).real / n
+    return white**2 * out
+
+
+def sandwich(bread, meat) -> np.ndarray | None:
+    """``bread^-1 meat bread^-1`` (normalised columns), or None where ``bread`` is not positive
+    definite (a direction the record does not determine)."""
+    bread = np.asarray(bread, float)
+    d = np.sqrt(np.abs(np.diag(bread)))
+    if not np.all(np.isfinite(bread)) or np.any(d == 0):
+        return None
+    bn = bread / np.outer(d, d)
+    w, v = np.linalg.eigh(bn)
+    if not w[0] > 1e-12 * w[-1]:
+        return None
+    inv = (v / w) @ v.T / np.outer(d, d)
+    return inv @ meat @ inv

@@ -1,0 +1,104 @@
+"""The whole-cycle fit's noise term on a low-passed force and its height-reading term
+(extraction/fullfit/uncertainty.py: band_noise_meat, sandwich; fullfit/method.py: FullFit._height_term).
+
+References: ``band_noise_meat`` against Parseval's theorem (the whole band kept: white noise,
+``white^2 J^T J`` to rounding) and against the sample covariance of band-limited white noise
+drawn many times (a definition, not a formula); ``sandwich`` against the closed form
+``s^2 (J^T J)^-1`` of white residuals; the height term against the standard deviation of the
+steady taps' readings it is defined by.
+"""
+
+import math
+from types import SimpleNamespace
+
+import numpy as np
+import pytest
+
+from vetica_cli.extraction.fullfit.fit import OFFSET_UNIT
+from vetica_cli.extraction.fullfit.method import FullFit
+from vetica_cli.extraction.fullfit.uncertainty import band_noise_meat, covariance, sandwich
+
+
+def _rows(rng, n, k):
+    idx = np.sort(rng.choice(n, size=k, replace=False))
+    return idx, rng.normal(size=(k, 3))
+
+
+def test_the_whole_band_is_white_noise_parseval():
+    """fc above the Nyquist frequency keeps every bin: ``J^T Sigma J = white^2 J^T J`` (rows at any
+    sample indices; relative 1e-12)."""
+    rng = np.random.default_rng(1)
+    n, h = 4096, 1e-9
+    idx, jac = _rows(rng, n, 700)
+    meat = band_noise_meat(jac, [(slice(0, 700), idx, n)], 0.3, h, 1.0 / h)
+    np.testing.assert_allclose(meat, 0.09 * jac.T @ jac, rtol=1e-12, atol=0.0)
+
+
+def test_band_noise_meat_is_the_covariance_of_band_limited_white_noise():
+    """Two stretches (a steady window and an approach) with rows closer than the band's correlation
+    length: the meat equals the sample covariance of ``J^T e`` over 4000 draws of white noise cut at
+    fc = Nyquist/8 (per-sample white 1 before the cut), within 6 % on the diagonal (the sample variance of
+    4000 draws has a 2.2 % standard error); and it is more than twice the white residuals' ``rms^2 J^T J``,
+    which counts those rows as independent."""
+    rng = np.random.default_rng(2)
+    h, fc = 1e-9, 0.5e9 / 8
+    n1, n2 = 1024, 512
+    i1 = np.arange(100, 400, 2)  # every second sample: 8 rows per correlation length
+    i2 = np.arange(50, 250, 3)
+    jac = rng.normal(size=(len(i1) + len(i2), 2)) + 1.0  # a common part: correlated rows add up
+    segs = [(slice(0, len(i1)), i1, n1), (slice(len(i1), len(i1) + len(i2)), i2, n2)]
+    meat = band_noise_meat(jac, segs, 1.0, h, fc)
+    draws = []
+    for _ in range(4000):
+        parts = []
+        for _, idx, n in segs:
+            spec = np.fft.rfft(rng.normal(size=n))
+            spec[np.fft.rfftfreq(n, h) >= fc] = 0.0
+            parts.append(np.fft.irfft(spec, n)[idx])
+        draws.append(jac.T @ np.concatenate(parts))
+    sample = np.cov(np.array(draws).T)
+    np.testing.assert_allclose(np.diag(meat), np.diag(sample), rtol=0.06)
+    white_rms2 = 1.0 / 8.0  # the noise's per-sample variance after the cut
+    assert np.all(np.diag(meat) > 2.0 * white_rms2 * np.diag(jac.T @ jac))  # measured 2.4 and 2.6
+
+
+def test_sandwich_of_white_residuals_is_the_classical_covariance():
+    rng = np.random.default_rng(3)
+    jac = rng.normal(size=(200, 4)) * np.array([1.0, 1e3, 1e-3, 5.0])  # columns of very different scales
+    bread = jac.T @ jac
+    np.testing.assert_allclose(sandwich(bread, 2.5 * bread), 2.5 * np.linalg.inv(bread), rtol=1e-9)
+    res = rng.normal(size=200) * math.sqrt(2.5)
+    s2 = float(res @ res) / (200 - 4)
+    np.testing.assert_allclose(sandwich(bread, s2 * bread), covariance(res, jac), rtol=1e-9)
+
+
+def test_sandwich_refuses_a_direction_the_record_does_not_determine():
+    jac = np.column_stack([np.ones(50), np.ones(50), np.arange(50.0)])  # two equal columns
+    assert sandwich(jac.T @ jac, jac.T @ jac) is None
+
+
+def test_the_height_term_is_one_steady_taps_reading_scatter():
+    """Six steady taps of 40 rows each, the height column 1 on every row (a height step moves each
+    row's force alike), tap g's residuals a constant -d_g: each tap reads the height ``d_g``, and the
+    term's sigma is their standard deviation (ddof 1) in metres; each quantity's term is its height
+    sensitivity (``cov[:, s0]/cov[s0, s0]`` through the gradients) times that sigma."""
+    d = np.array([0.3, -0.2, 0.5, 0.1, -0.4, 0.0])  # [OFFSET_UNIT]
+    rows = 40
+    idx = np.arange(6 * rows) * 5  # sample indices of the steady rows: taps 200 samples apart
+    res = np.repeat(-d, rows)
+    n_app = 30
+    res = np.concatenate([res, np.zeros(n_app)])
+    jac = np.zeros((len(res), 3))
+    jac[:, 0] = np.linspace(-1.0, 1.0, len(res))
+    jac[:, 1] = 1.0  # s0
+    jac[:, 2] = np.cos(np.arange(len(res)))
+    model = SimpleNamespace(steady=SimpleNamespace(idx=idx), approach=object())
+    taps = SimpleNamespace(contact=np.arange(6) * 200 + 100, spacing=200.0)
+    cov = np.array([[1.0, 0.5, 0.0], [0.5, 2.0, 0.0], [0.0, 0.0, 1.0]])
+    grads = {"k_inf": np.array([1.0, 0.0, 0.0]), "k0": np.array([0.0, 0.0, 1.0])}
+    s_h, terms = FullFit._height_term(model, taps, res, jac, ["k_inf", "s0", "x"], cov, grads)
+    assert s_h == pytest.approx(float(np.std(d, ddof=1)) * OFFSET_UNIT, rel=1e-12, abs=0)
+    assert terms["k_inf"] == pytest.approx(0.25 * float(np.std(d, ddof=1)), rel=1e-12, abs=0)  # cov[0,1]/cov[1,1]
+    assert terms["k0"] == 0.0
+    no_approach = SimpleNamespace(steady=model.steady, approach=None)
+    assert FullFit._height_term(no_approach, taps, res, jac, ["k_inf", "s0", "x"], cov, grads) == (None, {})
