@@ -289,7 +289,7 @@ def band_noise_meat(jac, segments, white: float, h: float, fc: float) -> np.ndar
     ``segments``: ``[(rows, idx, n)]`` per stretch of the record the residuals come from (the steady
     window, the approach): its residual rows, their sample indices in it and its length.  Residual
     rows closer than the band's correlation length ``1/(2 fc)`` carry the same noise; white residuals
-    (:func:`covariance`) count them as independent (on 300 K records 2.2-2.5 times short)."""
+    (:func:`covariance`) count them as independent (on 300 K records 2.1-2.3 times short, medians per quantity)."""
     import scipy.fft  # lazy, as the fit's scipy.optimize
 
     jac = np.asarray(jac, float)
