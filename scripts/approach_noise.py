@@ -15,7 +15,9 @@ fit's ``k_inf`` sigma.  What it showed on dev draw 22, surface 2 (k_inf 8.76, k0
 1.37e-4 kg/s), 10 replicas (2026-11-27): recorded ``k_inf`` sd 8.7e-4, mean -8.0e-4; steady white
 9.2e-4, -6.6e-4; approach white 5.2e-4, +0.8e-4.  The band's noise alone, propagated through the fit
 with its correlation over the band (a sandwich tried and not kept), reads 5e-4 on these records.
-The reported sigma is 0.5-1.1 %: Z1's reading term, 6-20 times the scatter.  The first tap of the
+The last version's sigma was 0.5-1.1 % (Z1's reading term, 6-20 times the scatter); this one's is
+0.062-0.12 % (the band's noise and the height read on the steady taps), and it leaves 3 of the 10 outside
+2 sigma, the deepest first taps (14-16 nN and 10 nN: 2.4-3.4 sigma).  The first tap of the
 approach went from no repulsion at all to 16 nN (8.3 nN noise-free: the cantilever's thermal motion,
 ~20 pm RMS, is as large as that tap's indentation), and the deepest ones read k_inf -2e-3.  The
 mechanism is not traced: the recorded noise on the approach's first tap is white at the declared
@@ -107,7 +109,8 @@ def main(argv=None) -> None:
                     sigma = res.estimates["k_inf"].sigma
             peak = first_tap_peak(df, int(build(df, meta, force="reconstructed").approach[2]))
             rows.append(out)
-            print(f"{r:7d}  " + "  ".join(f"{v:+20.2e}" for v in out) + f"   {peak * 1e9:14.2f}  {sigma:.1e}", flush=True)
+            cells = "  ".join(f"{v:+20.2e}" for v in out)
+            print(f"{r:7d}  {cells}   {peak * 1e9:14.2f}  {sigma:.1e}", flush=True)
     finally:
         X.build_record = build
     a = np.array(rows)

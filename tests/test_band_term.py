@@ -207,7 +207,8 @@ def test_the_fits_misfit_term_is_left_to_the_band_term_on_a_low_passed_force(rec
         assert abs(after) <= max(2.0 * low.estimates[q].sigma, 0.02), (q, after)
     wunc = whole.info["fit"]["uncertainty"]
     assert wunc["misfit"]["cd"] > 0  # the whole band keeps it
-    own = math.hypot(max(wunc["white"]["cd"], wunc["taps"]["cd"]), wunc["height"].get("cd") or 0.0, wunc["misfit"]["cd"])
+    height = wunc["height"].get("cd") or 0.0
+    own = math.hypot(max(wunc["white"]["cd"], wunc["taps"]["cd"]), height, wunc["misfit"]["cd"])
     assert whole.estimates["cd"].sigma == pytest.approx(own, rel=1e-12, abs=0)
 
 

@@ -352,7 +352,8 @@ def _linear_band(record, lin, fs, fa, spec_s, spec_a, h: float, fc: float, res=N
     # the correction is trusted to no better than its own size: the steps can agree while the whole band does not
     # (noise-free records of dev draws 21-22, reconstructed at 23-31 MHz: the fit's linearised correction left
     # 36-180 % of itself, k_inf and tau_c, where the record's and the model's steps agreed within 20 %)
-    sigma = {q: max(v, abs(bias[q])) for q, v in step_sigma(bias, d_rec, d_model, res, removed_noise(record, rec2)).items()}
+    steps = step_sigma(bias, d_rec, d_model, res, removed_noise(record, rec2))
+    sigma = {q: max(v, abs(bias[q])) for q, v in steps.items()}
     return {"source": "model", "how": "linearised", "bias": bias, "sigma": sigma, "model_step": d_model,
             "record_step": d_rec}  # fmt: skip
 

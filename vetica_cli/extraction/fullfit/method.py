@@ -374,11 +374,11 @@ class FullFit(ExtractionMethod):
         own = {q: e.sigma for q, e in res.estimates.items() if e.value is not None and e.sigma is not None}
         unc = (res.info.get("fit") or {}).get("uncertainty") or {}
         if unc.get("misfit") and band_limited(record):
-            white, taps, z1 = (unc.get(k) or {} for k in ("white", "taps", "height"))
-            white = unc.get("noise") or white  # the band's noise through the cost's Hessian, where it was read
+            white, taps, height = (unc.get(k) or {} for k in ("white", "taps", "height"))
+            white = unc.get("noise") or white  # the band's noise through the fit, where it was read
             for q in list(own):
                 if q in unc["misfit"] and white.get(q) is not None and taps.get(q) is not None:
-                    own[q] = own_sigma(white[q], taps[q], z1.get(q) or 0.0)
+                    own[q] = own_sigma(white[q], taps[q], height.get(q) or 0.0)
             info["misfit_term"] = "left out: the band term holds the repeating misfit of a low-passed force"
         alt = pinned_fit(self, res, record, options)
         if alt is None:
@@ -625,10 +625,10 @@ class FullFit(ExtractionMethod):
             est["hamaker"] = replace(est["hamaker"], identifiable=bool(ok), reason=reason)
         info["fit"] = _fit_info(model, stages, cov, sigma_model, opts, perm)
         info["fit"]["uncertainty"] = {
-            "source": "the larger of the Jacobian-and-residual error (white residuals; on a low-passed force the band's "
-                      "noise through the fit, 'noise') and the tap-robust sandwich (delete-one-tap jackknife of the "
-                      "linearised fit, the approach tap bias-reduced; t-scaled), and in quadrature the height's reading "
-                      "error (one steady tap's, the approach tap's) and, where the residual's part "
+            "source": "the larger of the Jacobian-and-residual error (white residuals; on a low-passed force the "
+                      "band's noise through the fit, 'noise') and the tap-robust sandwich (delete-one-tap jackknife of "
+                      "the linearised fit, the approach tap bias-reduced; t-scaled), and in quadrature the height's "
+                      "reading error (one steady tap's, the approach tap's) and, where the residual's part "
                       "that repeats every drive period exceeds the rest, the misfit term (that part over each "
                       "dashpot's force signature)",
             "groups": n_groups,
@@ -679,9 +679,9 @@ class FullFit(ExtractionMethod):
         within 7 % of the declared one).  None for a whole-band force or a record without declared noise.
 
         Measured on 300 K records (dev draws 21-22 of ``scripts/trust.py``, 12 replicas of 6 surfaces):
-        the white residual error (:func:`.uncertainty.covariance`) was 2.1-2.3 times short of this term (medians per quantity),
-        and refits of the records with that noise added scattered 0.90-0.99 of this term (medians per quantity over
-        dev draw 22's 72 records, 8 refits each)."""
+        the white residual error (:func:`.uncertainty.covariance`) was 2.1-2.3 times short of this term
+        (medians per quantity), and refits of the records with that noise added scattered 0.90-0.99 of this
+        term (medians per quantity over dev draw 22's 72 records, 8 refits each)."""
         from ...signals import noise as nz
         from ..uncertainty import band_limited
 
@@ -693,7 +693,8 @@ class FullFit(ExtractionMethod):
         segments = [(slice(0, ns), model.steady.idx, len(model.steady.want))]
         if model.approach is not None and len(res) > ns:
             segments.append((slice(ns, len(res)), model.approach.idx, len(model.approach.want)))
-        meat = band_noise_meat(jac, segments, declared[1] / model.scale, float(model.h), float(record.info["cutoff_hz"]))
+        fc = float(record.info["cutoff_hz"])
+        meat = band_noise_meat(jac, segments, declared[1] / model.scale, float(model.h), fc)
         return sandwich(jac.T @ jac, meat)
 
     @staticmethod

@@ -289,7 +289,8 @@ def band_noise_meat(jac, segments, white: float, h: float, fc: float) -> np.ndar
     ``segments``: ``[(rows, idx, n)]`` per stretch of the record the residuals come from (the steady
     window, the approach): its residual rows, their sample indices in it and its length.  Residual
     rows closer than the band's correlation length ``1/(2 fc)`` carry the same noise; white residuals
-    (:func:`covariance`) count them as independent (on 300 K records 2.1-2.3 times short, medians per quantity)."""
+    (:func:`covariance`) count them as independent (on 300 K records 2.1-2.3 times short, medians per
+    quantity)."""
     import scipy.fft  # lazy, as the fit's scipy.optimize
 
     jac = np.asarray(jac, float)
@@ -304,7 +305,7 @@ def band_noise_meat(jac, segments, white: float, h: float, fc: float) -> np.ndar
         e[:, np.asarray(idx, int)] = jac[rows].T
         keep = np.fft.rfftfreq(int(n), h) < fc
         spec = scipy.fft.rfft(e, axis=1)[:, keep].astype(np.complex128)
-        w = np.full(spec.shape[1], 2.0)  # each bin stands for its mirror image too; the mean and Nyquist bins for themselves
+        w = np.full(spec.shape[1], 2.0)  # a bin stands for its mirror image too; the mean and Nyquist bins do not
         w[0] = 1.0
         if n % 2 == 0 and keep[-1]:
             w[-1] = 1.0
