@@ -123,6 +123,10 @@ Choices (see the module functions for details):
   16:1 at cd 100 kg/s, 0.5 ns: cd +11.8 % at a Jacobian 1-sigma of 0.44 %,
   the term 9.4 %); on a force low-passed below the Nyquist frequency it is
   left to the band term (the repeating residual is then the band's smear).
+  The larger of that error and a tap-robust sandwich counts; on such a force the
+  band's own noise through the fit (white within the band: neighbouring rows share
+  it) replaces ``s^2 (J^T J)^-1``, and the surface height's reading error (one steady
+  tap's, the approach tap's: it pins the height alone) is added in quadrature.
   A parameter is flagged not identifiable when
   its 1-sigma exceeds 100 %, when it sits at a bound, when the fit stopped
   far from converged, or when the fitted dashpot does not act within the

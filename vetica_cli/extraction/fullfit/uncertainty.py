@@ -39,10 +39,11 @@ def release_significant(jac, jac_free, gain: float, p_value: float) -> bool:
     return gain / (1.0 - gain) * (n - p_free) / q > float(chdtri(q, p_value)) / q
 
 
-def own_sigma(white: float, taps: float, z1: float = 0.0, misfit: float = 0.0) -> float:
+def own_sigma(white: float, taps: float, height: float = 0.0, misfit: float = 0.0) -> float:
     """A quantity's relative 1-sigma from the fit's terms: the larger of the white and tap-robust
-    errors, and in quadrature Z1's reading error and the misfit term."""
-    return math.hypot(max(white, taps), z1, misfit)
+    errors (on a low-passed force the band's noise through the fit in place of the white error), and in
+    quadrature the height's reading error and the misfit term."""
+    return math.hypot(max(white, taps), height, misfit)
 
 
 def normalised(jac):
