@@ -41,14 +41,19 @@ def rows_of(draw: int, index: int, material: dict, n: int, methods) -> list[dict
             res, rm = got[m], ref[m]
             if isinstance(res, str) or isinstance(rm, str):
                 continue
-            band = (res.info.get("uncertainty") or {}).get("band") or {}
+            unc = res.info.get("uncertainty") or {}
+            band, parts = unc.get("band") or {}, unc.get("parts") or {}
             for q, e in res.estimates.items():
                 f = rm.estimates.get(q)
                 if e.value is None or e.sigma is None or f is None or f.value is None or not f.value:
                     continue
                 out.append({"material": index, "replica": r, "method": m, "quantity": q, "value": e.value,
                             "reference": f.value, "sigma": e.sigma, "flagged": e.identifiable is False,
-                            "band_sigma": (band.get("sigma") or {}).get(q, 0.0)})  # fmt: skip
+                            "band_sigma": (band.get("sigma") or {}).get(q, 0.0),
+                            "band_bias": (band.get("bias") or {}).get(q, 0.0),
+                            "step_diff": (band.get("record_step") or {}).get(q, np.nan)
+                            - (band.get("model_step") or {}).get(q, np.nan),
+                            **{f"part_{k}": v for k, v in (parts.get(q) or {}).items()}})  # fmt: skip
     return out
 
 
@@ -70,13 +75,15 @@ def main(argv=None) -> None:
     d = d[~d.flagged]
     d["dev"] = d.value / d.reference - 1.0
     d["z"] = d.dev / d.sigma
+    pcols = [c for c in d.columns if c.startswith("part_")]  # the tap methods' terms (tapsigmas: info "parts")
     print("| method | quantity | results | coverage | std(z) | mean(z) | median sigma | median band part | "
-          "scatter / sigma by material |")  # fmt: skip
-    print("|---|---|---|---|---|---|---|---|---|")
+          "scatter / sigma by material |" + "".join(f" median {c[5:]} part |" for c in pcols))  # fmt: skip
+    print("|---|---|---|---|---|---|---|---|---|" + "---|" * len(pcols))
     for (m, q), g in d.groupby(["method", "quantity"]):
         per = [f"{h.dev.std() / h.sigma.median():.2f}" for _, h in g.groupby("material") if len(h) > 2]
         print(f"| {m} | {q} | {len(g)} | {np.mean(np.abs(g.z) <= 2):.3f} | {g.z.std():.2f} | {g.z.mean():+.2f} | "
-              f"{g.sigma.median():.2e} | {g.band_sigma.median():.2e} | {' '.join(per)} |")
+              f"{g.sigma.median():.2e} | {g.band_sigma.median():.2e} | {' '.join(per)} |"
+              + "".join(f" {g[c].median():.2e} |" for c in pcols))
     if not len(d):
         print("no unflagged results", file=sys.stderr)
         sys.exit(1)

@@ -181,7 +181,7 @@ def tap_sigmas(res: ExtractionResult, record, method, options) -> tuple[dict, di
                 grad_kg[q] = max(changes, key=abs) / (hk * abs(e.value))  # d ln q / d ln Kg
     g_tau, g_kg = grad_z1.get("tau_c"), grad_kg.get("k_g")
     sls = log_gradients(values)
-    sig = {}
+    sig, parts = {}, {}
     for q, e in est.items():
         if e.value is None or q not in sls:
             continue
@@ -195,6 +195,7 @@ def tap_sigmas(res: ExtractionResult, record, method, options) -> tuple[dict, di
             via_tau = max(via_tau, abs(gz / g_tau * rel["tau_c"]))
         via_kg = (grad_kg[q] if q in grad_kg else sls[q][1]) * rel["k_g"]
         terms = [via_tau, via_kg, sls[q][2] * rel["k_r"], (gz or 0.0) * s_z1]
+        parts[q] = dict(zip(("tau_c", "k_g", "k_r", "z1"), (abs(x) for x in terms)))
         terms = [x for x in terms if x]
         sig[q] = math.sqrt(sum(x * x for x in terms)) if all(math.isfinite(x) for x in terms) else math.inf
         if not math.isfinite(s_z1):
@@ -205,6 +206,7 @@ def tap_sigmas(res: ExtractionResult, record, method, options) -> tuple[dict, di
             # scale, per the reported Kg's own change: on a 300 K lab record vetica-prestress's Kg moved by 0.036 of
             # the scale, and k0 = Kg - Kr, +314 % off with Kg flagged +264 %, read a reach of 0.036 x 2.64 < 10 %):
             # how far a stage's error reaches the quantities computed from it (tapchecks.stage_dependents)
+            "parts": parts,  # each quantity's relative sigma by where it comes from (the taps' tau_c, Kg, Kr; Z1)
             "gradient": {"tau_c": {q: gz / g_tau for q, gz in grad_z1.items() if g_tau and math.isfinite(gz / g_tau)},
                          "k_g": {q: g / g_kg for q, g in grad_kg.items() if g_kg and math.isfinite(g / g_kg)}}}  # fmt: skip
     return sig, info
