@@ -391,6 +391,26 @@ def test_systematic_misfit_is_what_repeats_every_period():
     assert systematic_misfit(shape, idx, 400, 1.0)[0] == 0.0
 
 
+def test_misfit_pairs_rows_a_drive_period_apart_when_the_taps_spacing_misses_it():
+    """The period the misfit's rows are paired at, against its construction: a tip position of period
+    400 samples (a cosine and its third harmonic), the taps' spacing read 6 samples long (as on a
+    stripped 300 K record: 40,009 for 40,000); :func:`drive_period` reads 400 back from the position.
+    Rows thinned to every 4th sample on a grid offset by 2 from the period's (so 401 and
+    the period's 400 are on different grids): white noise alone, asked to pair at
+    401, repeats nothing beyond its sampling error (the covariance of ~1000 pairs: sd 0.2^2 / sqrt(1000),
+    so below 0.06 after the square root; the lag search pairs at 400), where with no row pairs the bound
+    calls the residual above the floor a misfit, sqrt(0.2^2 - 0.1^2) = 0.17 (the old reading)."""
+    from vetica_cli.extraction.fullfit.uncertainty import drive_period, systematic_misfit
+
+    n = np.arange(4400)
+    z = np.cos(2 * np.pi * n / 400) + 0.2 * np.cos(6 * np.pi * n / 400 + 0.3)
+    idx = np.arange(2, 4000, 4)
+    assert drive_period(z, idx, 406) == 400
+    noise = np.random.default_rng(7).normal(0.0, 0.2, len(idx))
+    rep, rest = systematic_misfit(noise, idx, 401, 0.1)
+    assert rep < 0.06 and rest == pytest.approx(0.2, abs=0.02)
+
+
 def test_release_significance_is_the_f_test_of_the_added_state_column():
     """:func:`release_significant` against its construction, a linear model: 2000 rows, two
     parameter columns and one start-state column.  The gain of one Gauss-Newton step (from the fit

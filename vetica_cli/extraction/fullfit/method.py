@@ -26,7 +26,7 @@ from .model import SurfaceFit
 from .start import starting_point
 from .uncertainty import (
     band_noise_meat, covariance, gn_gain, height_sensitivity, identifiability, misfit_term, own_sigma,
-    propagate, release_significant, sandwich, systematic_misfit, tap_covariance, tap_groups,
+    drive_period, propagate, release_significant, sandwich, systematic_misfit, tap_covariance, tap_groups,
 )
 
 STATES = ("auto", "periodic", "free")  # dashpot state at the window start
@@ -583,7 +583,8 @@ class FullFit(ExtractionMethod):
         # the misfit term where the residual is more the model's own error (it repeats every period) than
         # noise (a noise-free record: there the Jacobian's error, scaled by that residual, holds none of it);
         # on a noisy record the tap-robust error holds a misfit that repeats with the tap: left out
-        repeats, rest = systematic_misfit(res, model.steady.idx, round(taps.spacing), floor)
+        period = drive_period(record.z, model.steady.idx, round(taps.spacing))
+        repeats, rest = systematic_misfit(res, model.steady.idx, period, floor)
         sigma_misfit = misfit_term(repeats, k_inf, list(zip(k, cd)), contact_s, free_s, grads, len(cov)) \
             if repeats > rest else {}
         sigma = {q: own_sigma(v, sigma_taps[q], sigma_h.get(q, 0.0), sigma_misfit.get(q, 0.0))
