@@ -241,3 +241,60 @@ def test_the_band_correction_error_leaves_out_what_the_answers_own_noise_explain
     nz.declare(g, 2e-10 / 2**0.25, 1e-9, 40.0 * 2**0.5)  # as band_record declares the step to fc/sqrt(2)
     assert removed_noise(SimpleNamespace(f=f), SimpleNamespace(f=g)) == pytest.approx(1 - 2**-0.5, rel=1e-12, abs=0)
     assert removed_noise(SimpleNamespace(f=f), None) == 0.0
+
+
+def test_the_step_s_noise_is_what_the_narrower_band_takes_from_the_reading():
+    """The premise of :func:`removed_by_quantity`, on band-limited white noise (4000 draws of 4096
+    samples, brick-wall low-pass at fc = 0.2 of the sampling rate and at fc/sqrt(2), the same draw):
+    for a linear reading the step between the bands is uncorrelated with the narrower band's reading
+    (correlation within 4 sampling errors, 1/sqrt(4000)), so var(step) = var(whole) - var(narrower).
+    A reading with a flat response (one sample) loses the noise's power share to the step, 1 - 1/sqrt(2)
+    = 0.29 (the fraction :func:`removed_noise` assumes); a slope (central difference, response sin(2 pi f))
+    reads the band's top: the closed form int sin^2 over (fc/sqrt(2), fc) over int sin^2 over (0, fc), 0.59
+    here (each within 0.03) -- why a tap method's Kg, read as a slope, needs its share measured, not assumed."""
+    from vetica_cli.extraction.uncertainty import lowpass
+
+    rng = np.random.default_rng(11)
+    n, fc, m = 4096, 0.2, 2048
+    readings = {"sample": (np.ones(1), slice(m, m + 1)), "slope": (np.array([-0.5, 0.0, 0.5]), slice(m - 1, m + 2))}
+    got = {k: ([], []) for k in readings}
+    for _ in range(4000):
+        noise = rng.normal(size=n)
+        a, b = lowpass(noise, 1.0, fc), lowpass(noise, 1.0, fc / math.sqrt(2.0))
+        for k, (w, sl) in readings.items():
+            got[k][0].append(float(w @ a[sl]))
+            got[k][1].append(float(w @ b[sl]))
+    share = {}
+    for k, (a, b) in got.items():
+        a, b = np.asarray(a), np.asarray(b)
+        assert abs(np.corrcoef(a - b, b)[0, 1]) < 4.0 / math.sqrt(4000), k
+        share[k] = np.var(a - b) / np.var(a)
+    def power(f):  # int_0^f sin^2(2 pi f') df'
+        return f / 2.0 - math.sin(4.0 * math.pi * f) / (8.0 * math.pi)
+
+    assert share["sample"] == pytest.approx(1 - 2**-0.5, abs=0.03)
+    assert share["slope"] == pytest.approx(1.0 - power(fc / math.sqrt(2.0)) / power(fc), abs=0.03)
+    assert share["slope"] > share["sample"] + 0.2
+
+
+def test_removed_by_quantity_weights_each_stage_s_measured_share_by_the_sigma_s_parts():
+    """:func:`removed_by_quantity` against its construction: Kg's tap-mean standard error falls from
+    0.02 to 0.005 of its value at the narrower band (share 1 - 0.25^2), tau_c's from 0.01 to 0.008 (share
+    0.36); a quantity whose sigma's parts are Kg 0.03 and tau_c 0.04 gets (0.9375 * 9 + 0.36 * 16)/25 of the
+    variance, a Z1 part the default share, each times STEP_TEST; a method without parts the default alone."""
+    from types import SimpleNamespace
+
+    from vetica_cli.extraction.result import Spread
+    from vetica_cli.extraction.uncertainty import STEP_TEST, removed_by_quantity
+
+    def est(value, se, n=9):
+        return SimpleNamespace(value=value, spread=Spread(n=n, mean=value, std=se * value * math.sqrt(n)))
+
+    parts = {"k0": {"tau_c": 0.04, "k_g": 0.03, "k_r": 0.0, "z1": 0.0}, "z": {"z1": 0.01, "tau_c": 0.0}}
+    res = SimpleNamespace(estimates={"k_g": est(50.0, 0.02), "tau_c": est(1e-5, 0.01)}, info={"uncertainty": {"parts": parts}})
+    narrower = {"k_g": est(49.0, 0.005), "tau_c": est(1.1e-5, 0.008)}
+    got = removed_by_quantity(res, narrower, 0.29)
+    assert got[None] == 0.29
+    assert got["k0"] == pytest.approx(STEP_TEST * (0.9375 * 9 + 0.36 * 16) / 25, rel=1e-9)
+    assert got["z"] == pytest.approx(STEP_TEST * 0.29, rel=1e-12)
+    assert removed_by_quantity(SimpleNamespace(estimates={}, info={}), narrower, 0.29) == 0.29
