@@ -8,7 +8,10 @@ trust check's ``thermal`` condition: ten periods at 0.5 ns, the force reconstruc
 noise-free reference; every method in ``--methods`` on each.  Per method and quantity, over the
 unflagged results: ``coverage`` of the reference by +-2 sigma, the z-score ``(value/ref - 1)/sigma``'s
 standard deviation (1 = calibrated; below 1 the error bar is too wide) and mean, the median sigma and
-its band term's part (``band``), and per material the replicas' scatter against the median sigma.
+its band term's part (``band``), per material the replicas' scatter against the median sigma, and for the
+tap methods the median of each of the sigma's parts (``info.uncertainty.parts``: the taps' tau_c, Kg, Kr
+and Z1).  ``--out`` keeps the rows, with the band term's bias and the record's step to fc/sqrt(2) less
+the model's (``step_diff``: what the band term's test reads).
 
     PYTHONPATH=. python scripts/sigma_parts.py --draw-seed 21 --replicas 12 --methods vetica vetica-prestress
 """
