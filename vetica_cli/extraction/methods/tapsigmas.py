@@ -195,7 +195,7 @@ def tap_sigmas(res: ExtractionResult, record, method, options) -> tuple[dict, di
             via_tau = max(via_tau, abs(gz / g_tau * rel["tau_c"]))
         via_kg = (grad_kg[q] if q in grad_kg else sls[q][1]) * rel["k_g"]
         terms = [via_tau, via_kg, sls[q][2] * rel["k_r"], (gz or 0.0) * s_z1]
-        parts[q] = dict(zip(("tau_c", "k_g", "k_r", "z1"), (abs(x) for x in terms)))
+        parts[q] = dict(zip(("tau_c", "k_g", "k_r", "z1"), (abs(x) if math.isfinite(x) else None for x in terms)))
         terms = [x for x in terms if x]
         sig[q] = math.sqrt(sum(x * x for x in terms)) if all(math.isfinite(x) for x in terms) else math.inf
         if not math.isfinite(s_z1):
