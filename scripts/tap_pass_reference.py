@@ -23,7 +23,9 @@ whose thermal recording takes exact far steps with the sampled noise (another dr
 reconstructed-force estimates moved by up to 4.8 % on the stiff record and 15 % on the soft one, the true
 force's by up to 0.9 %), and once more on the version whose records drop the approach's first samples to
 a length the FFT is fast on (the stiff record's reconstructed-force tau_c +0.22 %, everything else within
-5e-5): for them the file is a
+5e-5), and once more on the version whose band term tests the record's step to fc/sqrt(2) against the noise
+measured on the taps (six sigmas of the stiff record's reconstructed force, by up to 9 %; values and flags as
+they were): for them the file is a
 regression reference of that version, not the Python path's (the noise-free entries still are), run as
 
     PYTHONPATH=. python -c "..."  # estimates() of the two 300 K records, merged into the file

@@ -15,7 +15,9 @@ compiled, and the error bars and checks re-run only the stages that move with Z1
   band correction, read on the referee's surface: tau_c +1.9 %), and by the version whose thermal
   recording takes exact far steps (the records' noise drawn anew), and by the version whose records drop
   the approach's first samples to a length the FFT is fast on (the stiff record's reconstructed-force
-  tau_c +0.22 %): a regression reference there, not the Python path's;
+  tau_c +0.22 %), and by the version whose band term tests the record's step against the noise measured on
+  the taps (the stiff record's reconstructed-force sigmas: vetica-prestress's k_g 2.05 -> 2.23 %, values and
+  flags unchanged): a regression reference there, not the Python path's;
 * the same functions on the same record with the Python loops (a stage 1 measured without the
   record's times carries no contacts, and the stages then run tap by tap in Python), and whole
   re-runs of the method at the moved Z1 and Kg.
