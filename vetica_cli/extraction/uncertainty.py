@@ -277,9 +277,7 @@ def model_band(res: ExtractionResult, record, method, options, narrower=None, li
             d_rec, d_model = _relative(alt, res.estimates), _relative(lower, low)
         except Exception:  # noqa: BLE001 - the narrower band is refused: the correction's error unmeasured
             d_rec, d_model = {}, {}
-    removed = removed_noise(record, step[0]) if step is not None else 0.0
-    if step is not None:
-        removed = removed_by_quantity(res, step[1], removed)
+    removed = removed_by_quantity(res, step[1], removed_noise(record, step[0])) if step is not None else 0.0
     sigma = step_sigma(bias, d_rec, d_model, res, removed)
     return {"source": "model", "bias": bias, "sigma": sigma, "model_step": d_model, "record_step": d_rec}
 
@@ -294,7 +292,8 @@ def step_sigma(bias: dict, d_rec: dict, d_model: dict, res: ExtractionResult, re
     ``d_rec`` against the model's ``d_model``, their difference extrapolated to the whole band as
     Richardson's slowest bias growth (p = 1) would (``/(sqrt(2) - 1)``); without a step, the whole
     bias.  The record's step also holds the noise the narrower band removes, the fraction ``removed``
-    of the noise power (:func:`removed_noise`) of which the answer's own sigma (``res``, before the
+    of the noise power (:func:`removed_noise`; per quantity, ``{quantity: factor, None: default}``, where
+    :func:`removed_by_quantity` measured it) of which the answer's own sigma (``res``, before the
     band term) is the whole: ``removed`` times that sigma squared is taken out of the difference's
     square, so only a disagreement the noise cannot explain is the model's.  Counted in full (and
     extrapolated, x2.4) it made VETICA's k_g sigma twice the replicas' scatter at 300 K (dev draw 21:
@@ -490,7 +489,9 @@ def calibrate(res: ExtractionResult, record, method=None, options=None) -> Extra
         sig, info = method.sigmas(res, record, options or {})
         res.estimates = {k: dataclasses.replace(e, sigma=sig[k]) if k in sig and e.value is not None else e
                          for k, e in res.estimates.items()}  # fmt: skip
-    res.info = {**res.info, "uncertainty": info}  # the sigma's parts, which the band term reads (removed_by_quantity)
+    # set before the band term, which reads the sigma's parts (removed_by_quantity); its own entry is added to
+    # this same dict below
+    res.info = {**res.info, "uncertainty": info}
     if method is not None:  # a band-limited force: the bias of its low-pass (corrected where a model measures it)
         band = band_term(res, record, method, options or {})
         if band:
@@ -504,5 +505,4 @@ def calibrate(res: ExtractionResult, record, method=None, options=None) -> Extra
                     e = dataclasses.replace(e, value=value, error_pct=err, sigma=math.hypot(e.sigma, band["sigma"][k]))
                 out[k] = e
             res.estimates = out
-    res.info = {**res.info, "uncertainty": info}
     return res
