@@ -53,8 +53,9 @@ def fake_extract(df, meta, force, method="vetica"):
           "k_r": s["k_inf"], "tau_r": s["cd"] / s["k0"], "k0": s["k0"], "k_inf": s["k_inf"], "cd": s["cd"]}  # fmt: skip
     f = 1.10 if method == "vetica" else 1.01
     units = {n: q.unit for n, q in surfaces.get("sls").quantities.items()}
-    sigma = {"k0": 0.002, "k_inf": 0.003, "cd": 2.0} if method == "full" else {}
-    ident = {"k_inf": True, "k0": True, "cd": False} if method == "full" else {}
+    # VETICA flags its tau_c (a derived quantity, not one of the SLS parameters) and gives it a sigma
+    sigma = {"k0": 0.002, "k_inf": 0.003, "cd": 2.0} if method == "full" else {"tau_c": 0.05}
+    ident = {"k_inf": True, "k0": True, "cd": False} if method == "full" else {"tau_c": False}
     est = {n: Estimate(v * f, units[n], v, 100 * abs(f - 1), sigma=sigma.get(n), identifiable=ident.get(n))
            for n, v in th.items()}  # fmt: skip
     return ExtractionResult(method=method, force=force, taps=3, estimates=est, fitted=tuple(ident))
@@ -147,8 +148,12 @@ def test_points_differing_in_method_and_noise_share_one_simulation(tmp_path):
         assert g["e_diss_ev"].nunique() == 1
     full = t[t["method"] == "full"]
     np.testing.assert_allclose(full["cd_sigma_pct"], 200.0)
-    assert set(full["unidentified"]) == {"cd"} and set(t[t.method == "vetica"]["unidentified"]) == {""}
-    assert t[t.method == "vetica"]["k0_sigma_pct"].isna().all()
+    assert set(full["unidentified"]) == {"cd"}
+    # every quantity a table gives an error for carries its flag and sigma, the derived ones too:
+    # a row whose tau_c is flagged says so (it did not when only the parameters k0, k_inf, cd had them)
+    vet = t[t.method == "vetica"]
+    assert set(vet["unidentified"]) == {"tau_c"} and (vet["tau_c_sigma_pct"] == 5.0).all()
+    assert vet["k0_sigma_pct"].isna().all() and full["tau_c_sigma_pct"].isna().all()
     # a rerun reuses all 8 parts (kept)
     again = run_sweep(st, tmp_path / "t.parquet", jobs=1, progress=False, task=task)
     assert again.computed == [] and len(again.reused) == 8

@@ -54,9 +54,11 @@ def material_columns_of(models=None) -> tuple[str, ...]:
 
 
 def sigma_names(model: surfaces.SurfaceModel) -> tuple[str, ...]:
-    """The model's parameters among its quantities (in quantity order): the ``_sigma_pct``
-    columns and those the ``unidentified`` column may name."""
-    return tuple(q for q in model.quantities if q in model.parameter_keys)
+    """Every quantity of the model (in quantity order; its parameters and the quantities derived
+    from them, e.g. the SLS's tau_c, Kg, Kr and tau_r beside k0, k_inf and cd): the ``_sigma_pct``
+    columns and those the ``unidentified`` column may name.  A table that gives a quantity's
+    error gives its flag and its error bar too: a row whose tau_c is off and flagged says so."""
+    return tuple(model.quantities)
 
 
 def models_of(configs) -> list[surfaces.SurfaceModel]:
@@ -157,7 +159,7 @@ def column_meta(models, methods=None, replicas: int = 1) -> dict:
                     meta[f"{name}_theory"] = (unit, f"the surface's {q.description} (theory only)")
     if replicas > 1:
         meta.update(replica_meta(list(dict.fromkeys(q for m in models for q in sigma_names(m)))))
-    meta["unidentified"] = ("", "fitted parameters the method flags not identifiable, comma-separated ('' = none)")
+    meta["unidentified"] = ("", "quantities the method flags not identifiable, comma-separated ('' = none)")
     meta["taps"] = ("", "complete taps in the record")
     for name in OBSERVABLES:
         meta[name] = split_unit(OBSERVABLE_UNITS.get(name, ""))

@@ -3,7 +3,7 @@
 Columns: the pixel's place and truth (:data:`PIXEL_COLUMNS`), then the columns of a
 batch row (:func:`vetica_cli.rows.schema.result_columns`: ``method``,
 ``force_source``, every quantity of the surface model with ``_theory`` and
-``_err_pct`` (signed), the 1-sigma of fitted parameters, ``unidentified``, ``taps``,
+``_err_pct`` (signed), the 1-sigma and flag (``unidentified``) of every quantity, ``taps``,
 the run observables -- ``amplitude``, ``phase_deg``, ``e_diss_ev``, ``peak_force``,
 ``max_penetration``, ... --, ``stop_reason``, ``sim_time``, ``status``, ``error``,
 ``wall_s``).  The units and meanings go into the Parquet metadata (:func:`column_meta_of`).
