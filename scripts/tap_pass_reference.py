@@ -25,7 +25,8 @@ force's by up to 0.9 %), and once more on the version whose records drop the app
 a length the FFT is fast on (the stiff record's reconstructed-force tau_c +0.22 %, everything else within
 5e-5), and once more on the version whose band term tests the record's step to fc/sqrt(2) against the noise
 measured on the taps (six sigmas of the stiff record's reconstructed force, by up to 9 %; values and flags as
-they were): for them the file is a
+they were), and once more on the version whose Kg term is a central difference over +-1 sigma (sigmas by up
+to 25 %, one flag lifted, values as they were): for them the file is a
 regression reference of that version, not the Python path's (the noise-free entries still are), run as
 
     PYTHONPATH=. python -c "..."  # estimates() of the two 300 K records, merged into the file
