@@ -6,7 +6,7 @@ and more than 3 sigma; every quantity, each with its own flag and sigma), listed
     python scripts/table_trust.py --rev HEAD~3        # the same tables at a git revision
 
 Counts every method and force source of results/methods' five studies (status ok rows); *right*
-counts tau_c, k_g, k_r, k0, k_inf and cd.
+counts tau_c, k_g, k_r, tau_r, k0, k_inf and cd.
 """
 
 from __future__ import annotations
@@ -21,7 +21,7 @@ import pandas as pd
 
 ROOT = Path(__file__).resolve().parent.parent
 STUDIES = ("method_dashpot", "method_stiffness_ratio", "method_noise_reconstructed", "method_low_cd", "method_pull")
-RIGHT = ("tau_c", "k_g", "k_r", "k0", "k_inf", "cd")
+RIGHT = ("tau_c", "k_g", "k_r", "tau_r", "k0", "k_inf", "cd")
 TOLERANCE_PCT = 10.0
 
 
@@ -62,7 +62,8 @@ def main(argv=None) -> int:
     right, flagged, silent = count(args.rev)
     print(f"within 10 % of the truth: {right}, of them flagged: {flagged}; silently wrong: {len(silent)}")
     for name, point, method, force, q, e, s in silent:
-        print(f"  {name} {point} {method} {force} force: {q} {e:+.3g} % at a sigma of {s:.3g} %")
+        print(f"  {name} {point} {method} {force} force: {q} {e:+.3g} % at a sigma of "
+              + ("none" if s is None or not np.isfinite(s) else f"{s:.3g} %"))
     return 0
 
 

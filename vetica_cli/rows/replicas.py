@@ -1,7 +1,7 @@
 """A point recorded N times with independent noise (``sweep.replicas: N``): what its rows say.
 
 Each replica is extracted as a single point is; the row of the point (per force source)
-then carries, for each fitted parameter ``q`` (the ``_sigma_pct`` columns):
+then carries, for each quantity ``q`` of the surface model (the ``_sigma_pct`` columns):
 
 * ``q``: the median of the replicas' values (``q_err_pct`` its error against the theory);
 * ``q_sigma_pct``: the median of the replicas' reported relative 1-sigma;
