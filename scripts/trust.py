@@ -37,10 +37,9 @@ what the error bar is a claim about.  Per condition, method and quantity:
 The materials and seeds of a draw are not used by any test or other script until its held-out run;
 then it becomes a development draw (``tests/test_fullfit.py`` holds a draw-21 record,
 ``scripts/sigma_parts.py`` and ``scripts/approach_noise.py`` read any draw).  Development has used draw
-seeds 1-26 (each version's held-out table became the next one's development draw; 25 was run on this
-version's first changes and the version before them, then read for development; 26 was held out before
-this version's last change); the committed table (results/noise/trust.md, trust.parquet) is
-``--draw-seed 27 --materials 6 --replicas 20``, run once on the final code; the next fresh seed is 28.
+seeds 1-27 (each version's held-out table became the next one's development draw; 26 and 27 were read
+for this version's Kg term); the committed table (results/noise/trust.md, trust.parquet) is
+``--draw-seed 28 --materials 6 --replicas 20``, run once on the final code; the next fresh seed is 29.
 """
 
 from __future__ import annotations
