@@ -16,7 +16,7 @@ import pytest
 
 from vetica_cli.extraction.fullfit.fit import OFFSET_UNIT
 from vetica_cli.extraction.fullfit.method import FullFit
-from vetica_cli.extraction.fullfit.uncertainty import band_noise_meat, covariance, sandwich
+from vetica_cli.extraction.fullfit.uncertainty import band_noise_meat, covariance, sandwich, tap_groups
 
 
 def _rows(rng, n, k):
@@ -102,6 +102,34 @@ def test_the_height_term_is_one_steady_taps_reading_scatter():
     assert terms["k0"] == 0.0
     no_approach = SimpleNamespace(steady=model.steady, approach=None)
     assert FullFit._height_term(no_approach, taps, res, jac, ["k_inf", "s0", "x"], cov, grads) == (None, {})
+
+
+def test_a_window_end_that_hardly_feels_the_height_is_not_a_taps_reading():
+    """The six taps above and, past the last one, three rows the height hardly moves (column 1e-9,
+    residual 1e-6: a Gauss-Newton reading of 1e3, where the taps read within 0.5; a transient scan
+    pixel's window end, 3 rows of squared norm 6e-19, put the term at 32 nm): the term is the six taps'
+    scatter, as without those rows.  With the end's rows as much in contact as a tap, they count."""
+    d = np.array([0.3, -0.2, 0.5, 0.1, -0.4, 0.0])
+    rows, n_app = 40, 30
+    idx = np.concatenate([np.arange(6 * rows) * 5, 1200 + 5 * np.arange(1, 4)])  # 3 rows past the last tap's group
+    res = np.concatenate([np.repeat(-d, rows), np.full(3, -1e-6), np.zeros(n_app)])
+    jac = np.zeros((len(res), 3))
+    jac[:, 0] = np.linspace(-1.0, 1.0, len(res))
+    jac[:, 1] = 1.0
+    jac[6 * rows : 6 * rows + 3, 1] = 1e-9
+    jac[:, 2] = np.cos(np.arange(len(res)))
+    model = SimpleNamespace(steady=SimpleNamespace(idx=idx), approach=object())
+    taps = SimpleNamespace(contact=np.arange(6) * 200 + 100, spacing=200.0)
+    cov = np.array([[1.0, 0.5, 0.0], [0.5, 2.0, 0.0], [0.0, 0.0, 1.0]])
+    grads = {"k_inf": np.array([1.0, 0.0, 0.0])}
+    groups = tap_groups(idx, taps.contact, taps.spacing)
+    assert len(np.unique(groups)) == 7 and (groups == 6).sum() == 3  # the end is a group of its own
+    s_h, _ = FullFit._height_term(model, taps, res, jac, ["k_inf", "s0", "x"], cov, grads)
+    assert s_h == pytest.approx(float(np.std(d, ddof=1)) * OFFSET_UNIT, rel=1e-12, abs=0)
+    jac[6 * rows : 6 * rows + 3, 1] = 4.0  # 3 rows x 16 against a tap's 40: the end counts
+    s_h, _ = FullFit._height_term(model, taps, res, jac, ["k_inf", "s0", "x"], cov, grads)
+    with_end = np.append(d, 1e-6 / 4.0)
+    assert s_h == pytest.approx(float(np.std(with_end, ddof=1)) * OFFSET_UNIT, rel=1e-12, abs=0)
 
 
 @pytest.mark.slow
