@@ -77,24 +77,34 @@ def test_sandwich_refuses_a_direction_the_record_does_not_determine():
     assert sandwich(jac.T @ jac, jac.T @ jac) is None
 
 
-def test_the_height_term_is_one_steady_taps_reading_scatter():
-    """Six steady taps of 40 rows each, the height column 1 on every row (a height step moves each
-    row's force alike), tap g's residuals a constant -d_g: each tap reads the height ``d_g``, and the
-    term's sigma is their standard deviation (ddof 1) in metres; each quantity's term is its height
-    sensitivity (``cov[:, s0]/cov[s0, s0]`` through the gradients) times that sigma."""
-    d = np.array([0.3, -0.2, 0.5, 0.1, -0.4, 0.0])  # [OFFSET_UNIT]
-    rows = 40
-    idx = np.arange(6 * rows) * 5  # sample indices of the steady rows: taps 200 samples apart
-    res = np.repeat(-d, rows)
-    n_app = 30
-    res = np.concatenate([res, np.zeros(n_app)])
+TAP_READS = np.array([0.3, -0.2, 0.5, 0.1, -0.4, 0.0])  # each steady tap's reading of the height [OFFSET_UNIT]
+
+
+def _six_taps(end: int = 0):
+    """``(model, taps, res, jac, cov)`` of a fit over six steady taps of 40 rows each (sample indices 5
+    apart, taps 200 samples apart), the height column ``s0`` 1 on every row (a height step moves each row's
+    force alike) and tap g's residuals a constant ``-TAP_READS[g]``, then ``end`` rows past the last tap's
+    group that the height hardly moves (column 1e-9, residual -1e-6) and 30 approach rows."""
+    rows, n_app = 40, 30
+    idx = np.concatenate([np.arange(6 * rows) * 5, 1200 + 5 * np.arange(1, end + 1)])
+    res = np.concatenate([np.repeat(-TAP_READS, rows), np.full(end, -1e-6), np.zeros(n_app)])
     jac = np.zeros((len(res), 3))
     jac[:, 0] = np.linspace(-1.0, 1.0, len(res))
     jac[:, 1] = 1.0  # s0
+    jac[6 * rows : 6 * rows + end, 1] = 1e-9
     jac[:, 2] = np.cos(np.arange(len(res)))
     model = SimpleNamespace(steady=SimpleNamespace(idx=idx), approach=object())
     taps = SimpleNamespace(contact=np.arange(6) * 200 + 100, spacing=200.0)
     cov = np.array([[1.0, 0.5, 0.0], [0.5, 2.0, 0.0], [0.0, 0.0, 1.0]])
+    return model, taps, res, jac, cov
+
+
+def test_the_height_term_is_one_steady_taps_reading_scatter():
+    """Six steady taps (``_six_taps``), tap g's residuals a constant -d_g: each tap reads the height
+    ``d_g``, and the term's sigma is their standard deviation (ddof 1) in metres; each quantity's term
+    is its height sensitivity (``cov[:, s0]/cov[s0, s0]`` through the gradients) times that sigma."""
+    d = TAP_READS
+    model, taps, res, jac, cov = _six_taps()
     grads = {"k_inf": np.array([1.0, 0.0, 0.0]), "k0": np.array([0.0, 0.0, 1.0])}
     s_h, terms = FullFit._height_term(model, taps, res, jac, ["k_inf", "s0", "x"], cov, grads)
     assert s_h == pytest.approx(float(np.std(d, ddof=1)) * OFFSET_UNIT, rel=1e-12, abs=0)
@@ -109,24 +119,14 @@ def test_a_window_end_that_hardly_feels_the_height_is_not_a_taps_reading():
     residual 1e-6: a Gauss-Newton reading of 1e3, where the taps read within 0.5; a transient scan
     pixel's window end, 3 rows of squared norm 6e-19, put the term at 32 nm): the term is the six taps'
     scatter, as without those rows.  With the end's rows as much in contact as a tap, they count."""
-    d = np.array([0.3, -0.2, 0.5, 0.1, -0.4, 0.0])
-    rows, n_app = 40, 30
-    idx = np.concatenate([np.arange(6 * rows) * 5, 1200 + 5 * np.arange(1, 4)])  # 3 rows past the last tap's group
-    res = np.concatenate([np.repeat(-d, rows), np.full(3, -1e-6), np.zeros(n_app)])
-    jac = np.zeros((len(res), 3))
-    jac[:, 0] = np.linspace(-1.0, 1.0, len(res))
-    jac[:, 1] = 1.0
-    jac[6 * rows : 6 * rows + 3, 1] = 1e-9
-    jac[:, 2] = np.cos(np.arange(len(res)))
-    model = SimpleNamespace(steady=SimpleNamespace(idx=idx), approach=object())
-    taps = SimpleNamespace(contact=np.arange(6) * 200 + 100, spacing=200.0)
-    cov = np.array([[1.0, 0.5, 0.0], [0.5, 2.0, 0.0], [0.0, 0.0, 1.0]])
+    d = TAP_READS
+    model, taps, res, jac, cov = _six_taps(end=3)
     grads = {"k_inf": np.array([1.0, 0.0, 0.0])}
-    groups = tap_groups(idx, taps.contact, taps.spacing)
+    groups = tap_groups(model.steady.idx, taps.contact, taps.spacing)
     assert len(np.unique(groups)) == 7 and (groups == 6).sum() == 3  # the end is a group of its own
     s_h, _ = FullFit._height_term(model, taps, res, jac, ["k_inf", "s0", "x"], cov, grads)
     assert s_h == pytest.approx(float(np.std(d, ddof=1)) * OFFSET_UNIT, rel=1e-12, abs=0)
-    jac[6 * rows : 6 * rows + 3, 1] = 4.0  # 3 rows x 16 against a tap's 40: the end counts
+    jac[6 * 40 : 6 * 40 + 3, 1] = 4.0  # 3 rows x 16 against a tap's 40: the end counts
     s_h, _ = FullFit._height_term(model, taps, res, jac, ["k_inf", "s0", "x"], cov, grads)
     with_end = np.append(d, 1e-6 / 4.0)
     assert s_h == pytest.approx(float(np.std(with_end, ddof=1)) * OFFSET_UNIT, rel=1e-12, abs=0)

@@ -725,8 +725,8 @@ class FullFit(ExtractionMethod):
         # a group whose rows hardly feel the height is no tap's reading: past the last complete tap the window's
         # end can leave a few rows out of contact (a transient scan pixel: 3 rows of norm 6e-19 read the height
         # 32 nm off, and its fit's sigmas read 9-58 for values within 0.02 % of the truth)
-        keep = norms >= HEIGHT_READ_MIN * float(np.median(norms)) if len(norms) and np.median(norms) > 0 else norms > 0
-        reads = [-float(c @ r) / n for (c, r), n, k in zip(cols, norms, keep) if k and n > 0.0]
+        floor = HEIGHT_READ_MIN * float(np.median(norms)) if len(norms) else 0.0
+        reads = [-float(c @ r) / n for (c, r), n in zip(cols, norms) if n > 0.0 and n >= floor]
         if len(reads) < 3:
             return None, {}
         s_h = float(np.std(reads, ddof=1)) * OFFSET_UNIT
