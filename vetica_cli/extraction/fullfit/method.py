@@ -452,6 +452,10 @@ class FullFit(ExtractionMethod):
                 + ", ".join(f"{k} {v:.3g}" for k, v in rms.items()) + ")",
             }  # fmt: skip
             best.timing_s["total"] = time.perf_counter() - record.t_start
+        from .eiv import correct_z_noise  # white noise on z_tip: its bias taken off (errors in variables)
+
+        correct_z_noise(self, record, opts, consts, best)
+        best.timing_s["total"] = time.perf_counter() - record.t_start
         return best
 
     def _run_one(self, record: Record, opts: dict, consts: dict, vdw: bool) -> ExtractionResult:
