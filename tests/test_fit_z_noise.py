@@ -14,8 +14,10 @@ import pytest
 
 from vetica_cli.extraction import extract_many
 from vetica_cli.extraction.fullfit import eiv
+from vetica_cli.signals.slopes import white_noise_floor
 from vetica_cli.simulation.config import load
 from vetica_cli.simulation.simulate import simulate
+from vetica_cli.surfaces.sls import SLS
 
 MATERIAL = {"surface.k_inf": 7.5, "surface.k0": 473.9942, "surface.cd": 1.061e-05}
 A0 = 0.2e-9
@@ -53,6 +55,11 @@ def test_the_z_tip_noise_bias_is_taken_off_the_stiff_surfaces_fit(stripped, monk
     assert info["applied"] is True
     assert info["sigma_z_m"] == pytest.approx(Z_NOISE, rel=0.05, abs=0)  # the second-difference floor reads the noise
     corrected = _z_scores(got, ref)
+    # the parameters corrected, every other quantity computed from them (k_r is k_inf; tau_c, k_g follow)
+    est = got.estimates
+    theory = SLS().theory({k: est[k].value for k in ("k_inf", "k0", "cd")})
+    for q in ("k_r", "k_g", "tau_c", "tau_r"):
+        assert est[q].value == pytest.approx(theory[q], rel=1e-12, abs=0)
     monkeypatch.setattr(eiv, "GATE", np.inf)  # the same record without the correction
     raw = _z_scores(_fit(noisy), ref)
     assert raw["k0"] < -3.0 and raw["tau_r"] > 3.0, raw  # the bias the correction is for
@@ -68,3 +75,18 @@ def test_the_correction_is_made_only_where_the_z_noise_is_a_sizeable_part_of_the
     info = _fit(noisy).info["fit"]["z_noise"]
     assert info["ratio"] == pytest.approx(474 * Z_NOISE / 1e-9, rel=0.1)
     assert info["applied"] is False
+
+
+def test_a_noise_free_record_at_a_coarse_print_step_is_not_read_as_noisy():
+    """At an 8 ns print step the tip's swing curves enough between samples that its second
+    differences read 2.9e-13 m of 'noise' (``white_noise_floor``); the fourth differences read
+    1.4e-16 m (rounding), and the fit is not corrected: at cd 1 kg/s the correction had flagged a
+    right dashpot (results/methods, method_dashpot at 8 ns)."""
+    run = simulate(load(None, {"numerics.print_step": 8e-9, "surface.cd": 1.0, "surface.k0": 60.0,
+                               "surface.k_inf": 4.0, "numerics.record_cycles": 6}))  # fmt: skip
+    df, meta = run.frame(), run.metadata()
+    z = df[df["segment"] == "steady"]["z_tip"].to_numpy()
+    assert white_noise_floor(z) > 1e-13  # what the second differences say
+    assert eiv.white_floor(z) < 1e-15
+    res = extract_many(df, meta, "true", {"full": {}})["full"]
+    assert res.info["fit"]["z_noise"]["applied"] is False

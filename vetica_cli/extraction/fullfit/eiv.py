@@ -4,27 +4,28 @@ The fit drives its surface with the record's ``z_tip`` as if it were exact.  A d
 noise on ``z_tip`` (``sigma_z`` a sample) reaches the model's force through the surface's
 instantaneous stiffness, but not the measured force: the least squares then pays
 ``sigma_z^2 sum_i (dF_i/dz_i)^2`` more for a stiffer model and settles on a softer one (the
-attenuation bias of a regression on a noisy regressor).  Relative to a quantity's own error bar
-the bias grows as ``sigma_z sqrt(N_c) / delta_rms`` (``N_c`` samples in contact, ``delta_rms``
-their RMS depth below the surface) and, as the noise it adds to the
-model's force, ``k_top sigma_z`` (``k_top`` the surface's instantaneous stiffness) against the
-force's own noise ``sigma_f``: large on stiff surfaces.  Measured on stripped records (1 pm of
-white noise on z_tip, 0.1 nN on f_ts; a 63:1 surface, k0 474 N/m, cd 1.1e-5 kg/s): k0 -6.7 and
-tau_r +6.5 of the fit's own sigmas off the noise-free answer, on average over 8 replicas; without
-the z_tip noise -0.3 and +0.2.
+attenuation bias of a regression on a noisy regressor), large on stiff surfaces whose taps
+are shallow.  Measured on stripped records (1 pm of white noise on z_tip, 0.1 nN on f_ts; a 63:1
+surface, k0 474 N/m, cd 1.1e-5 kg/s): k0 -6.7 and tau_r +6.5 of the fit's own sigmas off the
+noise-free answer, on average over 8 replicas; without the z_tip noise -0.3 and +0.2.
 
 **The correction** (simulation-extrapolation, SIMEX, with antithetic draws): the bias is, to first
 order, proportional to ``sigma_z^2``; the record is fitted again twice with ``+n`` and ``-n`` added
-to ``z_tip`` (``n`` white, of the RMS measured on the record: its second-difference floor,
-:func:`~vetica_cli.signals.slopes.white_noise_floor`), which doubles the noise's variance; the
-mean of the two refits less the fit is the bias at ``sigma_z^2``, and is taken off every value.
+to ``z_tip`` (``n`` white, of the RMS measured on the record: its fourth-difference floor,
+:func:`white_floor`), which doubles the noise's variance; the
+mean of the two refits less the fit is the bias at ``sigma_z^2``, and is taken off each of the
+surface's parameters (and ``H R``) the fit determines, every other quantity computed from them (a
+parameter it reports unidentified is left as it is: the refits wander along its flat direction;
+one the correction would move by more than :data:`SHIFT_MAX` is left as it is and flagged).
 The antithetic pair cancels the refits' part linear in ``n`` (their random scatter), so the
 correction carries little noise of its own.  The refits start from the fit's answer with the fit's
 arms (no cd scan).  Only where the z_tip noise is a sizeable part of the model force's noise
-(``k_top sigma_z >= GATE sigma_f``): a simulator's record without detector noise has a floor of
-rounding (``sigma_z`` ~1e-15 m), an instrument's record at 300 K a force noise far above
-``k_top sigma_z``, and the correction costs two fits; nor where ``k_top sigma_z`` is below
-:data:`NEGLIGIBLE` of the peak force (a noise-free record, whose force's floor is rounding too).  Not for the sphere's fit (``fit_model: hertz``).
+(``k_top sigma_z >= GATE sigma_f``, ``k_top`` the instantaneous stiffness, ``sigma_f`` the force's
+noise floor): a simulator's record without detector noise has a floor of rounding (``sigma_z``
+~1e-15 m), an instrument's record at 300 K a force noise far above ``k_top sigma_z``, and the
+correction costs two fits; nor where ``k_top sigma_z`` is below :data:`NEGLIGIBLE` of the peak
+force (a noise-free record, whose force's floor is rounding too).  Not for the sphere's fit
+(``fit_model: hertz``).
 """
 
 from __future__ import annotations
@@ -34,13 +35,31 @@ from dataclasses import replace
 
 import numpy as np
 
-from ...signals.slopes import noise_floor, white_noise_floor
+from ...signals.slopes import NOISE_SAMPLES, noise_floor
 from ..result import error_pct, finite_or_none
 
 GATE = 0.5  # the z_tip noise through the instantaneous stiffness, against the force noise, from which it is corrected
 NEGLIGIBLE = 1e-4  # nor where it is below this fraction of the peak force (a noise-free record's rounding)
-SHIFT_MAX = 0.1  # a correction larger than this (relative) is beyond first order in sigma_z^2: the quantity flagged
+SHIFT_MAX = 0.1  # a correction larger than this (relative) is beyond first order in sigma_z^2: not made, flagged
 SEED = 0x7A1E  # the refits' noise: drawn from the record's length and this, the same record gives the same answer
+
+
+def white_floor(x: np.ndarray, samples: int = NOISE_SAMPLES) -> float:
+    """RMS of the white noise on the samples of ``x`` from its fourth differences
+    (``var(x[i-2] - 4x[i-1] + 6x[i] - 4x[i+1] + x[i+2]) = 70 sigma^2`` for white noise; the median
+    absolute deviation, robust against a tap's kinks), over ``samples`` of them evenly spread.  A
+    smooth signal's fourth difference is ``(omega h)^4`` of it, where its second difference,
+    :func:`~vetica_cli.signals.slopes.white_noise_floor`'s, is ``(omega h)^2``: on a noise-free
+    record at an 8 ns print step the second differences of the tip's 20 us swing read as 2e-14 m of
+    noise, enough to trigger the correction, which then flagged a right dashpot."""
+    x = np.asarray(x, float)
+    n = len(x)
+    if n < 7:
+        return 0.0
+    step = max(1, (n - 4) // samples)
+    i = np.arange(2, n - 2, step)
+    d4 = x[i - 2] - 4.0 * x[i - 1] + 6.0 * x[i] - 4.0 * x[i + 1] + x[i + 2]
+    return float(1.4826 * np.median(np.abs(d4 - np.median(d4))) / math.sqrt(70.0))
 
 
 def taps_depth(z: np.ndarray, height: float) -> tuple[int, float]:
@@ -64,7 +83,7 @@ def correct_z_noise(method, record, opts: dict, consts: dict, res) -> None:
     height = fit.get("surface_height_m")
     if height is None:
         return
-    sigma_z, k_top = white_noise_floor(record.z), instantaneous_stiffness(res)
+    sigma_z, k_top = white_floor(record.z), instantaneous_stiffness(res)
     sigma_f = noise_floor(record.f)
     n_c, d_rms = taps_depth(record.z, float(height))
     ratio = k_top * sigma_z / sigma_f if k_top and sigma_f > 0 else 0.0
@@ -94,20 +113,43 @@ def correct_z_noise(method, record, opts: dict, consts: dict, res) -> None:
             return
         out.__dict__.pop("forward", None)
         probes.append(out.estimates)
-    shifts = {}
-    for q, e in list(res.estimates.items()):
+    # the surface's parameters (and H R) corrected, every other quantity computed from them: a quantity keeps its
+    # parameters' flags (k_r is k_inf, the times scale with cd), as the fit's own values do
+    from .method import fit_model
+
+    surface = fit_model(record, opts.get("arms"))
+    est = res.estimates
+    if any(k not in est or est[k].value is None for k in surface.parameter_keys):
+        info["reason"] = "the fit reports no value for one of the surface's parameters: not corrected"
+        return
+    params = {k: est[k].value for k in surface.parameter_keys}
+    shifts, kept = {}, []
+    for q in (*surface.parameter_keys, "hamaker_radius"):
+        e = est.get(q)
         vals = [p.get(q).value if p.get(q) is not None else None for p in probes]
-        if e.value is None or any(v is None or not math.isfinite(v) for v in vals):
-            continue
+        if e is None or e.value is None or e.identifiable is False or any(v is None or not math.isfinite(v) for v in vals):
+            continue  # a direction the record does not determine: the refits wander along it, not the bias
         shift = 0.5 * (vals[0] + vals[1]) - e.value
-        new = e.value - shift
-        res.estimates[q] = replace(e, value=new, error_pct=error_pct(new, e.theory))
-        shifts[q] = shift / abs(new) if new else None
+        shifts[q] = shift / abs(e.value) if e.value else None
+        if abs(shift) > SHIFT_MAX * abs(e.value):  # beyond first order: the value kept, and flagged
+            kept.append(q)
+        elif q in params:
+            params[q] = e.value - shift
+        else:
+            hr = e.value - shift
+            ratio_h = hr / e.value
+            for h in ("hamaker_radius", "hamaker"):  # H itself scales with H R (a known tip radius)
+                if h in est and est[h].value is not None:
+                    v = est[h].value * ratio_h
+                    est[h] = replace(est[h], value=v, error_pct=error_pct(v, est[h].theory))
+    for q, v in surface.theory(params).items():
+        if q in est and est[q].value is not None:
+            est[q] = replace(est[q], value=v, error_pct=error_pct(v, est[q].theory))
     info["applied"] = True
     info["shift"] = {q: finite_or_none(v) for q, v in shifts.items()}
-    large = [q for q, v in shifts.items() if v is not None and abs(v) > SHIFT_MAX]
-    if large:
+    if kept:
         from ..sanity import flag
 
-        flag(res, large, f"the z_tip noise's correction moved it by more than {SHIFT_MAX:.0%}: beyond first order "
-                         f"(sigma_z {sigma_z * 1e12:.2g} pm on taps {d_rms * 1e12:.3g} pm deep)")  # fmt: skip
+        info["not_corrected"] = kept
+        flag(res, kept, f"z_tip's noise ({sigma_z * 1e12:.2g} pm) would move it by more than {SHIFT_MAX:.0%}, beyond "
+                        "the first-order correction: not corrected")  # fmt: skip
