@@ -63,6 +63,9 @@ def test_the_z_tip_noise_bias_is_taken_off_the_stiff_surfaces_fit(stripped, monk
     monkeypatch.setattr(eiv, "GATE", np.inf)  # the same record without the correction
     raw = _z_scores(_fit(noisy), ref)
     assert raw["k0"] < -3.0 and raw["tau_r"] > 3.0, raw  # the bias the correction is for
+    from vetica_cli.extraction.base import METHODS
+
+    assert any(line.startswith("z_tip's white noise") for line in METHODS["full"].detail_lines(got))  # said
     assert all(abs(v) < 2.5 for v in corrected.values()), corrected
 
 

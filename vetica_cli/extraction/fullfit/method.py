@@ -767,6 +767,11 @@ class FullFit(ExtractionMethod):
             lines.append(f"surface pull (vdw_on_surface): {'on' if pull['value'] else 'off'}, {pull['source']}")
         if height:
             lines.append(f"surface height: {height['value'] * 1e9:.4f} nm in the record's z_tip ({height['source']})")
+        zn = (res.info.get("fit") or {}).get("z_noise") or {}
+        if zn.get("applied"):
+            moved = ", ".join(f"{q} {100 * v:+.2g} %" for q, v in (zn.get("shift") or {}).items() if v is not None)
+            lines.append(f"z_tip's white noise ({zn['sigma_z_m'] * 1e12:.2g} pm) biases the fit by {moved}: taken "
+                         "off its values (errors in variables; two refits with the noise doubled)")  # fmt: skip
         return lines
 
 
