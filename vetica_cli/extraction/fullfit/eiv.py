@@ -76,9 +76,10 @@ def instantaneous_stiffness(res) -> float | None:
     return max(ks) if ks else None
 
 
-def correct_z_noise(method, record, opts: dict, consts: dict, res) -> None:
+def correct_z_noise(method, record, opts: dict, consts: dict, res, surface) -> None:
     """Take the z_tip noise's bias off ``res``'s values where it matters (module docstring);
-    what was measured and done goes to ``res.info['fit']['z_noise']``."""
+    what was measured and done goes to ``res.info['fit']['z_noise']``.  ``surface``: the surface
+    model fitted (:func:`.method.fit_model`), whose parameters are corrected."""
     fit = res.info.get("fit") or {}
     height = fit.get("surface_height_m")
     if height is None:
@@ -115,9 +116,6 @@ def correct_z_noise(method, record, opts: dict, consts: dict, res) -> None:
         probes.append(out.estimates)
     # the surface's parameters (and H R) corrected, every other quantity computed from them: a quantity keeps its
     # parameters' flags (k_r is k_inf, the times scale with cd), as the fit's own values do
-    from .method import fit_model
-
-    surface = fit_model(record, opts.get("arms"))
     est = res.estimates
     if any(k not in est or est[k].value is None for k in surface.parameter_keys):
         info["reason"] = "the fit reports no value for one of the surface's parameters: not corrected"

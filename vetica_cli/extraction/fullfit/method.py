@@ -454,7 +454,7 @@ class FullFit(ExtractionMethod):
             best.timing_s["total"] = time.perf_counter() - record.t_start
         from .eiv import correct_z_noise  # white noise on z_tip: its bias taken off (errors in variables)
 
-        correct_z_noise(self, record, opts, consts, best)
+        correct_z_noise(self, record, opts, consts, best, fit_model(record, opts["arms"]))
         best.timing_s["total"] = time.perf_counter() - record.t_start
         return best
 
