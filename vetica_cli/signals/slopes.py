@@ -88,21 +88,28 @@ def white_equivalent(x: np.ndarray) -> float:
     return d[1] if d is not None else noise_floor(x)
 
 
-def white_noise_floor(x: np.ndarray, samples: int = NOISE_SAMPLES) -> float:
+def white_noise_floor(x: np.ndarray, samples: int = NOISE_SAMPLES, order: int = 2) -> float:
     """RMS of the white noise on a sampled signal, from its second differences
     (``var(x[i+1] - 2x[i] + x[i-1]) = 6 sigma^2`` for white noise; median absolute
     deviation for robustness against the contact kinks).  Longer records use ``samples``
     second differences evenly spread over the record (each one of three consecutive
     samples): the median's relative standard error is then ~1.4 %, and its cost no
-    longer grows with the record."""
+    longer grows with the record.  ``order=4``: from the fourth differences
+    (``var = 70 sigma^2``), which see a smooth signal as ``(omega h)^4`` of it where the second
+    see ``(omega h)^2``: on a noise-free tip record at an 8 ns print step the second differences
+    of its 20 us swing read 2.9e-13 m of noise, the fourth 1.4e-16 m."""
     x = np.asarray(x, float)
     n = len(x)
-    if n < 5:
+    half = order // 2
+    if n < order + 3:
         return 0.0
-    step = max(1, (n - 2) // samples)
-    i = np.arange(1, n - 1, step)
-    d2 = x[i + 1] - 2.0 * x[i] + x[i - 1]
-    return float(1.4826 * np.median(np.abs(d2 - np.median(d2))) / math.sqrt(6.0))
+    step = max(1, (n - order) // samples)
+    i = np.arange(half, n - half, step)
+    if order == 4:
+        d = x[i - 2] - 4.0 * x[i - 1] + 6.0 * x[i] - 4.0 * x[i + 1] + x[i + 2]
+    else:
+        d = x[i + 1] - 2.0 * x[i] + x[i - 1]
+    return float(1.4826 * np.median(np.abs(d - np.median(d))) / math.sqrt(70.0 if order == 4 else 6.0))
 
 
 def quad_fit(y: np.ndarray) -> tuple[np.ndarray, float]:

@@ -12,7 +12,7 @@ noise-free answer, on average over 8 replicas; without the z_tip noise -0.3 and 
 **The correction** (simulation-extrapolation, SIMEX, with antithetic draws): the bias is, to first
 order, proportional to ``sigma_z^2``; the record is fitted again twice with ``+n`` and ``-n`` added
 to ``z_tip`` (``n`` white, of the RMS measured on the record: its fourth-difference floor,
-:func:`white_floor`), which doubles the noise's variance; the
+:func:`~vetica_cli.signals.slopes.white_noise_floor` with ``order=4``), which doubles the noise's variance; the
 mean of the two refits less the fit is the bias at ``sigma_z^2``, and is taken off each of the
 surface's parameters (and ``H R``) the fit determines, every other quantity computed from them (a
 parameter it reports unidentified is left as it is: the refits wander along its flat direction;
@@ -35,31 +35,13 @@ from dataclasses import replace
 
 import numpy as np
 
-from ...signals.slopes import NOISE_SAMPLES, noise_floor
+from ...signals.slopes import noise_floor, white_noise_floor
 from ..result import error_pct, finite_or_none
 
 GATE = 0.5  # the z_tip noise through the instantaneous stiffness, against the force noise, from which it is corrected
 NEGLIGIBLE = 1e-4  # nor where it is below this fraction of the peak force (a noise-free record's rounding)
 SHIFT_MAX = 0.1  # a correction larger than this (relative) is beyond first order in sigma_z^2: not made, flagged
 SEED = 0x7A1E  # the refits' noise: drawn from the record's length and this, the same record gives the same answer
-
-
-def white_floor(x: np.ndarray, samples: int = NOISE_SAMPLES) -> float:
-    """RMS of the white noise on the samples of ``x`` from its fourth differences
-    (``var(x[i-2] - 4x[i-1] + 6x[i] - 4x[i+1] + x[i+2]) = 70 sigma^2`` for white noise; the median
-    absolute deviation, robust against a tap's kinks), over ``samples`` of them evenly spread.  A
-    smooth signal's fourth difference is ``(omega h)^4`` of it, where its second difference,
-    :func:`~vetica_cli.signals.slopes.white_noise_floor`'s, is ``(omega h)^2``: on a noise-free
-    record at an 8 ns print step the second differences of the tip's 20 us swing read as 2e-14 m of
-    noise, enough to trigger the correction, which then flagged a right dashpot."""
-    x = np.asarray(x, float)
-    n = len(x)
-    if n < 7:
-        return 0.0
-    step = max(1, (n - 4) // samples)
-    i = np.arange(2, n - 2, step)
-    d4 = x[i - 2] - 4.0 * x[i - 1] + 6.0 * x[i] - 4.0 * x[i + 1] + x[i + 2]
-    return float(1.4826 * np.median(np.abs(d4 - np.median(d4))) / math.sqrt(70.0))
 
 
 def taps_depth(z: np.ndarray, height: float) -> tuple[int, float]:
@@ -84,7 +66,7 @@ def correct_z_noise(method, record, opts: dict, consts: dict, res, surface) -> N
     height = fit.get("surface_height_m")
     if height is None:
         return
-    sigma_z, k_top = white_floor(record.z), instantaneous_stiffness(res)
+    sigma_z, k_top = white_noise_floor(record.z, order=4), instantaneous_stiffness(res)
     sigma_f = noise_floor(record.f)
     n_c, d_rms = taps_depth(record.z, float(height))
     ratio = k_top * sigma_z / sigma_f if k_top and sigma_f > 0 else 0.0
