@@ -20,7 +20,8 @@ Checks, each against something the record itself shows:
   thesis's stages are biased on this record (e.g. k_inf +13 % with the surface pull)
   and the differing quantities of ``vetica`` are flagged.
 * **uncertainty** -- a relative 1-sigma above 100 % (the record does not determine the
-  quantity).
+  quantity); above 50 % for a method whose error bars are calibrated (its ``rel_limit``: the
+  whole-cycle fit), where ±2 sigma then reaches zero.
 * **what a flagged stage feeds** -- VETICA's stage 2 and the elements are computed from
   stage 1a's ``tau_c`` and stage 1b's ``Kg``: a flag on either (other than the disagreement
   between the two VETICA variants) flags ``Kr, k0, k_inf, cd, tau_r`` too, whatever their
@@ -177,10 +178,11 @@ def check(res: ExtractionResult, record, options: dict | None = None, method=Non
             what = (f"biases it by {100 * band['bias'][q]:+.2g} %, corrected to within ~{100 * b:.2g} %" if corrected
                     else f"biases it by ~{100 * b:.2g} %")  # fmt: skip
             flag(res, [q], f"the force's band ({fc:.3g} MHz, set by its noise) {what}: the contact is not resolved")
+    rel_limit = getattr(method, "rel_limit", None) or REL_LIMIT  # a method whose error bars are calibrated: lower
     for q, e in res.estimates.items():
-        if e.value is not None and e.sigma is not None and not (e.sigma <= REL_LIMIT):
+        if e.value is not None and e.sigma is not None and not (e.sigma <= rel_limit):
             if e.identifiable is not False:
-                flag(res, [q], f"relative 1-sigma {e.sigma:.3g} > {REL_LIMIT:g}: not determined by the record")
+                flag(res, [q], f"relative 1-sigma {e.sigma:.3g} > {rel_limit:g}: not determined by the record")
     res.info = {**res.info, "sanity": info}  # the checks' numbers (the dependents' judgement reads them)
     if method is not None:
         method.flag_dependents(res)
