@@ -65,12 +65,13 @@ STEPS: dict[str, tuple[list[list[str]], list[str]]] = {
 
 
 def quantize(folder: Path) -> None:
-    """Re-save the PNGs under ``folder`` with a 256-colour palette (no dithering)."""
+    """Re-save the PNGs of ``folder``'s figure folders (``*/figures/``, as ``regenerate_results.py``
+    keeps them) with a 256-colour palette (no dithering); one already re-saved is left as it is."""
     try:
         from PIL import Image
     except ImportError:  # the figures stay full colour
         return
-    for name in glob.glob(str(folder / "**" / "*.png"), recursive=True):
+    for name in glob.glob(str(folder / "*" / "figures" / "*.png")):
         img = Image.open(name)
         if img.mode != "P":  # one already re-saved is left as it is (its file unchanged)
             img.convert("RGB").quantize(colors=256, dither=Image.Dither.NONE).save(name, optimize=True)
