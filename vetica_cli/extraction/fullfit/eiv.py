@@ -118,10 +118,10 @@ def correct_z_noise(method, record, opts: dict, consts: dict, res, surface) -> N
         else:
             hr = e.value - shift
             ratio_h = hr / e.value
-            for h in ("hamaker_radius", "hamaker"):  # H itself scales with H R (a known tip radius)
-                if h in est and est[h].value is not None:
-                    v = est[h].value * ratio_h
-                    est[h] = replace(est[h], value=v, error_pct=error_pct(v, est[h].theory))
+            for name in ("hamaker_radius", "hamaker"):  # H itself scales with H R (a known tip radius)
+                if name in est and est[name].value is not None:
+                    v = est[name].value * ratio_h
+                    est[name] = replace(est[name], value=v, error_pct=error_pct(v, est[name].theory))
     for q, v in surface.theory(params).items():
         if q in est and est[q].value is not None:
             est[q] = replace(est[q], value=v, error_pct=error_pct(v, est[q].theory))
