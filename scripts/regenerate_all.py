@@ -21,6 +21,7 @@ from __future__ import annotations
 
 import argparse
 import glob
+import os
 import subprocess
 import sys
 import time
@@ -91,15 +92,17 @@ def main(argv=None) -> int:
                 print("    " + " ".join(["python" if c[0] == sys.executable else c[0], *c[1:]]))
             print("  quoted in: " + "; ".join(docs))
         return 0
-    env = {**__import__("os").environ, "PYTHONPATH": str(ROOT)}
+    env = {**os.environ, "PYTHONPATH": str(ROOT)}
     times = {}
     for n in names:
         t0 = time.perf_counter()
         for c in STEPS[n][0]:
             print(f"[{n}] {' '.join(c[1:])}", flush=True)
-            cmd, out = (c[: c.index(">")], c[c.index(">") + 1]) if ">" in c else (c, None)
-            with open(ROOT / out, "w") if out else open(__import__("os").devnull, "w") as sink:
-                done = subprocess.run(cmd, cwd=ROOT, env=env, stdout=sink if out else None)
+            if ">" in c:  # its standard output is the file after ">"
+                with open(ROOT / c[c.index(">") + 1], "w") as sink:
+                    done = subprocess.run(c[: c.index(">")], cwd=ROOT, env=env, stdout=sink)
+            else:
+                done = subprocess.run(c, cwd=ROOT, env=env)
             if done.returncode != 0:
                 print(f"[{n}] failed: the step's tables may be half regenerated; rerun it", file=sys.stderr)
                 return 1

@@ -98,6 +98,8 @@ def white_noise_floor(x: np.ndarray, samples: int = NOISE_SAMPLES, order: int = 
     (``var = 70 sigma^2``), which see a smooth signal as ``(omega h)^4`` of it where the second
     see ``(omega h)^2``: on a noise-free tip record at an 8 ns print step the second differences
     of its 20 us swing read 2.9e-13 m of noise, the fourth 1.4e-16 m."""
+    if order not in (2, 4):
+        raise ValueError(f"order {order!r}: 2 or 4")
     x = np.asarray(x, float)
     n = len(x)
     half = order // 2

@@ -44,14 +44,6 @@ SHIFT_MAX = 0.1  # a correction larger than this (relative) is beyond first orde
 SEED = 0x7A1E  # the refits' noise: drawn from the record's length and this, the same record gives the same answer
 
 
-def taps_depth(z: np.ndarray, height: float) -> tuple[int, float]:
-    """``(N_c, delta_rms)``: the samples of the tip positions ``z`` below a surface at ``height``
-    and their RMS depth [m]."""
-    depth = height - np.asarray(z, float)
-    depth = depth[depth > 0.0]
-    return len(depth), float(np.sqrt(np.mean(depth * depth))) if len(depth) else 0.0
-
-
 def instantaneous_stiffness(res) -> float | None:
     """The surface's stiffness to a sudden push [N/m]: the largest stiffness among the values."""
     ks = [e.value for e in res.estimates.values() if e.unit == "N/m" and e.value is not None and math.isfinite(e.value)]
@@ -63,16 +55,11 @@ def correct_z_noise(method, record, opts: dict, consts: dict, res, surface) -> N
     what was measured and done goes to ``res.info['fit']['z_noise']``.  ``surface``: the surface
     model fitted (:func:`.method.fit_model`), whose parameters are corrected."""
     fit = res.info.get("fit") or {}
-    height = fit.get("surface_height_m")
-    if height is None:
-        return
     sigma_z, k_top = white_noise_floor(record.z, order=4), instantaneous_stiffness(res)
     sigma_f = noise_floor(record.f)
-    n_c, d_rms = taps_depth(record.z, float(height))
     ratio = k_top * sigma_z / sigma_f if k_top and sigma_f > 0 else 0.0
     info = {"sigma_z_m": finite_or_none(sigma_z), "sigma_f_N": finite_or_none(sigma_f), "k_top_N_m": k_top,
-            "ratio": finite_or_none(ratio), "gate": GATE, "contact_samples": n_c, "depth_rms_m": finite_or_none(d_rms),
-            "applied": False}  # fmt: skip
+            "ratio": finite_or_none(ratio), "gate": GATE, "applied": False}  # fmt: skip
     fit["z_noise"] = info
     peak = float(np.max(np.abs(record.f))) if len(record.f) else 0.0
     info["relative_to_peak"] = finite_or_none(k_top * sigma_z / peak) if k_top and peak > 0 else None

@@ -21,6 +21,7 @@ from ..record import Record
 from ..referee import memo_key
 from ..result import ExtractionResult, estimates, finite_or_none
 from ..uncertainty import t_factor
+from .eiv import correct_z_noise
 from .fit import CD_SCAN, HAMAKER_BOUNDS, OFFSET_UNIT, FitVector, fit_surface, solve
 from .model import SurfaceFit
 from .start import starting_point
@@ -457,10 +458,7 @@ class FullFit(ExtractionMethod):
                 "source": "fitted: both tried, the smaller residual kept (RMS % of the peak: "
                 + ", ".join(f"{k} {v:.3g}" for k, v in rms.items()) + ")",
             }  # fmt: skip
-            best.timing_s["total"] = time.perf_counter() - record.t_start
-        from .eiv import correct_z_noise  # white noise on z_tip: its bias taken off (errors in variables)
-
-        correct_z_noise(self, record, opts, consts, best, fit_model(record, opts["arms"]))
+        correct_z_noise(self, record, opts, consts, best, fit_model(record, opts["arms"]))  # z_tip's white noise
         best.timing_s["total"] = time.perf_counter() - record.t_start
         return best
 
