@@ -109,7 +109,11 @@ def correct_z_noise(method, record, opts: dict, consts: dict, res, surface) -> N
                 if name in est and est[name].value is not None:
                     v = est[name].value * ratio_h
                     est[name] = replace(est[name], value=v, error_pct=error_pct(v, est[name].theory))
-    for q, v in surface.theory(params).items():
+    keys = surface.parameter_keys  # k_inf, then (k_i, cd_i) per arm: the fit's own order (method._result)
+    n_arms = (len(keys) - 1) // 2
+    arms = surface.from_arms(params[keys[0]], [params[keys[1 + 2 * i]] for i in range(n_arms)],
+                             [params[keys[2 + 2 * i]] for i in range(n_arms)])  # fmt: skip
+    for q, v in surface.theory(arms).items():
         if q in est and est[q].value is not None:
             est[q] = replace(est[q], value=v, error_pct=error_pct(v, est[q].theory))
     info["applied"] = True
