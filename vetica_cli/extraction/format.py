@@ -137,6 +137,9 @@ def _reconstruction_lines(info: dict) -> list[str]:
             "is in the standard errors" if band.get("source") == "model" else
             f"the low-pass's bias, estimated on the record (largest: {text}), is in the standard errors"
         )
+    if band.get("unmeasured"):
+        lines.append(f"the low-pass's bias not read for {', '.join(band['unmeasured'])} (no value on the force low-passed "
+                     "once more, no model of it): flagged")  # fmt: skip
     return lines
 
 

@@ -178,6 +178,9 @@ def check(res: ExtractionResult, record, options: dict | None = None, method=Non
             what = (f"biases it by {100 * band['bias'][q]:+.2g} %, corrected to within ~{100 * b:.2g} %" if corrected
                     else f"biases it by ~{100 * b:.2g} %")  # fmt: skip
             flag(res, [q], f"the force's band ({fc:.3g} MHz, set by its noise) {what}: the contact is not resolved")
+    for q in (q for q in band.get("unmeasured", ()) if q not in judged):  # no band term read: its bias unknown
+        flag(res, [q], f"the force's band ({band['cutoff_hz'] / 1e6:.3g} MHz, set by its noise) biases it by an "
+                       "unmeasured amount: the method gives no value on the force low-passed once more")  # fmt: skip
     rel_limit = getattr(method, "rel_limit", None) or REL_LIMIT  # a method whose error bars are calibrated: lower
     for q, e in res.estimates.items():
         if e.value is not None and e.sigma is not None and not (e.sigma <= rel_limit):

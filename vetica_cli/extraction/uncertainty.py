@@ -494,6 +494,12 @@ def calibrate(res: ExtractionResult, record, method=None, options=None) -> Extra
     res.info = {**res.info, "uncertainty": info}
     if method is not None:  # a band-limited force: the bias of its low-pass (corrected where a model measures it)
         band = band_term(res, record, method, options or {})
+        # a quantity with an error bar the band term could not read (the method gives no value for it on the record
+        # low-passed once more, and no model measured it): its low-pass bias is unknown, which the flags say
+        unmeasured = sorted(k for k, e in res.estimates.items() if e.value is not None and e.sigma is not None
+                            and k not in band.get("sigma", {})) if band_limited(record) else []  # fmt: skip
+        if unmeasured:
+            band = {"source": "none", "bias": {}, "sigma": {}, **band, "unmeasured": unmeasured}
         if band:
             info["band"] = {"cutoff_hz": record.info.get("cutoff_hz"), **band}
             corrected = band["source"] == "model"
