@@ -300,7 +300,7 @@ def test_removed_by_quantity_weights_each_stage_s_measured_share_by_the_sigma_s_
     assert removed_by_quantity(SimpleNamespace(estimates={}, info={}), narrower, 0.29) == 0.29
 
 
-def test_a_quantity_whose_band_bias_nothing_reads_is_flagged():
+def test_a_quantity_whose_band_bias_nothing_reads_is_flagged(monkeypatch):
     """Where the record's low-pass bias cannot be read -- the whole-cycle fit that would model it
     failed on this record (another valley, flagged), and the method gives no value on the force
     low-passed once more -- the quantity's error bar holds its noise only, and the flags say so.
@@ -308,8 +308,12 @@ def test_a_quantity_whose_band_bias_nothing_reads_is_flagged():
     at 0.5 ns, the force reconstructed and low-passed at 31 MHz by its noise; `scripts/trust.py`'s
     development draw 30, material 3, replica 10).  Unflagged, vetica-prestress's Kg was +10.5 % off
     the truth at a 0.9 % sigma (its replicas with the band term read: +9.5 % bias, divided out) and
-    VETICA's k0 +7 % at 1 %."""
+    VETICA's k0 +7 % at 1 %.  The fit now finds that surface from its generic start
+    (``fullfit.method.GENERIC_RETRY``), which is switched off here to make it fail as it did."""
+    from vetica_cli.extraction.fullfit import method as full_method
     from vetica_cli.simulation.simulate import replicas
+
+    monkeypatch.setattr(full_method, "GENERIC_RETRY", False)
     from vetica_cli.surfaces.sls import SLS
 
     material = {"k_inf": 9.1976, "k0": 237.8199, "cd": 3.815e-05}
