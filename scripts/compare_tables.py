@@ -8,6 +8,13 @@ point, method and force source), separately for rows in the acceptance regime (s
     python scripts/compare_tables.py --rev 4ba8667 results/thesis/dashpot.parquet
 
 Prints a Markdown table (one row per study) to paste into the notes or results/README.md.
+
+    python scripts/compare_tables.py --identical         # which changed tables are the committed ones
+
+``--identical``: every changed Parquet table under results/ (not only the sweep studies) whose every
+column but the timings (:data:`TIMING`) equals the committed one, cell for cell, and the figures
+drawn from it (``figures/<table>_*.png`` beside it), with the ``git checkout`` that keeps the
+committed files: a regeneration that moved nothing leaves no diff but its wall times.
 """
 
 from __future__ import annotations
@@ -25,6 +32,7 @@ ROOT = Path(__file__).resolve().parent.parent
 QUANTITIES = ("tau_c", "k_g", "k_r", "k0", "k_inf", "cd")
 KEY = ("point", "method", "force_source")
 ACCEPT = 30.0
+TIMING = ("wall_s", "extract_s_median")  # columns that hold how long a row took, not what it found
 
 
 def old_table(path: Path, rev: str) -> pd.DataFrame | None:
@@ -69,11 +77,69 @@ def compare(old: pd.DataFrame, new: pd.DataFrame) -> dict:
     return out
 
 
+def same_but_timings(old: pd.DataFrame, new: pd.DataFrame) -> bool:
+    """Whether two tables hold the same rows and columns and equal cells in every column but
+    :data:`TIMING` (NaN equal to NaN)."""
+    a, b = (t.drop(columns=[c for c in TIMING if c in t.columns]) for t in (old, new))
+    if list(a.columns) != list(b.columns) or len(a) != len(b):
+        return False
+    for c in a.columns:
+        x, y = a[c].reset_index(drop=True), b[c].reset_index(drop=True)
+        if x.dtype.kind in "fc" or y.dtype.kind in "fc":
+            xa, ya = x.to_numpy(float), y.to_numpy(float)
+            if not np.array_equal(xa, ya, equal_nan=True):
+                return False
+        elif not x.astype(str).equals(y.astype(str)):
+            return False
+    return True
+
+
+def figures_of(table: Path, figures: list[Path]) -> list[Path]:
+    """The figures ``figures/<stem>_*.png`` beside ``table`` that no other table of its folder
+    with a longer stem claims (``dashpot_*`` is not ``dashpot_vdw_off_*``)."""
+    stems = sorted({p.stem for p in table.parent.glob("*.parquet")}, key=len, reverse=True)
+    out = []
+    for f in figures:
+        if f.parent != table.parent / "figures":
+            continue
+        owner = next((s for s in stems if f.name.startswith(s + "_")), None)
+        if owner == table.stem:
+            out.append(f)
+    return out
+
+
+def identical(rev: str) -> tuple[list[Path], list[Path]]:
+    """``(tables, figures)``: the changed results tables equal to ``rev``'s but for their timings,
+    and the changed figures drawn from them."""
+    diff = subprocess.run(["git", "diff", "--name-only", rev, "--", "results"], cwd=ROOT, check=True,
+                          capture_output=True, text=True).stdout.split()  # fmt: skip
+    pngs = [ROOT / p for p in diff if p.endswith(".png")]
+    tables, figures = [], []
+    for p in (ROOT / q for q in diff if q.endswith(".parquet")):
+        old = old_table(p, rev) if p.is_file() else None
+        if old is not None and same_but_timings(old, pd.read_parquet(p)):
+            tables.append(p)
+            figures += figures_of(p, pngs)
+    return tables, figures
+
+
 def main(argv=None) -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("tables", nargs="*", type=Path)
     ap.add_argument("--rev", default="HEAD")
+    ap.add_argument("--identical", action="store_true",
+                    help="list the changed tables equal to --rev's but for their timings, and their figures")
     args = ap.parse_args(argv)
+    if args.identical:
+        tables, figures = identical(args.rev)
+        for p in tables:
+            print(f"identical but for its timings: {p.relative_to(ROOT)}")
+        if tables:
+            paths = " ".join(str(p.relative_to(ROOT)) for p in tables + figures)
+            print(f"keep the committed files: git checkout {args.rev} -- {paths}")
+        else:
+            print("no changed table is identical to the committed one")
+        return
     tables = args.tables or changed_tables(args.rev)
     print("| table | rows matched | accepted rows: largest relative difference | other rows: largest | "
           "status or flags changed |")  # fmt: skip

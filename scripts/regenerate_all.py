@@ -11,7 +11,8 @@ Each step runs its commands in order from the repository's root, each in its own
 stops the run at the first failure (a table half regenerated is worse than a stale one: rerun the
 step).  It then prints the wall time of every step and the documents that quote its numbers,
 which are written by hand and must be brought in line (``scripts/compare_tables.py`` says which
-sweep tables moved; ``scripts/table_trust.py`` re-counts the silently wrong results).  PNGs are
+sweep tables moved, ``--identical`` which tables moved nothing but their wall times, to keep the
+committed files; ``scripts/table_trust.py`` re-counts the silently wrong results).  PNGs are
 re-saved with a 256-colour palette, as ``regenerate_results.py`` does.  The held-out coverage
 check (``scripts/trust.py``) is not a step: it runs once per version on a fresh draw seed (its
 docstring), by hand.
@@ -110,6 +111,8 @@ def main(argv=None) -> int:
         times[n] = time.perf_counter() - t0
     for n, s in times.items():
         print(f"{n}: {s:.0f} s; now bring in line: {'; '.join(STEPS[n][1])}")
+    print("the tables that moved nothing but their wall times, and their figures: "
+          "python scripts/compare_tables.py --identical")
     return 0
 
 
