@@ -2,20 +2,15 @@
 times is told apart from one that moved, and the figures drawn from it are found beside it (a
 study whose name starts another's, ``dashpot`` and ``dashpot_vdw_off``, keeps its own)."""
 
-import importlib.util
 import math
-from pathlib import Path
 
 import pandas as pd
 
-ROOT = Path(__file__).resolve().parent.parent
+from script_module import script
 
 
 def _script():
-    spec = importlib.util.spec_from_file_location("compare_tables", ROOT / "scripts" / "compare_tables.py")
-    mod = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(mod)
-    return mod
+    return script("compare_tables")
 
 
 def _table():

@@ -7,13 +7,14 @@ compared with what ``scripts/doc_tables.py`` renders from the registries now."""
 
 from __future__ import annotations
 
-import importlib.util
 import os
 import re
 import subprocess
 
 import pytest
 from pathlib import Path
+
+from script_module import script
 
 ROOT = Path(__file__).resolve().parent.parent
 
@@ -52,18 +53,13 @@ def test_readme_keeps_the_two_setup_commands_ci_runs():
 
 def test_generated_registry_tables_are_current():
     """docs/registries.md is what scripts/doc_tables.py renders from the registries now."""
-    spec = importlib.util.spec_from_file_location("doc_tables", ROOT / "scripts" / "doc_tables.py")
-    mod = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(mod)
+    mod = script("doc_tables")
     page = (ROOT / "docs" / "registries.md").read_text()
     assert page == mod.render(), "docs/registries.md is stale: run python scripts/doc_tables.py"
 
 
 def _script(name: str):
-    spec = importlib.util.spec_from_file_location(name, ROOT / "scripts" / f"{name}.py")
-    mod = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(mod)
-    return mod
+    return script(name)
 
 
 @pytest.mark.parametrize("path, name", [("docs/commands/README.md", "commands"), ("README.md", "commands"),

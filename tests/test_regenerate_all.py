@@ -1,17 +1,15 @@
 """``scripts/regenerate_all.py``: every step names files that exist, and every result table it is
 meant to regenerate is written by one of its steps (a table no step writes goes stale unseen)."""
 
-import importlib.util
 from pathlib import Path
+
+from script_module import script
 
 ROOT = Path(__file__).resolve().parent.parent
 
 
 def _script():
-    spec = importlib.util.spec_from_file_location("regenerate_all", ROOT / "scripts" / "regenerate_all.py")
-    mod = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(mod)
-    return mod
+    return script("regenerate_all")
 
 
 def test_every_config_and_script_a_step_names_exists():
