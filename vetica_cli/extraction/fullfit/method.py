@@ -136,8 +136,8 @@ def _stages(make, n, taps, theta0, opts, bounds, n_arms, pin=False, noise=0.0, a
     periods are fitted with the surface height pinned to Z1 (a record with Z1 but no
     approach tap; the window then frees it): the height and the split of Kg between k_inf
     and a slow dashpot form a long valley that a fit with a free height may not leave
-    (FREE_HEIGHT_NFEV).  Returns the whole-window model, the fits of every stage and the
-    free-state gain."""
+    (FREE_HEIGHT_NFEV).  ``alt_start``: a callable giving the generic start (GENERIC_RETRY).
+    Returns the whole-window model, the fits of every stage and the free-state gain."""
     fit_hamaker, scan = opts["fit_hamaker"], opts["scan"]
     model = make(n, n_arms)
     cycles = round(n / taps.spacing) if taps.spacing > 0 else 0
@@ -152,21 +152,20 @@ def _stages(make, n, taps, theta0, opts, bounds, n_arms, pin=False, noise=0.0, a
         xtol = 1e-10 if sub.fit_offset and sub.approach is None else 1e-6
         stages.append(fit_surface(sub, theta0, bounds, fit_hamaker=fit_hamaker, scan=scan, xtol=xtol, max_nfev=nfev))
         stages[-1]["model"] = sub
-        retry = None
-        if scan and stages[-1]["plateau_start"]:
-            # the scan's best start is the frozen plateau, which a fit may not leave: also from the best cd below it
-            retry = {"off_plateau": True}
-        elif scan and len(stages[-1]["scan"]) < len(CD_SCAN) + 1 and _poor(stages[-1], noise):
-            # a start good enough to scan only near it, and a poor fit from it: the whole grid
-            retry = {"whole_scan": True}
-        if retry:  # the better of the two first-stage fits is kept
+
+        def keep_better(theta, marks=None, **kw):  # the first stage fitted again, the better of the two kept
             again = make(n_sub, n_arms, pin)
-            fit = fit_surface(again, theta0, bounds, fit_hamaker=fit_hamaker, scan=True, xtol=xtol, max_nfev=nfev,
-                              **retry)  # fmt: skip
-            fit["model"] = again
-            fit["rescanned"] = True
+            fit = fit_surface(again, theta, bounds, fit_hamaker=fit_hamaker, xtol=xtol, max_nfev=nfev, **kw)
+            fit.update(model=again, rescanned=True, **(marks or {}))
             if fit["cost"] < stages[-1]["cost"]:
                 stages[-1] = fit
+
+        if scan and stages[-1]["plateau_start"]:
+            # the scan's best start is the frozen plateau, which a fit may not leave: also from the best cd below it
+            keep_better(theta0, scan=True, off_plateau=True)
+        elif scan and len(stages[-1]["scan"]) < len(CD_SCAN) + 1 and _poor(stages[-1], noise):
+            # a start good enough to scan only near it, and a poor fit from it: the whole grid
+            keep_better(theta0, scan=True, whole_scan=True)
         if scan and _poor(stages[-1], noise):
             # still poor: a local minimum of another split of Kg and surface height; fit from the scan's other
             # points in the order of their cost until one is not poor, the best kept (POOR_STARTS)
@@ -177,19 +176,10 @@ def _stages(make, n, taps, theta0, opts, bounds, n_arms, pin=False, noise=0.0, a
                 if any(np.array_equal(x, t) for t in tried):
                     continue
                 tried.append(x)
-                again = make(n_sub, n_arms, pin)
-                fit = fit_surface(again, theta0, bounds, fit_hamaker=fit_hamaker, xtol=xtol, max_nfev=nfev, start=x)
-                fit["model"], fit["rescanned"], fit["scan"] = again, True, stages[-1]["scan"]
-                if fit["cost"] < stages[-1]["cost"]:
-                    stages[-1] = fit
+                keep_better(theta0, {"scan": stages[-1]["scan"]}, start=x)
         if scan and GENERIC_RETRY and alt_start is not None and _poor(stages[-1], noise):
             # still poor: every start so far split Kg as the first one did; the generic split, its whole cd grid
-            again = make(n_sub, n_arms, pin)
-            fit = fit_surface(again, alt_start, bounds, fit_hamaker=fit_hamaker, scan=True, xtol=xtol, max_nfev=nfev,
-                              whole_scan=True)  # fmt: skip
-            fit["model"], fit["rescanned"], fit["generic_start"] = again, True, True
-            if fit["cost"] < stages[-1]["cost"]:
-                stages[-1] = fit
+            keep_better(alt_start(), {"generic_start": True}, scan=True, whole_scan=True)
     if stages:
         theta0 = stages[-1]["theta"]
         model.warm_start_from(stages[-1]["model"])
@@ -538,8 +528,11 @@ class FullFit(ExtractionMethod):
         noise = noise_floor(f) / (float(np.max(f)) or 1.0)  # relative to the peak, as the residuals are
         alt = None
         if n_arms == 1 and not source.startswith(("generic", "given")):
-            g = generic_start(z, f, taps)
-            alt = [g["k_inf"], g["k0"], g["cd"], hr6]
+
+            def alt():  # the generic split (GENERIC_RETRY), read only where a first stage stays poor
+                g = generic_start(z, f, taps)
+                return [g["k_inf"], g["k0"], g["cd"], hr6]
+
         model, stages, info["free_state_gain"] = _stages(make, len(z), taps, theta0, opts_run, bounds, n_arms, pin,
                                                          noise, alt)  # fmt: skip
         t_fit = time.perf_counter()
