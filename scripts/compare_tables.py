@@ -44,10 +44,15 @@ def old_table(path: Path, rev: str) -> pd.DataFrame | None:
     return pd.read_parquet(io.BytesIO(blob))
 
 
-def changed_tables(rev: str) -> list[Path]:
+def changed_files(rev: str) -> list[Path]:
+    """The files under results/ that differ from ``rev`` in the working tree."""
     out = subprocess.run(["git", "diff", "--name-only", rev, "--", "results"], cwd=ROOT, check=True,
                          capture_output=True, text=True).stdout.split()  # fmt: skip
-    return [ROOT / p for p in out if p.endswith(".parquet") and (ROOT / p).is_file()]
+    return [ROOT / p for p in out]
+
+
+def changed_tables(rev: str) -> list[Path]:
+    return [p for p in changed_files(rev) if p.suffix == ".parquet" and p.is_file()]
 
 
 def compare(old: pd.DataFrame, new: pd.DataFrame) -> dict:
@@ -111,12 +116,10 @@ def figures_of(table: Path, figures: list[Path]) -> list[Path]:
 def identical(rev: str) -> tuple[list[Path], list[Path]]:
     """``(tables, figures)``: the changed results tables equal to ``rev``'s but for their timings,
     and the changed figures drawn from them."""
-    diff = subprocess.run(["git", "diff", "--name-only", rev, "--", "results"], cwd=ROOT, check=True,
-                          capture_output=True, text=True).stdout.split()  # fmt: skip
-    pngs = [ROOT / p for p in diff if p.endswith(".png")]
+    pngs = [p for p in changed_files(rev) if p.suffix == ".png"]
     tables, figures = [], []
-    for p in (ROOT / q for q in diff if q.endswith(".parquet")):
-        old = old_table(p, rev) if p.is_file() else None
+    for p in changed_tables(rev):
+        old = old_table(p, rev)
         if old is not None and same_but_timings(old, pd.read_parquet(p)):
             tables.append(p)
             figures += figures_of(p, pngs)
