@@ -47,8 +47,8 @@ DIRECTIONS = ("xd0", "s0", "ln_k_inf", "ln_k0", "ln_cd", "ln_hr6")
 NDIR = len(DIRECTIONS)
 
 # rows of the coefficient table of coefficient_tangents()
-C_EC, C_ER, C_ALPHA, C_BETA, C_GAMMA, C_KC, C_K0ER, C_FA0, C_SEP, C_FASEP, C_FAC, C_INVKG, C_K0 = range(13)
-NCOEF = 13
+C_EC, C_ER, C_ALPHA, C_BETA, C_GAMMA, C_KC, C_K0ER, C_FA0, C_SEP, C_FASEP, C_FAC, C_INVKG, C_K0, C_LIN, C_K0LIN = range(15)
+NCOEF = 15
 
 
 @njit(cache=True)
@@ -81,6 +81,13 @@ def coefficient_tangents(k_inf, k0, cd, hr6, a0, vdw_on_surface, dt):
     c[C_FAC] = fa_c
     c[C_INVKG] = inv_kg
     c[C_K0] = k0
+    # the linear-target step (core/coefficients.py): the surface moves linearly across the step, from the last
+    # sample's position; lin = phi - er, phi = (tau_r/h)(1 - er); kc becomes k_inf + k0 (er + lin)
+    v0 = dt * k0 / cd
+    lin = v0 / 2.0 - v0 * v0 / 3.0 + v0 ** 3 / 8.0 if v0 < 1e-4 else -math.expm1(-v0) / v0 - er
+    c[C_LIN] = lin
+    c[C_K0LIN] = k0 * lin
+    c[C_KC] = kc + k0 * lin
     dc = np.zeros((NCOEF, NDIR))
     kg = k0 + k_inf
     tau_c = cd * kg / (k0 * k_inf)
@@ -108,8 +115,11 @@ def coefficient_tangents(k_inf, k0, cd, hr6, a0, vdw_on_surface, dt):
             dg = -dec / k_inf - g * dk_inf / k_inf
             dc[C_GAMMA, j] = dg
             dc[C_BETA, j] = dinv * (1.0 + k0 * g) + inv_kg * (dk0 * g + k0 * dg)
-        dc[C_KC, j] = dkg - dk0 * one_m_er + k0 * der
+        dlin = (lin - er * v) * dln_tr  # d(phi - er): d phi = lin d ln tau_r, d er = er v d ln tau_r
+        dc[C_KC, j] = dkg - dk0 * one_m_er + k0 * der + dk0 * lin + k0 * dlin
         dc[C_K0ER, j] = dk0 * er + k0 * der
+        dc[C_LIN, j] = dlin
+        dc[C_K0LIN, j] = dk0 * lin + k0 * dlin
         dfa0 = fa0 * dlnhr6
         dc[C_FA0, j] = dfa0
         if vdw_on_surface:
@@ -137,16 +147,20 @@ def _noncontact(d, xd, fa, hr6, ihr6, c, dc, dir0, ndir, dxd, dx, dfa, ds0, dlnh
 
 
 @njit(cache=True, inline="always", fastmath={"contract"}, error_model="numpy")
-def _contact(xc, xd, c, dc, dir0, ndir, dxd, dx, dfa, ds0):
-    """One contact update (:func:`.sls.contact_update`) with the surface at ``xc``
-    and its tangent; ``dfa`` receives ``d(F_sls + fa_c)``.  On separation
-    (``F_sls > sep_thr``) the surface is released (:func:`.sls.released_position`)
+def _contact(xc, xp, xd, c, dc, dir0, ndir, dxd, dx, dfa, ds0):
+    """One contact update with the surface at ``xc``, moving linearly from ``xp`` (the last
+    sample's position) across the step (the simulator's linear-target step), and its tangent;
+    ``dfa`` receives ``d(F_sls + fa_c)`` (``dx`` enters as the derivative of ``xp``).  On
+    separation (``F_sls > sep_thr``) the surface is released (:func:`.sls.released_position`)
     and ``dfa`` becomes ``d Fa(a0)``.  Returns ``(fts, f_sls, x, xd, separated)``."""
-    kc, k0er, er = c[C_KC], c[C_K0ER], c[C_ER]
-    f_sls, xd_new = contact_update(xc, xd, kc, k0er, er)
+    kc, k0er, er, lin, k0lin = c[C_KC], c[C_K0ER], c[C_ER], c[C_LIN], c[C_K0LIN]
+    f_sls = kc * xc - k0er * xd - k0lin * xp
+    xd_new = er * xd + (1.0 - er - lin) * xc + lin * xp
     for j in range(dir0, ndir):
-        dfa[j] = dc[C_KC, j] * xc - kc * ds0[j] - dc[C_K0ER, j] * xd - k0er * dxd[j] + dc[C_FAC, j]
-        dxd[j] = -dc[C_ER, j] * xc - (1.0 - er) * ds0[j] + dc[C_ER, j] * xd + er * dxd[j]
+        dfa[j] = (dc[C_KC, j] * xc - kc * ds0[j] - dc[C_K0ER, j] * xd - k0er * dxd[j] - dc[C_K0LIN, j] * xp
+                  - k0lin * dx[j] + dc[C_FAC, j])  # fmt: skip
+        dxd[j] = (dc[C_ER, j] * xd + er * dxd[j] - (dc[C_ER, j] + dc[C_LIN, j]) * xc - (1.0 - er - lin) * ds0[j]
+                  + dc[C_LIN, j] * xp + lin * dx[j])  # fmt: skip
         dx[j] = -ds0[j]
     if f_sls > c[C_SEP]:
         k0, fa_sep, inv_kg = c[C_K0], c[C_FASEP], c[C_INVKG]
@@ -227,6 +241,10 @@ def surface_force(
             fa = hr6 / (d * d)
             x += cf[C_BETA] * fa
     dx[0] = k0 * inv_kg
+    if contact:  # in contact at the start: the surface at the tip's first position (the linear target's start)
+        x = z[0] - s0 - a0
+        for j in range(NDIR):
+            dx[j] = -ds0[j]
 
     k = 0  # next output row
     contacts = 0
@@ -262,7 +280,7 @@ def surface_force(
         sub = False
         if substeps > 1:
             if contact:  # does the tip separate during this interval?
-                sub = cf[C_KC] * (zz - a0) - cf[C_K0ER] * xd > cf[C_SEP]
+                sub = cf[C_KC] * (zz - a0) - cf[C_K0ER] * xd - cf[C_K0LIN] * x > cf[C_SEP]
             else:
                 sub = zz - x < sub_gap
         if sub:
@@ -278,7 +296,7 @@ def surface_force(
                         continue
                     contact = True
                     contacts += 1
-                fts, _, x, xd, sep = _contact(zm - a0, xd, cs, dcs, dir0, ndir, dxd, dx, dfa, ds0)
+                fts, _, x, xd, sep = _contact(zm - a0, x, xd, cs, dcs, dir0, ndir, dxd, dx, dfa, ds0)
                 if sep:
                     contact = False
                     separations += 1
@@ -290,7 +308,7 @@ def surface_force(
             if not contact:
                 contact = True
                 contacts += 1
-            fts, _, x, xd, sep = _contact(zz - a0, xd, cf, dcf, dir0, ndir, dxd, dx, dfa, ds0)
+            fts, _, x, xd, sep = _contact(zz - a0, x, xd, cf, dcf, dir0, ndir, dxd, dx, dfa, ds0)
             if sep:
                 contact = False
                 separations += 1
@@ -314,7 +332,7 @@ def surface_force(
 # for each arm, ``ln(H R/6)``: ``3 N + 3`` in all; one arm gives ``DIRECTIONS``.
 
 # rows of the per-arm coefficient table (AR_*, N columns) and the scalars (SC_*)
-AR_K, AR_ER, AR_KER, AR_OMER, AR_ALPHA, AR_G, NAR = range(7)
+AR_K, AR_ER, AR_KER, AR_OMER, AR_ALPHA, AR_G, AR_LIN, AR_KLIN, NAR = range(9)
 SC_KC, SC_BETA, SC_FA0, SC_SEP, SC_FASEP, SC_FAC, SC_INVKG, SC_HR6, NSC = range(9)
 CSTEP = 1e-20  # complex step of the coefficient derivatives (exact to rounding: no subtraction)
 
@@ -366,9 +384,15 @@ def arm_table(k_inf, k, cd, hr6, a0, vdw_on_surface, h):
     arm[AR_OMER] = omer
     arm[AR_ALPHA] = (k + emi.T @ k) / kg
     arm[AR_G] = g
+    x = h * rate  # the linear-target step's lag phi - er (core/coefficients.lin_lag), complex-step safe
+    small = np.abs(x.real) < 1e-4
+    xs = np.where(small, 1.0, x)
+    lin = np.where(small, x / 2 - x * x / 3 + x**3 / 8, -np.expm1(-xs) / xs - np.exp(-xs))
+    arm[AR_LIN] = lin
+    arm[AR_KLIN] = k * lin
     fa0 = hr6 / (a0 * a0)
     sc = np.zeros(NSC, dtype)
-    sc[SC_KC] = k_inf + np.sum(k * er)
+    sc[SC_KC] = k_inf + np.sum(k * (er + lin))
     sc[SC_BETA] = (1.0 + k @ g) / kg if vdw_on_surface else 0.0
     sc[SC_FA0] = fa0
     sc[SC_SEP] = fa0 if vdw_on_surface else 0.0
@@ -473,6 +497,10 @@ def arms_force(
                 dfa_j = fa * dlnhr6[j] + 2.0 * fa / d * (ds0[j] + dx[j])
                 dx[j] += dsc3[c0, SC_BETA, j] * fa + beta * dfa_j
             x += beta * fa
+    else:  # in contact at the start: the surface at the tip's first position (the linear target's start)
+        x = z[0] - s0 - a0
+        for j in range(nd):
+            dx[j] = -ds0[j]
 
     k = 0
     contacts = 0
@@ -512,7 +540,7 @@ def arms_force(
             if contact:  # does the tip separate during this interval?
                 f_try = sc3[0, SC_KC] * (zz - a0)
                 for a in range(na):
-                    f_try -= arm3[0, AR_KER, a] * xd[a]
+                    f_try -= arm3[0, AR_KER, a] * xd[a] + arm3[0, AR_KLIN, a] * x
                 sub = f_try > sc3[0, SC_SEP]
             else:
                 sub = zz - x < sub_gap
@@ -529,7 +557,7 @@ def arms_force(
                         continue
                     contact = True
                     contacts += 1
-                fts, x, sep = _arms_contact(zm - a0, xd, 2, arm3, sc3, darm3, dsc3, ndir, dxd, dx, dfa, ds0,
+                fts, x, sep = _arms_contact(zm - a0, x, xd, 2, arm3, sc3, darm3, dsc3, ndir, dxd, dx, dfa, ds0,
                                             xd_new, dxd_new)  # fmt: skip
                 if sep:
                     contact = False
@@ -543,7 +571,7 @@ def arms_force(
             if not contact:
                 contact = True
                 contacts += 1
-            fts, x, sep = _arms_contact(zz - a0, xd, 0, arm3, sc3, darm3, dsc3, ndir, dxd, dx, dfa, ds0,
+            fts, x, sep = _arms_contact(zz - a0, x, xd, 0, arm3, sc3, darm3, dsc3, ndir, dxd, dx, dfa, ds0,
                                         xd_new, dxd_new)  # fmt: skip
             if sep:
                 contact = False
@@ -595,7 +623,7 @@ def _arms_noncontact(d, xd, fa, hr6, ihr6, c, arm3, emi3, sc3, darm3, demi3, dsc
 
 
 @njit(cache=True, inline="always", fastmath={"contract"}, error_model="numpy")
-def _arms_contact(xc, xd, c, arm3, sc3, darm3, dsc3, ndir, dxd, dx, dfa, ds0, xd_new, dxd_new):
+def _arms_contact(xc, xp, xd, c, arm3, sc3, darm3, dsc3, ndir, dxd, dx, dfa, ds0, xd_new, dxd_new):
     """One contact update with the surface at ``xc`` (coefficients of step ``c``) and its
     tangent; ``dfa`` receives ``d(F_sls + fa_c)``.  On separation (``F_sls > sep_thr``) the
     surface is released to ``(sum k_i Xd_i + Fa_sep)/Kg`` and ``dfa`` becomes ``d Fa(a0)``.
@@ -603,15 +631,18 @@ def _arms_contact(xc, xd, c, arm3, sc3, darm3, dsc3, ndir, dxd, dx, dfa, ds0, xd
     na = len(xd)
     kc = sc3[c, SC_KC]
     f_sls = kc * xc
-    for a in range(na):
-        f_sls -= arm3[c, AR_KER, a] * xd[a]
-        xd_new[a] = xd[a] + arm3[c, AR_OMER, a] * (xc - xd[a])
+    for a in range(na):  # the linear-target step: the surface moves from xp (the last sample's) to xc
+        f_sls -= arm3[c, AR_KER, a] * xd[a] + arm3[c, AR_KLIN, a] * xp
+        xd_new[a] = xd[a] + arm3[c, AR_OMER, a] * (xc - xd[a]) - arm3[c, AR_LIN, a] * (xc - xp)
     for j in range(ndir):
         dxc = -ds0[j]
+        dxp = dx[j]
         acc = dsc3[c, SC_KC, j] * xc + kc * dxc + dsc3[c, SC_FAC, j]
         for a in range(na):
             acc -= darm3[c, AR_KER, a, j] * xd[a] + arm3[c, AR_KER, a] * dxd[a, j]
-            dxd_new[a, j] = dxd[a, j] + darm3[c, AR_OMER, a, j] * (xc - xd[a]) + arm3[c, AR_OMER, a] * (dxc - dxd[a, j])
+            acc -= darm3[c, AR_KLIN, a, j] * xp + arm3[c, AR_KLIN, a] * dxp
+            dxd_new[a, j] = (dxd[a, j] + darm3[c, AR_OMER, a, j] * (xc - xd[a]) + arm3[c, AR_OMER, a] * (dxc - dxd[a, j])
+                             - darm3[c, AR_LIN, a, j] * (xc - xp) - arm3[c, AR_LIN, a] * (dxc - dxp))  # fmt: skip
         dfa[j] = acc
         dx[j] = dxc
     for a in range(na):
