@@ -363,6 +363,27 @@ def test_the_fit_of_a_snapping_surface_whose_jump_straddles_a_sample():
     assert res.info["fit"]["residual_rms_pct"] < 1e-3
 
 
+def test_a_first_stage_that_ends_on_the_frozen_plateau_is_fitted_from_below_it(monkeypatch):
+    """16:1 (k0 64, k_inf 4 N/m), cd 1e-3 kg/s, 0.125 ns, 1 pm of detector noise, the force reconstructed
+    (low-passed at 5.5 MHz by its noise): from its cd scan's start the first stage walked onto the frozen
+    plateau (cd 4.5e4 kg/s, RMS 1.96 % of the peak, every quantity flagged), where the right valley is at
+    1.43 %.  Fitted again from the scan's best point below the plateau (FROZEN_RETRY): k0, k_inf within 1 %,
+    cd within 3 % (measured -0.27, +0.27, -1.7 %), unflagged; without the retry, cd is off the scale."""
+    import vetica_cli.extraction.fullfit.method as fm
+
+    run = simulate(load(None, {"surface.k_inf": 4.0, "surface.stiffness_ratio": 16, "surface.cd": 1e-3,
+                               "numerics.position_noise": 1e-12}))  # fmt: skip
+    df, meta = run.frame(), run.metadata()
+    res = extract(df, meta, force="reconstructed", method="full")
+    assert res.info["fit"]["frozen_retry"] is True
+    for q, tol in (("k0", 1.0), ("k_inf", 1.0), ("cd", 3.0)):
+        assert abs(res.estimates[q].error_pct) < tol, (q, res.estimates[q].error_pct)
+        assert res.estimates[q].identifiable is not False, (q, res.estimates[q].reason)
+    monkeypatch.setattr(fm, "FROZEN_RETRY", False)
+    off = extract(df, meta, force="reconstructed", method="full")
+    assert off.estimates["cd"].value > 1e2 and off.estimates["cd"].identifiable is False
+
+
 # ----------------------------------------------------------------------------- the window's start state
 
 
