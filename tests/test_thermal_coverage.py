@@ -12,9 +12,17 @@ fit's k_g and k0 by ~0.02 % (measured; ~4x their thermal error bar) -- a discret
 difference of the simulator, not noise, which no error bar of the noise can contain
 (results/noise/README.md has the coverage against both references).
 
-Expected: the reference within +-2 sigma in ~95 % of replicas.  With 50 replicas the
-binomial standard error of a coverage is ~3 %, so a calibrated error bar passes
+Expected, with the detector's noise: the reference within +-2 sigma in ~95 % of replicas.  With
+50 replicas the binomial standard error of a coverage is ~3 %, so a calibrated error bar passes
 COVERAGE_MIN = 0.86 (95 % less 3 standard errors) and fails it when it is short by ~30 %.
+Without it (the true force of a thermal record: no measurement noise at all, a record only the
+simulator has) the fit's answer is the noise-free one to its kernel's own error: within SHIFT_MAX
+(2e-5 relative; measured: at most 7.7e-6, tau_c) of the reference.  Since the fit steps the surface as the simulator does (2026-11-28)
+its error bar there is 1.6e-6 relative and the replicas sit 1.4-1.8 of their spread (2e-6) from the
+reference, so tau_c, k_inf and cd are covered in 0.58-0.70 only: what is left is the kernel's
+error along the thermal path (the tip between samples), not noise, and the error bar is a claim
+about noise; before, the held contact step's error (1e-4) set sigma 1.8-5.8x the scatter and
+coverage 1.00.
 Measured 2026-11-27 with this set-up: every quantity covered in 1.00 of the replicas
 without detector noise (sigma 1.8-5.8 times the replicas' scatter, which is 3e-6 .. 5e-5 relative:
 the fit's misfit floor on a true force, not noise) and in 0.96-1.00 with it (width 1.2-2.9; cd
@@ -39,6 +47,7 @@ DETECTOR = (1e-12, 1e-10)  # [m] on z_tip, [N] on f_ts
 QUANTITIES = ("tau_c", "k_g", "k0", "k_inf", "cd")
 COLUMNS = ["t", "z_tip", "f_ts", "segment"]
 COVERAGE_MIN = 0.86
+SHIFT_MAX = 2e-5  # relative: the thermal replicas' largest distance from the reference without detector noise
 
 
 def _fit(df, meta):
@@ -52,6 +61,7 @@ def thermal_coverage():
     runs = replicas(load(None, {**BASE, "numerics.temperature": TEMPERATURE}), range(1, REPLICAS + 1))
     rng = np.random.default_rng(31)
     hits = {(level, q): [] for level in ("thermal", "thermal+detector") for q in QUANTITIES}
+    shifts = {q: [] for q in QUANTITIES}
     for run in runs:
         df, meta = run.frame(), run.metadata()
         noisy = df.copy()
@@ -63,12 +73,18 @@ def thermal_coverage():
                 e, v0 = est[q], ref[q].value
                 ok = e.value is not None and e.sigma is not None and math.isfinite(e.sigma)
                 hits[(level, q)].append(ok and abs(e.value - v0) <= 2.0 * e.sigma * abs(e.value))
+                if level == "thermal":
+                    shifts[q].append(abs(e.value / v0 - 1.0) if e.value is not None else math.inf)
     out = {k: float(np.mean(v)) for k, v in hits.items()}
     print({f"{lv}/{q}": v for (lv, q), v in out.items()})  # pytest -s: the coverage table
-    return out
+    print({q: max(v) for q, v in shifts.items()})
+    return out, {q: max(v) for q, v in shifts.items()}
 
 
 @pytest.mark.slow
 def test_two_sigma_covers_the_noise_free_answer_under_thermal_noise(thermal_coverage):
-    low = {k: v for k, v in thermal_coverage.items() if not COVERAGE_MIN <= v <= 1.0}
+    coverage, shifts = thermal_coverage
+    low = {k: v for k, v in coverage.items() if k[0] == "thermal+detector" and not COVERAGE_MIN <= v <= 1.0}
     assert not low, f"coverage outside [{COVERAGE_MIN}, 1]: {low}"
+    far = {q: v for q, v in shifts.items() if not v < SHIFT_MAX}
+    assert not far, f"without detector noise, farther than {SHIFT_MAX:g} from the noise-free answer: {far}"

@@ -28,8 +28,11 @@ Choices (see the module functions for details):
   interpolated linearly: without this the snap-off transients differ by up
   to 2.6 % of the peak force over a few samples and bias cd by ~6 % at
   cd = 1e-2 kg/s.  Elsewhere in contact the dashpot is updated once per
-  sample, so its relaxation leads the simulator's by ``(h - dt)/2`` (a
-  ~4 pN offset on the worked example, 5e-5 of the peak force).
+  sample with the simulator's own linear-target step (the surface moving
+  linearly across the sample: :mod:`vetica_cli.core.coefficients`), so the
+  model reproduces the simulator's force at its true parameters to 4e-7 of
+  the peak on the worked example (RMS; 9.7e-5 with the step that held the
+  surface at the sample, whose relaxation read ``(h - dt)/2`` late).
 * **Surface height** ``s0`` (the undeformed surface in the record's tip
   coordinate, which for an instrument has an unknown offset).  Start value
   from ``Z1``, the tip position at the first force minimum of the approach
@@ -107,16 +110,19 @@ Choices (see the module functions for details):
   A first-period fit still poor (RMS residual above 3x the noise floor and 1 % of
   the peak) is fitted again: after a near-only scan over the whole grid; from the
   best cd below the frozen plateau where that end won; then from the scan's other
-  points in the order of their cost until one is not poor (the best kept each time:
-  ``method.POOR_FIT``, ``POOR_STARTS``).
+  points in the order of their cost until one is not poor; then from the generic
+  split (the best kept each time: ``method.POOR_FIT``, ``POOR_STARTS``,
+  ``GENERIC_RETRY``).  A first-period fit that ends on the frozen plateau (cd beyond
+  the grid's end) is fitted again from the scan's best point below it
+  (``FROZEN_RETRY``).
 * **Uncertainty.**  ``cov = s^2 (J^T J)^-1`` with ``s^2`` the residual
   variance, J in log-parameters (square roots of the diagonal = relative
   1-sigma), with ``Xd0`` counted as unknown (conservative: it does not lean
   on the periodic state; the periodic-state values are in ``info``).  For
   noise-free simulations ``s`` is systematic model mismatch, and the actual
   errors exceed the 1-sigma values by ~10x (cd = 1e-2 kg/s; 1 pm position
-  noise) up to ~5000x (worked example: 1-sigma 4e-8, error 2e-4 from the
-  contact-step lead above).  Added in quadrature where the residual is more
+  noise) up to ~5000x (worked example, with the held contact step that
+  the kernels no longer take: 1-sigma 4e-8, error 2e-4).  Added in quadrature where the residual is more
   the model's error than noise, **the misfit term**: the residual's part
   that repeats every drive period over each dashpot's force signature, the
   change of ``ln cd`` a misfit along that signature would make (noise-free
