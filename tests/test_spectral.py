@@ -162,3 +162,25 @@ def test_awkward_lengths_give_the_same_transform(n):
     spec = np.fft.rfft(x)
     assert np.max(np.abs(rfft(x) - spec)) < 1e-13 * np.max(np.abs(spec))
     assert np.max(np.abs(irfft(spec, n) - x)) < 1e-13 * np.max(np.abs(x))
+
+
+@pytest.mark.parametrize("jumps", [(2e-12, -3e-4, 5e6), (0.0, 1e-3, -2e7), (1e-12, 0.0, 0.0), (1e-12, 2e-4, 3e6, 1e14, -1e21)])
+def test_long_window_correction_is_the_same_bits_as_the_array_code(jumps, monkeypatch):
+    """A window longer than CACHE_SAMPLES takes its Bernoulli end correction (b, b', b'') in one
+    compiled pass (signals/bernoulli_pass.py), the same scalar operations in the same order as the
+    numpy code of shorter windows: equal bits (and signs of zero), whatever jumps are left out; the
+    paddle operator added to the inverted force in the same order too (the reconstruction of a
+    window of 300,001 samples, compiled and numpy paths, equal)."""
+    from vetica_cli.signals import spectral
+
+    n, h = 300_001, 1.25e-10
+    fast = spectral.bernoulli_correction(np.array(jumps), n, h)
+    monkeypatch.setattr(spectral, "CACHE_SAMPLES", 10**12)  # the numpy path for every length
+    slow = spectral.bernoulli_correction(np.array(jumps), n, h)
+    for a, b in zip(fast, slow):
+        assert np.array_equal(a, b) and np.array_equal(np.signbit(a), np.signbit(b))
+    t = np.arange(n) * h
+    zp = 1e-10 * np.sin(2 * np.pi * 5e4 * t) ** 3 + 1e-12 * t / t[-1]  # not periodic in the window
+    ref = spectral.reconstruct_force(t, zp, K2, 7.5e5, Q2).f
+    monkeypatch.undo()
+    assert np.array_equal(spectral.reconstruct_force(t, zp, K2, 7.5e5, Q2).f, ref)

@@ -116,6 +116,8 @@ def bernoulli_correction(jumps: np.ndarray, n: int, h: float) -> tuple[np.ndarra
     extension continuous up to derivative ``len(jumps) - 1``.
     """
     length = n * h
+    if n > CACHE_SAMPLES and all(j + 1 < len(_BERNOULLI) for j, jump in enumerate(jumps) if jump != 0.0):
+        return _bernoulli_compiled(jumps, n, length)
     b = np.zeros(n)
     b1 = np.zeros(n)
     b2 = np.zeros(n)
@@ -136,6 +138,27 @@ def bernoulli_correction(jumps: np.ndarray, n: int, h: float) -> tuple[np.ndarra
         if m >= 2:
             b2 += a * m * (m - 1) * grid(m - 2) / length**2
     return b, b1, b2
+
+
+def _bernoulli_compiled(jumps: np.ndarray, n: int, length: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """:func:`bernoulli_correction` of a long window in one compiled pass, the same bits
+    (:mod:`.bernoulli_pass`: the same scalar operations in the same order)."""
+    from .bernoulli_pass import terms
+
+    used = [(j, jump) for j, jump in enumerate(jumps) if jump != 0.0]
+    width = len(_BERNOULLI)  # six coefficients a row, leading zeros below degree 5 (bernoulli_pass._horner)
+    coeffs = np.zeros((3 * max(len(used), 1), width))
+    a, am, amm = np.zeros(len(used)), np.zeros(len(used)), np.zeros(len(used))
+    for i, (j, jump) in enumerate(used):
+        m = j + 1
+        a[i] = jump * length**j / math.factorial(m)  # as bernoulli_correction: (a m) g / L, (a m (m - 1)) g / L^2
+        am[i] = a[i] * m
+        amm[i] = a[i] * m * (m - 1)
+        for r, mm in enumerate((m, m - 1, m - 2)):
+            if mm >= 0:
+                row = _BERNOULLI[mm]
+                coeffs[3 * i + r, width - len(row) :] = row
+    return terms(coeffs, a, am, amm, float(length), float(length**2), int(n))
 
 
 # windows up to this length keep their Bernoulli polynomials and paddle gain (a scan pixel's 4 periods at 1 ns: 80000)
@@ -357,7 +380,13 @@ def reconstruct_force(
         gain = gain * 0.5 * (1.0 + np.cos(math.pi * roll))
     elif fc < nyquist:
         gain = gain * (freq <= fc)
-    f = irfft(spec * gain, n) + (m2 * b2 + c2 * b1 + k2 * b)
+    f = irfft(spec * gain, n)
+    if n > CACHE_SAMPLES:  # one compiled pass, the same bits (bernoulli_pass.combine)
+        from .bernoulli_pass import combine
+
+        f = combine(f, b, b1, b2, m2, c2, k2)
+    else:
+        f = f + (m2 * b2 + c2 * b1 + k2 * b)
     return Reconstruction(f=f, cutoff_hz=min(fc, nyquist), taper=taper, end_jumps=jumps, noise=choice)
 
 
