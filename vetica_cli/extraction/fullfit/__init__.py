@@ -111,8 +111,10 @@ Choices (see the module functions for details):
   the peak) is fitted again: after a near-only scan over the whole grid; from the
   best cd below the frozen plateau where that end won; then from the scan's other
   points in the order of their cost until one is not poor; then from the generic
-  split (the best kept each time: ``method.POOR_FIT``, ``POOR_STARTS``,
-  ``GENERIC_RETRY``).  A first-period fit that ends on the frozen plateau (cd beyond
+  split; then from ``k_inf`` = the loading slope under an arm 4, 16 or 64 times
+  stiffer (an arm faster than a tap's loading has relaxed during it: the slope is
+  k_inf, not Kg) (the best kept each time: ``method.POOR_FIT``, ``POOR_STARTS``,
+  ``GENERIC_RETRY``, ``FAST_ARM_RETRY``).  A first-period fit that ends on the frozen plateau (cd beyond
   the grid's end) is fitted again from the scan's best point below it
   (``FROZEN_RETRY``).
 * **Uncertainty.**  ``cov = s^2 (J^T J)^-1`` with ``s^2`` the residual
