@@ -167,10 +167,11 @@ def test_awkward_lengths_give_the_same_transform(n):
 @pytest.mark.parametrize("jumps", [(2e-12, -3e-4, 5e6), (0.0, 1e-3, -2e7), (1e-12, 0.0, 0.0), (1e-12, 2e-4, 3e6, 1e14, -1e21)])
 def test_long_window_correction_is_the_same_bits_as_the_array_code(jumps, monkeypatch):
     """A window longer than CACHE_SAMPLES takes its Bernoulli end correction (b, b', b'') in one
-    compiled pass (signals/bernoulli_pass.py), the same scalar operations in the same order as the
+    compiled pass (signals/passes.py), the same scalar operations in the same order as the
     numpy code of shorter windows: equal bits (and signs of zero), whatever jumps are left out; the
     paddle operator added to the inverted force in the same order too (the reconstruction of a
-    window of 300,001 samples, compiled and numpy paths, equal)."""
+    window of 300,001 samples, compiled and numpy paths, equal, the paddle's inverse transfer and its
+    frequencies included)."""
     from vetica_cli.signals import spectral
 
     n, h = 300_001, 1.25e-10
@@ -184,3 +185,40 @@ def test_long_window_correction_is_the_same_bits_as_the_array_code(jumps, monkey
     ref = spectral.reconstruct_force(t, zp, K2, 7.5e5, Q2).f
     monkeypatch.undo()
     assert np.array_equal(spectral.reconstruct_force(t, zp, K2, 7.5e5, Q2).f, ref)
+
+
+@pytest.mark.parametrize("n, drive_hz", [(300_001, 2.5e5), (1_600_000, 5e4)])
+def test_long_spectrum_noise_reading_is_the_same_bits_as_the_array_code(n, drive_hz, monkeypatch):
+    """The noise reading of a spectrum longer than LONG_BINS (signals/noise.py: measure) takes its
+    Hann-windowed and raw powers and its harmonic comb (each bin's place in harmonics, and whether it
+    is far enough from one to hold noise) from compiled passes (signals/passes.py): the same bands,
+    noise and signal levels, cut-off and rule, bit for bit, as the numpy code shorter spectra take; on a
+    window that is a whole number of drive periods (10) and one that is not (9.375)."""
+    from vetica_cli.signals import noise
+
+    rng = np.random.default_rng(n)
+    h = 1.25e-10
+    x = rng.standard_normal(n) + 50.0 * np.sin(2 * np.pi * drive_hz * h * np.arange(n)) ** 3
+    spec = np.fft.rfft(x)
+    fast = noise.measure(None, h, drive_hz, spectrum=spec, n=n)
+    monkeypatch.setattr(noise, "LONG_BINS", 10**12)
+    slow = noise.measure(None, h, drive_hz, spectrum=spec, n=n)
+    assert (fast.cutoff_hz, fast.noise_rms, fast.white_equivalent, fast.rule) == (
+        slow.cutoff_hz, slow.noise_rms, slow.white_equivalent, slow.rule)  # fmt: skip
+    for field in ("f_lo", "f_hi", "noise", "signal"):
+        assert np.array_equal(getattr(fast.spectrum, field), getattr(slow.spectrum, field)), field
+
+
+@pytest.mark.parametrize("n, h", [(1_600_000, 1.25e-10), (300_001, 1e-9), (32_439, 2e-9)])
+def test_long_window_paddle_gain_is_the_same_bits_as_numpy(n, h):
+    """rfftfreq and 1/T(w) of a long window from one compiled pass (signals/passes.py: paddle_gain),
+    the imaginary part divided as numpy divides a complex number by a real one: equal bits."""
+    import math
+
+    from vetica_cli.signals.passes import paddle_gain
+    from vetica_cli.signals.spectral import paddle_inverse_transfer
+
+    freq = np.fft.rfftfreq(n, h)
+    gain = paddle_inverse_transfer(2.0 * math.pi * freq, K2, F2, Q2)
+    f1, g1 = paddle_gain(n, h, K2, 2.0 * math.pi * F2, Q2)
+    assert np.array_equal(freq, f1) and np.array_equal(gain.real, g1.real) and np.array_equal(gain.imag, g1.imag)

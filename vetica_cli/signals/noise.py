@@ -57,6 +57,7 @@ MIN_NOISE_BINS = 12  # a band holds at least this many inter-harmonic bins (merg
 DROP_RUN = 3  # bands in a row with the harmonics below the noise end the pass band
 MIN_PERIODS = 2.0  # fewer drive periods: no harmonic comb to read the noise between
 NEGLIGIBLE = 1e-3  # noise over the whole band below this fraction of the signal's RMS: no low-pass needed
+LONG_BINS = 1 << 16  # spectra longer than this are read in compiled passes (signals.passes), the same bits
 WHOLE = 0.01  # [periods] a window this close to a whole number of periods is read as it is; else cropped to one
 
 
@@ -157,10 +158,14 @@ def harmonic_spectrum(power: np.ndarray, n: int, h: float, drive_hz: float,
     if not (periods >= MIN_PERIODS and math.isfinite(periods)):
         return None
     nb = len(power)
-    bins = np.arange(nb, dtype=float)
-    frac = bins / periods  # position in harmonics
-    dist = np.abs(frac - np.round(frac)) * periods  # bins to the nearest harmonic
-    noise_mask = dist >= max(1.5, 0.3 * periods)
+    guard = max(1.5, 0.3 * periods)  # bins from the nearest harmonic for a bin to count as noise
+    if nb > LONG_BINS:  # one compiled pass, the same bits (signals.passes)
+        from .passes import harmonic_bins
+
+        frac, noise_mask = harmonic_bins(nb, float(periods), float(guard))
+    else:
+        frac = np.arange(nb, dtype=float) / periods  # position in harmonics
+        noise_mask = np.abs(frac - np.round(frac)) * periods >= guard  # bins to the nearest harmonic
     harm_idx = np.round(np.arange(1, int(frac[-1]) + 1) * periods).astype(int)
     harm_idx = harm_idx[(harm_idx > 0) & (harm_idx < nb)]
     df = 1.0 / (n * h)
@@ -251,10 +256,15 @@ def measure(x: np.ndarray | None, h: float, drive_hz: float | None, cutoff_hz: f
     elif spectrum is None:
         return None
     spectrum = np.asarray(spectrum)
-    hann = 0.5 * spectrum
-    hann[1:-1] -= 0.25 * (spectrum[:-2] + spectrum[2:])
-    power = (hann.real**2 + hann.imag**2) / 0.375  # the window's mean square: white noise keeps its level
-    rect = spectrum.real**2 + spectrum.imag**2  # the harmonics' own bins (a whole number of periods: no leakage)
+    if len(spectrum) > LONG_BINS:  # one compiled pass, the same bits (signals.passes)
+        from .passes import hann_power
+
+        power, rect = hann_power(np.ascontiguousarray(spectrum.real), np.ascontiguousarray(spectrum.imag))
+    else:
+        hann = 0.5 * spectrum
+        hann[1:-1] -= 0.25 * (spectrum[:-2] + spectrum[2:])
+        power = (hann.real**2 + hann.imag**2) / 0.375  # the window's mean square: white noise keeps its level
+        rect = spectrum.real**2 + spectrum.imag**2  # the harmonics' own bins (a whole number of periods: no leakage)
     spec = harmonic_spectrum(power, int(n), h, drive_hz, harmonic_power=rect)
     if spec is None:
         return None

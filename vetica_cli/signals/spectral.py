@@ -142,11 +142,11 @@ def bernoulli_correction(jumps: np.ndarray, n: int, h: float) -> tuple[np.ndarra
 
 def _bernoulli_compiled(jumps: np.ndarray, n: int, length: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """:func:`bernoulli_correction` of a long window in one compiled pass, the same bits
-    (:mod:`.bernoulli_pass`: the same scalar operations in the same order)."""
-    from .bernoulli_pass import terms
+    (:mod:`.passes`: the same scalar operations in the same order)."""
+    from .passes import terms
 
     used = [(j, jump) for j, jump in enumerate(jumps) if jump != 0.0]
-    width = len(_BERNOULLI)  # six coefficients a row, leading zeros below degree 5 (bernoulli_pass._horner)
+    width = len(_BERNOULLI)  # six coefficients a row, leading zeros below degree 5 (passes._horner)
     coeffs = np.zeros((3 * max(len(used), 1), width))
     a, am, amm = np.zeros(len(used)), np.zeros(len(used)), np.zeros(len(used))
     for i, (j, jump) in enumerate(used):
@@ -225,8 +225,9 @@ def _paddle_gain(n: int, h: float, k2: float, f2: float, q2: float) -> tuple[np.
     """``(rfftfreq(n, h), 1/T(2 pi freq))`` (cached for windows of up to CACHE_SAMPLES)."""
     if n <= CACHE_SAMPLES:
         return _paddle_gain_cached(n, h, k2, f2, q2)
-    freq = np.fft.rfftfreq(n, h)
-    return freq, paddle_inverse_transfer(2.0 * math.pi * freq, k2, f2, q2)
+    from .passes import paddle_gain  # one compiled pass, the same bits
+
+    return paddle_gain(int(n), float(h), float(k2), 2.0 * math.pi * f2, float(q2))
 
 
 @functools.lru_cache(maxsize=64)
@@ -381,8 +382,8 @@ def reconstruct_force(
     elif fc < nyquist:
         gain = gain * (freq <= fc)
     f = irfft(spec * gain, n)
-    if n > CACHE_SAMPLES:  # one compiled pass, the same bits (bernoulli_pass.combine)
-        from .bernoulli_pass import combine
+    if n > CACHE_SAMPLES:  # one compiled pass, the same bits (passes.combine)
+        from .passes import combine
 
         f = combine(f, b, b1, b2, m2, c2, k2)
     else:
