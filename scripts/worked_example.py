@@ -172,7 +172,7 @@ def main():
         sf = cfg.surface
         fa0 = sf.hamaker * cfg.probe.tip_radius / 6 / sf.a0**2
         kg = sf.k0 + sf.k_inf
-        i1 = first_contact_minimum(a.f_ts.to_numpy())
+        i1 = first_contact_minimum(a.f_ts.to_numpy(), z=a.z_tip.to_numpy())
         z1 = a.z_tip.to_numpy()[i1]
         xd1 = a.x_dashpot.to_numpy()[i1]
         taps = find_taps(f)

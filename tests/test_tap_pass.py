@@ -19,7 +19,10 @@ compiled, and the error bars and checks re-run only the stages that move with Z1
   the taps (the stiff record's reconstructed-force sigmas: vetica-prestress's k_g 2.05 -> 2.23 %, values and
   flags unchanged), and by the version whose Kg term is a central difference over +-1 sigma (the 300 K
   reconstructed-force sigmas of k_r, k_inf, k0, cd, tau_r by up to 25 %, the soft record's true-force k_inf,
-  -8 % off, no longer flagged; values unchanged): a regression reference there, not the Python path's;
+  -8 % off, no longer flagged; values unchanged), and by the version whose Z1 is the first contact's
+  approach-side well (the soft records' entries, noise-free too: their Z1 448 -> 403 pm, the pull-off well
+  replaced by the snap-in; true-force tau_c +32.4 -> +28.9 %, k_inf -8.8 -> -6.5 %): a regression reference
+  there, not the Python path's;
 * the same functions on the same record with the Python loops (a stage 1 measured without the
   record's times carries no contacts, and the stages then run tap by tap in Python), and whole
   re-runs of the method at the moved Z1 and Kg.

@@ -260,7 +260,7 @@ def model_band(res: ExtractionResult, record, method, options, narrower=None, li
         if from_approach:
             za, _, i0 = record.approach
             fa2 = fa.copy() if cut is None else lowpass(fa, h, cut, periodic=False, spectrum=spec_a)
-            i1 = first_contact_minimum(fa2) if cut is None else well_in_band(fa2, i0, h, cut)
+            i1 = first_contact_minimum(fa2, z=za) if cut is None else well_in_band(fa2, i0, h, cut)
             changes.update(approach=(za, fa2, i1), z1=float(za[i1]))
         return dataclasses.replace(record, **changes)
 

@@ -138,10 +138,11 @@ def reconstruct_taps(t, zp, k2: float, f2: float, q2: float, cutoff_hz: float | 
 
 
 def approach_force(t, zp, k2: float, f2: float, q2: float, cutoff_hz: float | None = None,
-                   taper: float = 0.0) -> tuple[np.ndarray, int] | None:  # fmt: skip
+                   taper: float = 0.0, z=None) -> tuple[np.ndarray, int] | None:  # fmt: skip
     """The approach segment's force rebuilt around its first contact minimum, and that
     minimum's index (:func:`~vetica_cli.signals.taps.first_contact_minimum`, located on the
-    time-domain estimate, then moved to the rebuilt force's minimum nearby); None as
+    time-domain estimate, then moved to the rebuilt force's minimum nearby; ``z``: the tip
+    position, for the contact's approach side); None as
     :func:`reconstruct_taps` says (then the whole segment is rebuilt)."""
     t = np.asarray(t, dtype=float)
     zp = np.asarray(zp, dtype=float)
@@ -150,7 +151,7 @@ def approach_force(t, zp, k2: float, f2: float, q2: float, cutoff_hz: float | No
         return None
     f = paddle_estimate(t, zp, k2, f2, q2)
     try:
-        i1 = first_contact_minimum(f)
+        i1 = first_contact_minimum(f, z=z)
     except InputError:
         return None
     a, b = _window(i1 - APPROACH_HALF + MARGIN, i1 + APPROACH_HALF - MARGIN, n)

@@ -45,7 +45,7 @@ def first_force_minimum(t: np.ndarray, z_tip: np.ndarray, f_ts: np.ndarray) -> t
     if len(f_ts) == 0:
         return math.nan, math.nan, -1
     try:
-        i = first_contact_minimum(f_ts)
+        i = first_contact_minimum(f_ts, z=z_tip)
     except InputError:
         return math.nan, math.nan, -1
     return float(z_tip[i]), float(t[i]), i
