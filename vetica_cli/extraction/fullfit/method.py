@@ -521,6 +521,8 @@ class FullFit(ExtractionMethod):
             substeps_source = "metadata dt" if dt_sim else f"{SUBSTEP_DT * 1e9:g} ns near the surface"
         z1 = record.z1 if record.z1 is not None and math.isfinite(record.z1) else None
         z_ref = z1 if z1 is not None else float(np.median(z[taps.contact]))
+        if z1 is not None and record.approach is not None:
+            z_ref = max(z_ref, first_touch_top(record.approach))
         info, warnings = dict(record.info), []
         if z1 is None and record.approach is None and opts["fit_offset"]:
             warnings.append(
@@ -943,6 +945,23 @@ def _constants_info(consts: dict, opts: dict, model: SurfaceFit, fit: dict, vdw:
         out["hamaker"] = {"value": COMMON_KEYS["hamaker"].default, "source": "assumed: thesis default"}
     out["surface_height"] = {"value": float(fit["s0"]), "source": model.offset_source}
     return out
+
+
+def first_touch_top(approach) -> float:
+    """The tip position at the approach's first deep well read from the force alone
+    (:func:`~vetica_cli.signals.taps.first_contact_minimum` without the tip position): on a surface the
+    tip's pull drags up, the first contact's pull-off well, where the tip leaves the surface, above Z1
+    (read on the way in).  The fit's near band (``NEAR_GAP`` above it) and its start's creep reference
+    stay where they were before Z1 was read on the way in: referred to Z1 there (0.87 nm lower on a
+    1:2 surface, Kg 6 N/m), the near band no longer covered the approach's snap, the fit's misfit rose
+    from 8e-9 to 9e-4 of the peak and k0 went -4.9 % (flagged)."""
+    from ...signals.taps import first_contact_minimum
+
+    za, fa, i1 = approach
+    try:
+        return float(za[first_contact_minimum(fa)])
+    except InputError:
+        return float(za[i1])
 
 
 def premise_height(record) -> bool:
