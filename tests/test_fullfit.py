@@ -520,14 +520,24 @@ def test_a_poor_first_stage_is_fitted_again_from_the_scans_other_points(monkeypa
     the scan's other points (``POOR_STARTS``), the first stage finds the right valley (18x lower cost) and
     k0, k_inf, cd come back within 3 sigma and 2 % of the truth.  Without the refits the fit must stay wrong
     (the test's own control: the record still has the valley; the fast-arm start, tried last, also finds
-    the valley on this record, so it is off in the control too)."""
+    the valley on this record, so it is off in the control too).  That was with Z1 read from the force alone
+    (the first contact's pull-off well, 24 pm above its snap-in); read on the way in, as Z1 now is, the first
+    stage starts nearer the surface and finds the valley itself (within 0.4 %, no refit).  The rule is tested
+    on the record as the force alone reads it (``approach_side_well`` the identity), the default reading on the
+    record as it is."""
     import vetica_cli.extraction.fullfit.method as fm
+    import vetica_cli.signals.taps as taps_mod
     from vetica_cli.simulation.simulate import replicas
 
     truth = {"k_inf": 3.6738, "k0": 37.8653, "cd": 5.104e-4}
     over = {"numerics.record_cycles": 10, "numerics.temperature": 300.0, "numerics.print_step": 0.5e-9}
     run = replicas(load(None, {**over, **{f"surface.{k}": v for k, v in truth.items()}}), [866632014])[0]
     df, meta = run.frame(), run.metadata()
+    default = extract(df, meta, force="reconstructed", method="full")
+    for name, value in truth.items():
+        e = default.estimates[name]
+        assert abs(e.value / value - 1) < min(0.02, 3 * e.sigma), (name, e.value, e.sigma)
+    monkeypatch.setattr(taps_mod, "approach_side_well", lambda z, f, i: i)  # Z1 from the force alone
     res = extract(df, meta, force="reconstructed", method="full")
     assert res.info["fit"]["rescanned"]
     for name, value in truth.items():
