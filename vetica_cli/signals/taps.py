@@ -186,7 +186,7 @@ def approach_side_well(z: np.ndarray, f: np.ndarray, i: int) -> int:
     26-295 pm above the snap-in, and at 300 K, where the snap-in's depth scatters about that
     threshold, a material's replicas read either well (two groups 18 pm apart, std 9 pm, where
     each group's scatter was 2-4 pm).  Reading the approach side on both, the replicas' Z1 fell
-    within 1.9-5.1 pm (std) of the noise-free record's at the same band (dev draw 33, six surfaces,
+    within 1.7-5.1 pm (std) of the noise-free record's at the same band (dev draw 33, six surfaces,
     7-10 replicas each)."""
     tol = 3.0 * white_noise_floor(z) if len(z) > 8 else 0.0
     out = np.flatnonzero(z[:i] >= z[i] + 2.0 * tol)  # where the tip was last above the well, on its way down
