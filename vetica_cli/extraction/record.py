@@ -257,16 +257,15 @@ class _ForceSource:
 
     def approach(self, seg: pd.DataFrame, where: str) -> tuple[np.ndarray, int]:
         """The approach segment's force and its first contact minimum (thesis eq. 84)."""
+        z = column(seg, "z_tip", where)  # the contact's approach side is read on the tip position
         if self.force == "reconstructed" and self.windows:
             p = self._probe()
             out = approach_force(seg["t"].to_numpy(float), column(seg, "z_paddle", where), p["k2"], p["f2"],
-                                 p["q2"], cutoff_hz=self.cutoff_hz, taper=self.taper,
-                                 z=column(seg, "z_tip", where))  # fmt: skip
+                                 p["q2"], cutoff_hz=self.cutoff_hz, taper=self.taper, z=z)  # fmt: skip
             if out is not None:
                 return out
         f = self(seg, where)
-        return f, first_contact_minimum(f, self.noise.noise_rms if self.noise is not None else 0.0,
-                                        z=column(seg, "z_tip", where))  # fmt: skip
+        return f, first_contact_minimum(f, self.noise.noise_rms if self.noise is not None else 0.0, z=z)
 
     def _probe(self) -> dict:
         p = {
