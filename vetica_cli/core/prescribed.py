@@ -132,7 +132,7 @@ def coefficient_tangents(k_inf, k0, cd, hr6, a0, vdw_on_surface, dt):
     return c, dc
 
 
-@njit(cache=True, inline="always", fastmath={"contract"}, error_model="numpy")
+@njit(cache=True, inline="always", error_model="numpy")
 def _noncontact(d, xd, fa, hr6, ihr6, c, dc, dir0, ndir, dxd, dx, dfa, ds0, dlnhr6):
     """One non-contact update (:func:`.sls.noncontact_update`) at gap ``d`` with the
     coefficients ``c`` of its step, and its tangent: ``dfa``, ``dx``, ``dxd`` updated
@@ -146,7 +146,7 @@ def _noncontact(d, xd, fa, hr6, ihr6, c, dc, dir0, ndir, dxd, dx, dfa, ds0, dlnh
     return fa, x, xd_new
 
 
-@njit(cache=True, inline="always", fastmath={"contract"}, error_model="numpy")
+@njit(cache=True, inline="always", error_model="numpy")
 def _contact(xc, xp, xd, c, dc, dir0, ndir, dxd, dx, dfa, ds0):
     """One contact update with the surface at ``xc``, moving linearly from ``xp`` (the last
     sample's position) across the step (the simulator's linear-target step), and its tangent;
@@ -174,7 +174,7 @@ def _contact(xc, xp, xd, c, dc, dir0, ndir, dxd, dx, dfa, ds0):
     return -f_sls - c[C_FAC], f_sls, xc, xd_new, False
 
 
-@njit(cache=True, fastmath={"contract"}, error_model="numpy")
+@njit(cache=True, error_model="numpy")
 def surface_force(
     z, s0, k_inf, k0, cd, hr6, a0, vdw_on_surface, h,
     block, coarse_ok, want, far_gap, substeps, sub_gap,
@@ -440,7 +440,7 @@ def arm_coefficients(k_inf, k, cd, hr6, a0, vdw_on_surface, steps, tangents=True
     return arm, emi, sc, darm, demi, dsc
 
 
-@njit(cache=True, fastmath={"contract"}, error_model="numpy")
+@njit(cache=True, error_model="numpy")
 def arms_force(
     z, s0, a0, block, coarse_ok, want, far_gap, substeps, sub_gap,
     xd0, contact0, ndir, arm3, emi3, sc3, darm3, demi3, dsc3, out_f, out_jac,
@@ -586,7 +586,7 @@ def arms_force(
     return xd, x, contact, dxd, k, contacts, separations, coarse_steps
 
 
-@njit(cache=True, inline="always", fastmath={"contract"}, error_model="numpy")
+@njit(cache=True, inline="always", error_model="numpy")
 def _arms_noncontact(d, xd, fa, hr6, ihr6, c, arm3, emi3, sc3, darm3, demi3, dsc3, ndir, dxd, dx, dfa, ds0, dlnhr6,
                      xd_new, dxd_new):  # fmt: skip
     """One non-contact update at gap ``d`` with the coefficients of step ``c`` (see
@@ -622,7 +622,7 @@ def _arms_noncontact(d, xd, fa, hr6, ihr6, c, arm3, emi3, sc3, darm3, demi3, dsc
     return fa, x
 
 
-@njit(cache=True, inline="always", fastmath={"contract"}, error_model="numpy")
+@njit(cache=True, inline="always", error_model="numpy")
 def _arms_contact(xc, xp, xd, c, arm3, sc3, darm3, dsc3, ndir, dxd, dx, dfa, ds0, xd_new, dxd_new):
     """One contact update with the surface at ``xc`` (coefficients of step ``c``) and its
     tangent; ``dfa`` receives ``d(F_sls + fa_c)``.  On separation (``F_sls > sep_thr``) the
