@@ -63,8 +63,7 @@ def fit_checks(method, res: ExtractionResult, record, options: dict, info: dict)
     est = res.estimates
     val = {k: e.value for k, e in est.items()}
     fit = res.info.get("fit") or {}
-    # the residual less the fitted surface's own band smear, where the force is low-passed (the model's force is not)
-    pct = fit.get("misfit_rms_pct", fit.get("residual_rms_pct"))
+    pct = fit.get("residual_rms_pct")
     if pct is not None:
         rms = pct / 100.0 * peak
         info["residual_n"] = rms

@@ -697,8 +697,6 @@ class FullFit(ExtractionMethod):
             "misfit": {k: finite_or_none(v) for k, v in sigma_misfit.items()},
         }  # fmt: skip
         info["fit"]["vdw_on_surface"] = vdw
-        # the residual less the fitted surface's own band smear (what the residual check holds against the noise)
-        info["fit"]["misfit_rms_pct"] = 100.0 * rms_model
         info["constants"] = _constants_info(consts, opts, model, fit, vdw, hr)
         rms_pct = info["fit"]["residual_rms_pct"]
         if rms_pct > 1.0:
