@@ -642,3 +642,25 @@ def test_an_arm_faster_than_the_loading_is_fitted_from_the_slope_read_as_k_inf(m
     monkeypatch.setattr(fm, "FAST_ARM_RETRY", False)
     off = extract(df, meta, **opts)
     assert off.estimates["k0"].value > 100 * 128.0
+
+
+@pytest.mark.slow
+def test_an_arm_faster_than_a_few_samples_is_found_by_the_profile_of_its_spring_and_the_height(monkeypatch):
+    """16:1 (k_inf 4, k0 64 N/m), cd 1e-7 kg/s: the arm relaxes in 1.6 ns, 13 samples of 0.125 ns (the lowest
+    point of configs/method_low_cd.yaml), noise-free, true force.  Every start of the fit found cd within 4 % with
+    k0 -97 % and the height 17 pm off, at 0.54 % of the peak (under the 1 % the residual check allows: unflagged);
+    the right valley is narrow in the arm's spring and the height together.  From the best of the two profiled at
+    the fitted cd (ARM_PROFILE_RETRY): k0, k_inf, cd within 0.1 % (measured 0.02, 0.00, 0.003 %).  The control,
+    without it: k0 more than 50 % off."""
+    import vetica_cli.extraction.fullfit.method as fm
+
+    run = simulate(load(None, {"surface.k_inf": 4.0, "surface.stiffness_ratio": 16, "surface.cd": 1e-7,
+                               "numerics.print_step": 0.125e-9, "numerics.record_cycles": 4}))  # fmt: skip
+    df, meta = run.frame(), run.metadata()
+    res = extract(df, meta, force="true", method="full")
+    assert res.info["fit"]["arm_profile"] is True
+    for q in ("k0", "k_inf", "cd"):
+        assert abs(res.estimates[q].error_pct) < 0.1, (q, res.estimates[q].error_pct)
+    monkeypatch.setattr(fm, "ARM_PROFILE_RETRY", False)
+    off = extract(df, meta, force="true", method="full")
+    assert abs(off.estimates["k0"].error_pct) > 50.0, off.estimates["k0"].error_pct
