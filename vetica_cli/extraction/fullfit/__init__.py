@@ -113,8 +113,11 @@ Choices (see the module functions for details):
   points in the order of their cost until one is not poor; then from the generic
   split; then from ``k_inf`` = the loading slope under an arm 4, 16 or 64 times
   stiffer (an arm faster than a tap's loading has relaxed during it: the slope is
-  k_inf, not Kg) (the best kept each time: ``method.POOR_FIT``, ``POOR_STARTS``,
-  ``GENERIC_RETRY``, ``FAST_ARM_RETRY``).  A first-period fit that ends on the frozen plateau (cd beyond
+  k_inf, not Kg); then, from 0.4 % of the peak, from the best of the arm's spring and the
+  surface height profiled at its dashpot (an arm that relaxes within a few samples shows its
+  spring only in the impact: a valley narrow in both) (the best kept each time:
+  ``method.POOR_FIT``, ``POOR_STARTS``, ``GENERIC_RETRY``, ``FAST_ARM_RETRY``,
+  ``ARM_PROFILE_RETRY``).  A first-period fit that ends on the frozen plateau (cd beyond
   the grid's end) is fitted again from the scan's best point below it
   (``FROZEN_RETRY``).
 * **Uncertainty.**  ``cov = s^2 (J^T J)^-1`` with ``s^2`` the residual
