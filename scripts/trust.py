@@ -42,10 +42,10 @@ The materials and seeds of a draw are not used by any test or other script until
 then it becomes a development draw (``tests/test_fullfit.py`` holds a draw-21 record,
 ``scripts/sigma_parts.py`` and ``scripts/approach_noise.py`` read any draw, ``tests/test_fit_z_noise.py``
 holds a draw-4 surface, ``tests/test_fullfit.py`` and ``tests/test_band_term.py`` a draw-30 replica,
-``tests/test_z1_reading.py`` a draw-33 surface).  Development has used draw seeds 1-33 (each version's held-out
-table became the next one's development draw; 33, the last version's, was re-read on this version with
-``scripts/sigma_parts.py``); the committed table (results/noise/trust.md, trust.parquet) is ``--draw-seed 34
---materials 6 --replicas 20``, run once on the final code; the next fresh seed is 35.
+``tests/test_z1_reading.py`` a draw-33 surface, ``tests/test_band_factor.py`` a draw-34 one).  Development has used
+draw seeds 1-34 (each version's held-out table became the next one's development draw); the committed table
+(results/noise/trust.md, trust.parquet) is ``--draw-seed 35 --materials 6 --replicas 20``, run once on the final
+code; the next fresh seed is 36.
 """
 
 from __future__ import annotations
