@@ -68,11 +68,13 @@ ORBIT_PERIODS = 20
 SCAN_START_S = 7.0
 # a pixel's record (observables, table, force) at the methods' reference size, 10 periods at 0.125 ns, one
 # force source; a record costs in proportion to its samples, as each method's seconds_per_point / 2, plus a
-# fixed part smaller than a sweep point's (no task or part file of its own): 0.003 puts the blend's and the
-# edge's pixel records at 0.070 s (the tap methods' compiled pass and the fit's speed-ups left little that
-# does not grow with the record)
+# fixed part smaller than a sweep point's (no task or part file of its own).  Re-measured on the committed blend
+# map of 2026-11-28 (928.8 s alone, where the constants of the version before, 0.003 and a 0.070 s pixel record,
+# estimated 630 s: the fit's band term, referee and checks had grown the part that does not grow with the record):
+# its rows' medians (VETICA and the fit, each with the pixel's simulation) give a drive period 0.61 ms and a pixel's
+# record with both extractions 0.105 s (the orbit pass) to 0.136 s (the transient passes); 0.039 puts it at 0.115 s
 SECONDS_PER_RECORD = 0.2
-PIXEL_FIXED_COST = 0.003
+PIXEL_FIXED_COST = 0.039
 
 
 @dataclass
