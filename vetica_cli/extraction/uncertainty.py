@@ -51,6 +51,7 @@ import math
 import numpy as np
 
 from .result import ExtractionResult, t_factor  # noqa: F401  (t_factor re-exported)
+from .sanity import BAND_FACTOR_MAX, correctable  # noqa: F401  (re-exported: the band term's limit)
 
 
 
@@ -280,21 +281,6 @@ def model_band(res: ExtractionResult, record, method, options, narrower=None, li
     removed = removed_by_quantity(res, step[1], removed_noise(record, step[0])) if step is not None else 0.0
     sigma = beyond_factor(bias, step_sigma(bias, d_rec, d_model, res, removed))
     return {"source": "model", "bias": bias, "sigma": sigma, "model_step": d_model, "record_step": d_rec}
-
-
-# a band correction by more than this factor either way (the low-passed model's answer under half or over twice its
-# whole-band answer) is trusted to no better than its own size: the band has not resolved the contact for that
-# quantity, and the steps to fc/sqrt(2) measure the model's response near fc, not that far from it.  A 300 K `lab`
-# record of a 239:7.4 N/m surface (peak force 4x its noise at 1.75 MHz; held-out draw 34) fitted k_g 159 N/m on the
-# record, its model's band said -99.9 %, both steps agreed within 2 % (sigma 0), and k_g went out as 1.5e5 N/m at a
-# 1-sigma of 29 %, unflagged; the truth 246.  Over the draw-34 table no other unflagged result had a band bias
-# beyond 1.5x (dmt-fit's adhesion, corrected by -35 % to within 1-3 %, the largest)
-BAND_FACTOR_MAX = 2.0
-
-
-def correctable(b: float) -> bool:
-    """Whether a band bias ``b`` is within :data:`BAND_FACTOR_MAX` either way (then divided out)."""
-    return b > -1.0 and abs(math.log1p(b)) <= math.log(BAND_FACTOR_MAX)
 
 
 def beyond_factor(bias: dict, sigma: dict) -> dict:
